@@ -1,0 +1,75 @@
+//! The library's error type.
+
+use std::fmt::Display;
+
+/// Everything that can go wrong in `vibrissa-core`.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum Error {
+    /// A parameter is outside its allowed range (or not finite).
+    #[error("invalid {name} = {value}: allowed is {allowed}")]
+    InvalidParameter {
+        /// Dotted name of the parameter, e.g. `whisker.length`.
+        name: String,
+        /// The offending value, as written.
+        value: String,
+        /// Human-readable allowed range.
+        allowed: String,
+    },
+    /// A simulation produced a non-finite or runaway value.
+    #[error("simulation diverged at t = {t:.6} s: {detail}")]
+    Diverged {
+        /// Simulated time of the step that failed, in s.
+        t: f64,
+        /// Where (segment, quantity) and what was seen.
+        detail: String,
+    },
+    /// An iterative solver did not reach its tolerance.
+    #[error("{what} did not converge: {detail}")]
+    NoConvergence {
+        /// The solver.
+        what: String,
+        /// Residual, iterations, hint.
+        detail: String,
+    },
+}
+
+impl Error {
+    /// Shorthand for [`Error::InvalidParameter`].
+    pub fn invalid(name: impl Into<String>, value: impl Display, allowed: impl Into<String>) -> Self {
+        Error::InvalidParameter {
+            name: name.into(),
+            value: value.to_string(),
+            allowed: allowed.into(),
+        }
+    }
+}
+
+/// Result alias of the library.
+pub type Result<T> = std::result::Result<T, Error>;
+
+/// Checks that `value` is finite and strictly positive.
+pub fn check_positive(name: &str, value: f64) -> Result<f64> {
+    if value.is_finite() && value > 0.0 {
+        Ok(value)
+    } else {
+        Err(Error::invalid(name, value, "a finite number > 0"))
+    }
+}
+
+/// Checks that `value` is finite and not negative.
+pub fn check_non_negative(name: &str, value: f64) -> Result<f64> {
+    if value.is_finite() && value >= 0.0 {
+        Ok(value)
+    } else {
+        Err(Error::invalid(name, value, "a finite number >= 0"))
+    }
+}
+
+/// Checks that `value` is finite.
+pub fn check_finite(name: &str, value: f64) -> Result<f64> {
+    if value.is_finite() {
+        Ok(value)
+    } else {
+        Err(Error::invalid(name, value, "a finite number"))
+    }
+}
