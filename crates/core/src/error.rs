@@ -35,7 +35,11 @@ pub enum Error {
 
 impl Error {
     /// Shorthand for [`Error::InvalidParameter`].
-    pub fn invalid(name: impl Into<String>, value: impl Display, allowed: impl Into<String>) -> Self {
+    pub fn invalid(
+        name: impl Into<String>,
+        value: impl Display,
+        allowed: impl Into<String>,
+    ) -> Self {
         Error::InvalidParameter {
             name: name.into(),
             value: value.to_string(),

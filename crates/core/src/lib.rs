@@ -1,7 +1,24 @@
 //! Whisker beam mechanics and a segment-chain whisker simulator.
+//!
+//! - [`beam`]: continuum Euler–Bernoulli references (small-deflection cubic, elastica,
+//!   clamped–free frequencies).
+//! - [`whisker`]: the whisker description and presets.
+//! - [`chain`]: the segment-chain discretisation ([`chain::Model`]).
+//! - [`dynamics`]: states, scratch and the time step.
+//! - [`sensors`]: the contract's observation channels.
+//! - [`batch`]: many states stepped in parallel against one model.
 #![warn(missing_docs)]
 
+pub mod batch;
 pub mod beam;
+pub mod chain;
+pub mod dynamics;
 pub mod error;
+pub mod rng;
+pub mod sensors;
+pub mod whisker;
 
+pub use chain::{Discretisation, Model};
+pub use dynamics::{BaseMotion, Inputs, Integrator, PointLoad, State, Stepper, Workspace};
 pub use error::{Error, Result};
+pub use whisker::{Whisker, WhiskerParams};
