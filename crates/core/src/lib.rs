@@ -16,6 +16,8 @@ pub mod dynamics;
 pub mod error;
 pub mod rng;
 pub mod sensors;
+pub mod statics;
+pub mod validate;
 pub mod whisker;
 
 pub use chain::{Discretisation, Model};
