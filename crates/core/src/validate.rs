@@ -8,8 +8,8 @@
 use crate::beam::{self, BeamProfile};
 use crate::chain::{Discretisation, Model};
 use crate::dynamics::{
-    self, initialize, kinetic_energy, momentum, potential_energy, step, Inputs, Integrator, PointLoad, State,
-    Workspace,
+    self, initialize, kinetic_energy, momentum, potential_energy, step, Inputs, Integrator,
+    PointLoad, State, Workspace,
 };
 use crate::error::Result;
 use crate::statics;
@@ -79,7 +79,16 @@ struct Group<'a> {
 impl Group<'_> {
     /// Records `value` against `reference`; the target (if any) bounds |error|.
     #[allow(clippy::too_many_arguments)]
-    fn add(&mut self, label: &str, quantity: &str, unit: &str, value: f64, reference: f64, eu: ErrorUnit, target: Option<f64>) {
+    fn add(
+        &mut self,
+        label: &str,
+        quantity: &str,
+        unit: &str,
+        value: f64,
+        reference: f64,
+        eu: ErrorUnit,
+        target: Option<f64>,
+    ) {
         let (error, name) = match eu {
             ErrorUnit::Relative => (value / reference - 1.0, "relative"),
             ErrorUnit::OfLength(l) => ((value - reference) / l, "fraction_of_length"),
@@ -109,7 +118,11 @@ fn target_at_20(d: Discretisation, n: usize, t: f64) -> Option<f64> {
 /// Runs the suite, calling `progress` with a line before each part.
 pub fn run(opts: &ValidateOptions, progress: &mut dyn FnMut(&str)) -> Result<Report> {
     let mut checks = Vec::new();
-    let ns: &[usize] = if opts.quick { &[5, 20] } else { &[5, 10, 20, 40] };
+    let ns: &[usize] = if opts.quick {
+        &[5, 20]
+    } else {
+        &[5, 10, 20, 40]
+    };
     progress("static small deflection vs the seed's cubic");
     static_small(ns, &mut checks)?;
     progress("large deflection vs the elastica");
@@ -136,13 +149,20 @@ fn w30_with(damping: Damping) -> Result<crate::whisker::Whisker> {
 /// A point load at arc length `s` (m) with force `f`.
 fn load_at(model: &Model, s: f64, f: [f64; 2]) -> Result<PointLoad> {
     let (segment, along) = model.locate(s)?;
-    Ok(PointLoad { segment, along, force: f })
+    Ok(PointLoad {
+        segment,
+        along,
+        force: f,
+    })
 }
 
 fn static_small(ns: &[usize], out: &mut Vec<Check>) -> Result<()> {
     let w = WhiskerParams::w30().check()?;
     let (l, ei) = (w.length(), w.ei(0.0));
-    let mut g = Group { name: "static_small", out };
+    let mut g = Group {
+        name: "static_small",
+        out,
+    };
     for d in DISCRETISATIONS {
         for &n in ns {
             let model = Model::new(&w, n, d)?;
@@ -153,8 +173,24 @@ fn static_small(ns: &[usize], out: &mut Vec<Check>) -> Result<()> {
                 let eq = statics::solve(&model, &[load_at(&model, c, [0.0, wload])?])?;
                 let label = format!("w30 {} N={n} C={cname}", d.name());
                 let t = target_at_20(d, n, 0.005);
-                g.add(&label, "tip deflection", "m", eq.nodes[n][1], cubic.deflection(l), ErrorUnit::Relative, t);
-                g.add(&label, "base moment m0", "N·m", eq.base_wrench[0], -wload * c, ErrorUnit::Relative, t);
+                g.add(
+                    &label,
+                    "tip deflection",
+                    "m",
+                    eq.nodes[n][1],
+                    cubic.deflection(l),
+                    ErrorUnit::Relative,
+                    t,
+                );
+                g.add(
+                    &label,
+                    "base moment m0",
+                    "N·m",
+                    eq.base_wrench[0],
+                    -wload * c,
+                    ErrorUnit::Relative,
+                    t,
+                );
             }
         }
     }
@@ -164,7 +200,10 @@ fn static_small(ns: &[usize], out: &mut Vec<Check>) -> Result<()> {
 fn large_deflection(ns: &[usize], out: &mut Vec<Check>) -> Result<()> {
     let w = WhiskerParams::w30().check()?;
     let (l, ei) = (w.length(), w.ei(0.0));
-    let mut g = Group { name: "large_deflection", out };
+    let mut g = Group {
+        name: "large_deflection",
+        out,
+    };
     for alpha in [1.0, 3.0, 10.0] {
         let f = [0.0, alpha * ei / (l * l)];
         let reference = beam::elastica(&w, f, l)?;
@@ -175,8 +214,24 @@ fn large_deflection(ns: &[usize], out: &mut Vec<Check>) -> Result<()> {
                 let eq = statics::solve(&model, &[load_at(&model, l, f)?])?;
                 let label = format!("w30 {} N={n} alpha={alpha}", d.name());
                 let t = target_at_20(d, n, 0.005);
-                g.add(&label, "tip x", "m", eq.nodes[n][0], tip[0], ErrorUnit::OfLength(l), t);
-                g.add(&label, "tip y", "m", eq.nodes[n][1], tip[1], ErrorUnit::OfLength(l), t);
+                g.add(
+                    &label,
+                    "tip x",
+                    "m",
+                    eq.nodes[n][0],
+                    tip[0],
+                    ErrorUnit::OfLength(l),
+                    t,
+                );
+                g.add(
+                    &label,
+                    "tip y",
+                    "m",
+                    eq.nodes[n][1],
+                    tip[1],
+                    ErrorUnit::OfLength(l),
+                    t,
+                );
             }
         }
     }
@@ -245,7 +300,13 @@ pub fn decay_ratio(t: &[f64], y: &[f64], freq: f64) -> Option<f64> {
 
 /// Free vibration in mode `k` (0-based) from a small modal amplitude: returns the sampled modal
 /// coordinate (t, η).
-fn free_vibration(model: &Model, k: usize, dt: f64, rho_inf: f64, duration: f64) -> Result<(Vec<f64>, Vec<f64>)> {
+fn free_vibration(
+    model: &Model,
+    k: usize,
+    dt: f64,
+    rho_inf: f64,
+    duration: f64,
+) -> Result<(Vec<f64>, Vec<f64>)> {
     let modes = model.modes()?;
     let shape = &modes.shapes[k];
     let m0 = model.mass_matrix(&model.rest);
@@ -259,12 +320,19 @@ fn free_vibration(model: &Model, k: usize, dt: f64, rho_inf: f64, duration: f64)
     let mut ws = Workspace::new(model);
     let inputs = Inputs::default();
     initialize(model, &mut state, &inputs, &mut ws)?;
-    let st = Integrator { dt, rho_inf }.check()?;
+    let st = Integrator {
+        dt,
+        rho_inf,
+        ..Default::default()
+    }
+    .check()?;
     let steps = (duration / dt).round() as usize;
     let (mut ts, mut ys) = (Vec::with_capacity(steps), Vec::with_capacity(steps));
     for _ in 0..steps {
         step(model, &st, &mut state, &inputs, &mut ws)?;
-        let eta: f64 = (0..model.n).map(|i| proj[i] * (state.q()[i] - model.rest[i])).sum();
+        let eta: f64 = (0..model.n)
+            .map(|i| proj[i] * (state.q()[i] - model.rest[i]))
+            .sum();
         ts.push(state.t);
         ys.push(eta);
     }
@@ -285,7 +353,10 @@ fn log_slope(ns: &[usize], errs: &[f64]) -> f64 {
 fn frequencies(ns: &[usize], out: &mut Vec<Check>) -> Result<()> {
     let w = w30_with(Damping::None)?;
     let reference = beam::clamped_free_uniform(w.ei(0.0), w.rho_a(0.0), w.length(), 3);
-    let mut g = Group { name: "frequency", out };
+    let mut g = Group {
+        name: "frequency",
+        out,
+    };
     let mut orders = Vec::new();
     for d in DISCRETISATIONS {
         let mut errs = vec![Vec::new(); 3];
@@ -300,15 +371,34 @@ fn frequencies(ns: &[usize], out: &mut Vec<Check>) -> Result<()> {
                 let f = crossing_frequency(&t, &y).unwrap_or(f64::NAN);
                 let label = format!("w30 {} N={n}", d.name());
                 let t20 = target_at_20(d, n, 0.005);
-                g.add(&label, &format!("f{} simulated", k + 1), "Hz", f, reference[k], ErrorUnit::Relative, t20);
-                g.add(&label, &format!("f{} eigen", k + 1), "Hz", eig[k], reference[k], ErrorUnit::Relative, None);
+                g.add(
+                    &label,
+                    &format!("f{} simulated", k + 1),
+                    "Hz",
+                    f,
+                    reference[k],
+                    ErrorUnit::Relative,
+                    t20,
+                );
+                g.add(
+                    &label,
+                    &format!("f{} eigen", k + 1),
+                    "Hz",
+                    eig[k],
+                    reference[k],
+                    ErrorUnit::Relative,
+                    None,
+                );
                 errs[k].push(f / reference[k] - 1.0);
             }
         }
         orders.push((d, errs));
     }
     if ns.len() >= 3 {
-        let mut g = Group { name: "convergence", out: g.out };
+        let mut g = Group {
+            name: "convergence",
+            out: g.out,
+        };
         for (d, errs) in orders {
             for (k, e) in errs.iter().enumerate() {
                 // Order of convergence: minus the slope of log|error| against log N; at least 2
@@ -316,7 +406,15 @@ fn frequencies(ns: &[usize], out: &mut Vec<Check>) -> Result<()> {
                 let order = -log_slope(ns, e);
                 let target = (d == Discretisation::Gregory).then_some(f64::INFINITY);
                 let label = format!("w30 {} N={:?}", d.name(), ns);
-                g.add(&label, &format!("order of f{} error", k + 1), "1", order, 2.0, ErrorUnit::Absolute, target);
+                g.add(
+                    &label,
+                    &format!("order of f{} error", k + 1),
+                    "1",
+                    order,
+                    2.0,
+                    ErrorUnit::Absolute,
+                    target,
+                );
                 if let Some(c) = g.out.last_mut() {
                     c.pass = c.pass.map(|_| order >= 1.9);
                 }
@@ -327,7 +425,10 @@ fn frequencies(ns: &[usize], out: &mut Vec<Check>) -> Result<()> {
 }
 
 fn tapered(out: &mut Vec<Check>) -> Result<()> {
-    let mut g = Group { name: "tapered", out };
+    let mut g = Group {
+        name: "tapered",
+        out,
+    };
     let mut rat = WhiskerParams::rat();
     rat.rest_curvature = 0.0;
     for (name, mut p) in [("robot", WhiskerParams::robot()), ("rat (straight)", rat)] {
@@ -340,14 +441,25 @@ fn tapered(out: &mut Vec<Check>) -> Result<()> {
             let (t, y) = free_vibration(&model, 0, dt, 1.0, 30.0 / reference)?;
             let f = crossing_frequency(&t, &y).unwrap_or(f64::NAN);
             let target = (n == 20).then_some(0.01);
-            g.add(&format!("{name} gregory N={n}"), "f1 simulated", "Hz", f, reference, ErrorUnit::Relative, target);
+            g.add(
+                &format!("{name} gregory N={n}"),
+                "f1 simulated",
+                "Hz",
+                f,
+                reference,
+                ErrorUnit::Relative,
+                target,
+            );
         }
     }
     Ok(())
 }
 
 fn base_reaction(out: &mut Vec<Check>) -> Result<()> {
-    let mut g = Group { name: "base_reaction", out };
+    let mut g = Group {
+        name: "base_reaction",
+        out,
+    };
     let w = WhiskerParams::w30().check()?;
     let l = w.length();
     let model = Model::new(&w, 20, Discretisation::Gregory)?;
@@ -371,39 +483,82 @@ fn base_reaction(out: &mut Vec<Check>) -> Result<()> {
     let moment = p[0] * f[1] - p[1] * f[0];
     let label = "w30 gregory N=20, oblique load at 0.7 L, settled 3 s";
     let scale_f = f[0].hypot(f[1]);
-    g.add(label, "m0 + (p × F)", "N·m", state.base_wrench[0] + moment, 0.0, ErrorUnit::Absolute, None);
-    g.add(label, "|m0| vs |p × F|", "N·m", -state.base_wrench[0], moment, ErrorUnit::Relative, Some(1e-6));
-    g.add(label, "fx vs -Fx", "N", state.base_wrench[1], -f[0], ErrorUnit::OfLength(scale_f), Some(1e-6));
-    g.add(label, "fy vs -Fy", "N", state.base_wrench[2], -f[1], ErrorUnit::OfLength(scale_f), Some(1e-6));
+    g.add(
+        label,
+        "m0 + (p × F)",
+        "N·m",
+        state.base_wrench[0] + moment,
+        0.0,
+        ErrorUnit::Absolute,
+        None,
+    );
+    g.add(
+        label,
+        "|m0| vs |p × F|",
+        "N·m",
+        -state.base_wrench[0],
+        moment,
+        ErrorUnit::Relative,
+        Some(1e-6),
+    );
+    g.add(
+        label,
+        "fx vs -Fx",
+        "N",
+        state.base_wrench[1],
+        -f[0],
+        ErrorUnit::OfLength(scale_f),
+        Some(1e-6),
+    );
+    g.add(
+        label,
+        "fy vs -Fy",
+        "N",
+        state.base_wrench[2],
+        -f[1],
+        ErrorUnit::OfLength(scale_f),
+        Some(1e-6),
+    );
 
     // Dynamic: released from a large deflection, undamped; the base wrench must equal the rate of
     // change of the chain's momentum (no other forces act). Central differences, small step.
     let w = w30_with(Damping::None)?;
     let model = Model::new(&w, 20, Discretisation::Gregory)?;
-    let eq = statics::solve(&model, &[load_at(&model, l, [0.0, 3.0 * w.ei(0.0) / (l * l)])?])?;
+    let eq = statics::solve(
+        &model,
+        &[load_at(&model, l, [0.0, 3.0 * w.ei(0.0) / (l * l)])?],
+    )?;
     let mut state = State::at_rest(&model, 0);
     state.q_mut().copy_from_slice(&eq.q);
     let inputs = Inputs::default();
     initialize(&model, &mut state, &inputs, &mut ws)?;
-    let st = Integrator { dt: 1e-6, rho_inf: 1.0 }.check()?;
+    let st = Integrator {
+        dt: 1e-6,
+        rho_inf: 1.0,
+        ..Default::default()
+    }
+    .check()?;
     let (mut worst, mut scale) = (0.0f64, 0.0f64);
     let mut prev = momentum(&model, &state, &mut ws);
-    let mut wrench_prev = state.base_wrench;
+    let mut w_prev = state.base_wrench_intermediate();
+    let af = st.alpha_f();
     for k in 0..20_000 {
         step(&model, &st, &mut state, &inputs, &mut ws)?;
         let now = momentum(&model, &state, &mut ws);
-        if k % 10 == 0 {
-            // Wrench at the midpoint of the interval against the momentum difference over it.
+        let w_now = state.base_wrench_intermediate();
+        if k % 10 == 1 {
+            // The method balances forces at t_n + (1 - αf)·h; interpolate the base wrench to the
+            // middle of the step, where the momentum difference over the step is centred.
             for c in 0..3 {
+                let w = w_prev[c] + (0.5 + af) * (w_now[c] - w_prev[c]);
                 let rate = (now[c] - prev[c]) / st.dt;
-                let mid = 0.5 * (state.base_wrench[c] + wrench_prev[c]);
                 let s = if c == 0 { 1.0 } else { l };
-                worst = worst.max(((rate - mid) * s).abs());
-                scale = scale.max((mid * s).abs());
+                worst = worst.max(((rate - w) * s).abs());
+                scale = scale.max((w * s).abs());
             }
         }
         prev = now;
-        wrench_prev = state.base_wrench;
+        w_prev = w_now;
     }
     g.add(
         "w30 gregory N=20 undamped, released from alpha=3, 20 ms at dt=1e-6",
@@ -418,7 +573,10 @@ fn base_reaction(out: &mut Vec<Check>) -> Result<()> {
 }
 
 fn step_accuracy(quick: bool, out: &mut Vec<Check>) -> Result<()> {
-    let mut g = Group { name: "time_step", out };
+    let mut g = Group {
+        name: "time_step",
+        out,
+    };
     let w = w30_with(Damping::None)?;
     let f1 = beam::clamped_free_uniform(w.ei(0.0), w.rho_a(0.0), w.length(), 1)[0];
     let model = Model::new(&w, 20, Discretisation::Gregory)?;
@@ -427,21 +585,50 @@ fn step_accuracy(quick: bool, out: &mut Vec<Check>) -> Result<()> {
         let (t, y) = free_vibration(&model, 0, dt, dynamics::DEFAULT_RHO_INF, duration)?;
         let f = crossing_frequency(&t, &y).unwrap_or(f64::NAN);
         let z = decay_ratio(&t, &y, f).unwrap_or(f64::NAN);
-        let label = format!("w30 gregory N=20 undamped, dt={dt}, rho_inf={}", dynamics::DEFAULT_RHO_INF);
+        let label = format!(
+            "w30 gregory N=20 undamped, dt={dt}, rho_inf={}",
+            dynamics::DEFAULT_RHO_INF
+        );
         let target = (dt == 5e-4).then_some(0.01);
-        g.add(&label, "f1 simulated", "Hz", f, f1, ErrorUnit::Relative, target);
+        g.add(
+            &label,
+            "f1 simulated",
+            "Hz",
+            f,
+            f1,
+            ErrorUnit::Relative,
+            target,
+        );
         let tz = (dt == 5e-4).then_some(0.005);
-        g.add(&label, "numerical first-mode damping ratio", "1", z, 0.0, ErrorUnit::Absolute, tz);
+        g.add(
+            &label,
+            "numerical first-mode damping ratio",
+            "1",
+            z,
+            0.0,
+            ErrorUnit::Absolute,
+            tz,
+        );
     }
     Ok(())
 }
 
 fn stability(quick: bool, out: &mut Vec<Check>) -> Result<()> {
-    let mut g = Group { name: "stability", out };
-    let ns: &[usize] = if quick { &[10, 100] } else { &[10, 20, 50, 100] };
+    let mut g = Group {
+        name: "stability",
+        out,
+    };
+    let ns: &[usize] = if quick {
+        &[10, 100]
+    } else {
+        &[10, 20, 50, 100]
+    };
     let duration = if quick { 1.0 } else { 10.0 };
     for &n in ns {
-        for (dname, damping) in [("undamped", Damping::None), ("damped", Damping::ModalRatio { ratio: 0.05 })] {
+        for (dname, damping) in [
+            ("undamped", Damping::None),
+            ("damped", Damping::ModalRatio { ratio: 0.05 }),
+        ] {
             let w = w30_with(damping)?;
             let l = w.length();
             let model = Model::new(&w, n, Discretisation::Gregory)?;
@@ -453,31 +640,53 @@ fn stability(quick: bool, out: &mut Vec<Check>) -> Result<()> {
                 let mut ws = Workspace::new(&model);
                 let inputs = Inputs::default();
                 initialize(&model, &mut state, &inputs, &mut ws)?;
-                let st = Integrator {
-                    dt,
-                    rho_inf: dynamics::DEFAULT_RHO_INF,
-                }
-                .check()?;
+                let st = Integrator::with_dt(dt).check()?;
                 let e0 = potential_energy(&model, &state);
                 let mut emax = e0;
                 let steps = (duration / dt).round() as usize;
                 for k in 0..steps {
                     step(&model, &st, &mut state, &inputs, &mut ws)?;
                     if k % 10 == 0 {
-                        let e = potential_energy(&model, &state) + kinetic_energy(&model, &state, &mut ws);
+                        let e = potential_energy(&model, &state)
+                            + kinetic_energy(&model, &state, &mut ws);
                         emax = emax.max(e);
                     }
                 }
-                let e_end = potential_energy(&model, &state) + kinetic_energy(&model, &state, &mut ws);
+                let e_end =
+                    potential_energy(&model, &state) + kinetic_energy(&model, &state, &mut ws);
                 let label = format!("w30 gregory N={n} {dname} dt={dt} {duration} s");
                 // Bounded: energy never exceeds its initial value by more than 1%.
-                g.add(&label, "max energy / initial", "1", emax / e0, 1.0, ErrorUnit::Relative, Some(0.01));
+                g.add(
+                    &label,
+                    "max energy / initial",
+                    "1",
+                    emax / e0,
+                    1.0,
+                    ErrorUnit::Relative,
+                    Some(0.01),
+                );
                 let target = (dname == "undamped" && dt == 1e-4).then_some(0.01);
                 let quantity = "final energy / initial";
                 if dname == "undamped" {
-                    g.add(&label, quantity, "1", e_end / e0, 1.0, ErrorUnit::Relative, target);
+                    g.add(
+                        &label,
+                        quantity,
+                        "1",
+                        e_end / e0,
+                        1.0,
+                        ErrorUnit::Relative,
+                        target,
+                    );
                 } else {
-                    g.add(&label, quantity, "1", e_end / e0, 0.0, ErrorUnit::Absolute, None);
+                    g.add(
+                        &label,
+                        quantity,
+                        "1",
+                        e_end / e0,
+                        0.0,
+                        ErrorUnit::Absolute,
+                        None,
+                    );
                 }
             }
         }
