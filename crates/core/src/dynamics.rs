@@ -651,6 +651,7 @@ pub fn initialize(
     ws: &mut Workspace,
 ) -> Result<()> {
     let n = model.n;
+    check_inputs(model, inputs)?;
     state.base = inputs.base;
     ws.evaluate(model, state);
     ws.draw_noise(model, inputs.noise, &mut state.rng.clone(), MAX_DT);
@@ -688,6 +689,7 @@ pub fn step_with<F: Forcing + ?Sized>(
     forcing: &mut F,
 ) -> Result<()> {
     let n = model.n;
+    check_inputs(model, inputs)?;
     let h = st.dt;
     let t_next = state.t + h;
     let (am, af, beta, gamma) = (st.alpha_m, st.alpha_f, st.beta, st.gamma);
@@ -775,6 +777,29 @@ pub fn step_with<F: Forcing + ?Sized>(
     state.t = t_next;
     state.base = inputs.base;
     check_state(state, model)
+}
+
+/// Checks a step's inputs: finite base motion and noise, loads on existing segments.
+fn check_inputs(model: &Model, inputs: &Inputs) -> Result<()> {
+    let b = inputs.base;
+    if !(b.angle.is_finite() && b.rate.is_finite() && b.accel.is_finite()) {
+        return Err(Error::invalid(
+            "base motion",
+            format!("{b:?}"),
+            "finite angle, rate and acceleration",
+        ));
+    }
+    if !(inputs.noise.is_finite() && inputs.noise >= 0.0) {
+        return Err(Error::invalid(
+            "noise",
+            inputs.noise,
+            "a finite intensity >= 0",
+        ));
+    }
+    if !inputs.loads.is_empty() {
+        crate::statics::check_loads(model, inputs.loads)?;
+    }
+    Ok(())
 }
 
 /// Stage boundary check: every value finite, no joint folded past π from rest.
