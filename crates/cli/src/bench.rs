@@ -1,0 +1,388 @@
+//! `vibrissa bench`: how fast the segment chain steps on this machine.
+//!
+//! Three figures:
+//! - single state on one thread, for several segment counts N: steps per second and the cost of
+//!   one step per segment (constant if the step is O(N));
+//! - a batch of states against one model on every core, and the same batch on one thread, for
+//!   the parallel speedup;
+//! - the ratio of the per-segment cost at the largest N to that at the smallest.
+//!
+//! Every measurement warms up, sizes its repetitions to a minimum duration, and keeps the best of
+//! several repetitions (the least disturbed by other work on the machine). States restart from
+//! the same initial condition before each timed call, so the motion being stepped stays of the
+//! same size however long the measurement runs.
+
+use crate::output::{grouped, sig, Align, FormatArgs, Render, Table};
+use anyhow::{Context, Result};
+use clap::builder::PossibleValuesParser;
+use serde::Serialize;
+use std::hint::black_box;
+use std::io::{self, Write};
+use std::time::{Duration, Instant};
+use vibrissa_core::batch;
+use vibrissa_core::chain::DISCRETISATIONS;
+use vibrissa_core::dynamics;
+use vibrissa_core::whisker::PRESETS;
+use vibrissa_core::{Discretisation, Inputs, Integrator, Model, State, WhiskerParams, Workspace};
+
+/// Arguments of `vibrissa bench`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    #[command(flatten)]
+    format: FormatArgs,
+    /// Much shorter measurements (a smoke test; the figures are rough).
+    #[arg(long)]
+    quick: bool,
+    /// Whisker preset to step.
+    #[arg(long, value_name = "PRESET", default_value = "w30",
+          value_parser = PossibleValuesParser::new(PRESETS))]
+    whisker: String,
+    /// Rule that sets the joint stiffnesses.
+    #[arg(long, value_name = "RULE", default_value = Discretisation::default().name(),
+          value_parser = PossibleValuesParser::new(DISCRETISATIONS))]
+    discretisation: String,
+}
+
+/// Segment counts of the single-state measurement, ascending.
+const SEGMENTS: [usize; 4] = [10, 20, 50, 100];
+/// Segment count of the batched measurement.
+const BATCH_SEGMENTS: usize = 20;
+/// Time step, s.
+const DT: f64 = 1.0e-4;
+/// Largest joint amplitude of the initial first-mode vibration, rad.
+const AMPLITUDE: f64 = 1.0e-3;
+
+/// How long and how often to measure.
+#[derive(Debug, Clone, Copy)]
+struct Plan {
+    /// Untimed running before a measurement.
+    warmup: Duration,
+    /// Shortest duration of one timed repetition.
+    repetition: Duration,
+    /// Repetitions; the fastest one counts.
+    repetitions: usize,
+    /// Steps per timed call for a single state (the state restarts between calls).
+    steps: usize,
+    /// States in the batch.
+    batch_states: usize,
+    /// Steps of every state per timed call of the batch.
+    batch_steps: usize,
+}
+
+impl Plan {
+    fn new(quick: bool) -> Plan {
+        if quick {
+            Plan {
+                warmup: Duration::from_millis(5),
+                repetition: Duration::from_millis(20),
+                repetitions: 3,
+                steps: 100,
+                batch_states: 100,
+                batch_steps: 10,
+            }
+        } else {
+            Plan {
+                warmup: Duration::from_millis(200),
+                repetition: Duration::from_millis(500),
+                repetitions: 3,
+                steps: 1000,
+                batch_states: 1000,
+                batch_steps: 100,
+            }
+        }
+    }
+}
+
+/// Single-state speed at one segment count.
+#[derive(Debug, Clone, Serialize)]
+struct Single {
+    /// Segment count N.
+    segments: usize,
+    /// Steps per second.
+    steps_per_second: f64,
+    /// Seconds per step.
+    seconds_per_step: f64,
+    /// Seconds per step divided by N.
+    seconds_per_step_per_segment: f64,
+}
+
+/// Batched throughput on all threads and on one.
+#[derive(Debug, Clone, Serialize)]
+struct Batched {
+    /// Segment count N of every state.
+    segments: usize,
+    /// States stepped together.
+    states: usize,
+    /// Threads of the parallel run.
+    threads: usize,
+    /// State-steps per second on all threads.
+    state_steps_per_second: f64,
+    /// Seconds per state-step on all threads.
+    seconds_per_state_step: f64,
+    /// State-steps per second on one thread.
+    single_thread_state_steps_per_second: f64,
+    /// Seconds per state-step on one thread.
+    single_thread_seconds_per_state_step: f64,
+    /// Parallel throughput over one-thread throughput.
+    speedup: f64,
+}
+
+/// How the cost of a step grows with N.
+#[derive(Debug, Clone, Serialize)]
+struct Scaling {
+    /// Smallest N measured.
+    from_segments: usize,
+    /// Largest N measured.
+    to_segments: usize,
+    /// Seconds per step per segment at the largest N over that at the smallest (1 for a step
+    /// that is exactly O(N)).
+    ratio: f64,
+}
+
+/// Everything `vibrissa bench` measured, in SI units.
+#[derive(Debug, Clone, Serialize)]
+struct BenchReport {
+    /// Whisker preset.
+    whisker: String,
+    /// Stiffness rule.
+    discretisation: &'static str,
+    /// Time step, s.
+    dt: f64,
+    /// Generalized-α spectral radius at infinite frequency.
+    rho_inf: f64,
+    /// Whether the short plan was used.
+    quick: bool,
+    /// Whether this binary was built with optimisations (figures from a debug build mean little).
+    optimised: bool,
+    /// Threads in the machine's default pool.
+    threads: usize,
+    /// Single state, one thread, per N.
+    single: Vec<Single>,
+    /// Batch of states.
+    batch: Batched,
+    /// Growth of the per-segment cost with N.
+    scaling: Scaling,
+}
+
+/// Measures, then prints the figures.
+pub fn run(args: &Args) -> Result<()> {
+    let plan = Plan::new(args.quick);
+    let optimised = !cfg!(debug_assertions);
+    if !optimised {
+        eprintln!("warning: this is a debug build; build with --release for meaningful figures");
+    }
+
+    // The whisker, the stiffness rule and the time stepper.
+    let whisker = WhiskerParams::preset(&args.whisker)?
+        .check()
+        .with_context(|| format!("whisker preset {}", args.whisker))?;
+    let discretisation = Discretisation::from_name(&args.discretisation)?;
+    let stepper = Integrator {
+        dt: DT,
+        ..Integrator::default()
+    }
+    .check()?;
+    let inputs = Inputs::default();
+    let threads = rayon::current_num_threads();
+
+    // A model at `n` segments and a state passing through its rest shape with the joint rates
+    // of a first-mode vibration of amplitude `AMPLITUDE`: free motion of the lowest mode, as a
+    // released or flicked whisker shows.
+    let setup = |n: usize| -> Result<(Model, State)> {
+        let model = Model::new(&whisker, n, discretisation)?;
+        let modes = model.modes()?;
+        let shape = &modes.shapes[0];
+        let peak = shape.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        let omega = 2.0 * std::f64::consts::PI * modes.frequencies[0];
+        let mut state = State::at_rest(&model, 0);
+        for (v, x) in state.v_mut().iter_mut().zip(shape) {
+            *v = omega * AMPLITUDE * x / peak;
+        }
+        let mut ws = Workspace::new(&model);
+        dynamics::initialize(&model, &mut state, &inputs, &mut ws)?;
+        Ok((model, state))
+    };
+
+    // (a) One state on one thread, for every N.
+    let mut single = Vec::with_capacity(SEGMENTS.len());
+    for &n in &SEGMENTS {
+        eprintln!("bench: single state, N = {n}");
+        let (model, initial) = setup(n)?;
+        let mut state = initial.clone();
+        let mut ws = Workspace::new(&model);
+        let per_call = best_seconds_per_call(&plan, || {
+            state.clone_from(&initial);
+            let start = Instant::now();
+            for _ in 0..plan.steps {
+                dynamics::step(&model, &stepper, &mut state, &inputs, &mut ws)?;
+            }
+            black_box(&mut state);
+            Ok(start.elapsed())
+        })
+        .with_context(|| format!("single-state run at N = {n}"))?;
+        let seconds_per_step = per_call / plan.steps as f64;
+        single.push(Single {
+            segments: n,
+            steps_per_second: 1.0 / seconds_per_step,
+            seconds_per_step,
+            seconds_per_step_per_segment: seconds_per_step / n as f64,
+        });
+    }
+
+    // (b) A batch of states against one model, on every thread and then on one.
+    let (model, initial) = setup(BATCH_SEGMENTS)?;
+    let initial = vec![initial; plan.batch_states];
+    let mut states = initial.clone();
+    let mut batch_call = || -> Result<Duration> {
+        states.clone_from(&initial);
+        let start = Instant::now();
+        batch::step_all(&model, &stepper, &mut states, &inputs, plan.batch_steps)?;
+        black_box(&mut states);
+        Ok(start.elapsed())
+    };
+    eprintln!(
+        "bench: batch of {} states, N = {BATCH_SEGMENTS}, {threads} threads",
+        plan.batch_states
+    );
+    let parallel =
+        best_seconds_per_call(&plan, &mut batch_call).context("batched run on all threads")?;
+    eprintln!(
+        "bench: batch of {} states, N = {BATCH_SEGMENTS}, 1 thread",
+        plan.batch_states
+    );
+    let one_thread = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .context("could not start a one-thread pool")?
+        .install(|| best_seconds_per_call(&plan, &mut batch_call))
+        .context("batched run on one thread")?;
+    let state_steps = (plan.batch_states * plan.batch_steps) as f64;
+    let batch = Batched {
+        segments: BATCH_SEGMENTS,
+        states: plan.batch_states,
+        threads,
+        state_steps_per_second: state_steps / parallel,
+        seconds_per_state_step: parallel / state_steps,
+        single_thread_state_steps_per_second: state_steps / one_thread,
+        single_thread_seconds_per_state_step: one_thread / state_steps,
+        speedup: one_thread / parallel,
+    };
+
+    // (c) Growth of the per-segment cost from the smallest to the largest N.
+    let (first, last) = (&single[0], &single[single.len() - 1]);
+    let scaling = Scaling {
+        from_segments: first.segments,
+        to_segments: last.segments,
+        ratio: last.seconds_per_step_per_segment / first.seconds_per_step_per_segment,
+    };
+
+    let report = BenchReport {
+        whisker: args.whisker.clone(),
+        discretisation: discretisation.name(),
+        dt: stepper.dt,
+        rho_inf: stepper.rho_inf,
+        quick: args.quick,
+        optimised,
+        threads,
+        single,
+        batch,
+        scaling,
+    };
+    args.format.format().print(&report)?;
+    Ok(())
+}
+
+/// Best (shortest) seconds per call of `call` over the plan's repetitions. `call` does one unit
+/// of work and returns the duration of its timed part (its untimed part resets the state).
+fn best_seconds_per_call(plan: &Plan, mut call: impl FnMut() -> Result<Duration>) -> Result<f64> {
+    // Warm up caches, branch predictors and the CPU clock, and estimate the cost of a call.
+    let start = Instant::now();
+    let (mut calls, mut spent) = (0u32, Duration::ZERO);
+    while calls == 0 || start.elapsed() < plan.warmup {
+        spent += call()?;
+        calls += 1;
+    }
+    let estimate = (spent.as_secs_f64() / f64::from(calls)).max(1e-9);
+
+    // Calls per repetition so that one repetition lasts at least `plan.repetition`.
+    let per_repetition = ((plan.repetition.as_secs_f64() / estimate).ceil() as u32).max(1);
+
+    // The fastest repetition.
+    let mut best = f64::INFINITY;
+    for _ in 0..plan.repetitions {
+        let mut total = Duration::ZERO;
+        for _ in 0..per_repetition {
+            total += call()?;
+        }
+        best = best.min(total.as_secs_f64() / f64::from(per_repetition));
+    }
+    Ok(best)
+}
+
+impl Render for BenchReport {
+    fn render(&self, out: &mut dyn Write) -> io::Result<()> {
+        writeln!(
+            out,
+            "whisker {}, {} stiffness, dt = {} s, rho_inf = {}, {} threads{}{}",
+            self.whisker,
+            self.discretisation,
+            self.dt,
+            self.rho_inf,
+            self.threads,
+            if self.quick { ", quick" } else { "" },
+            if self.optimised { "" } else { ", DEBUG BUILD" },
+        )?;
+        writeln!(out)?;
+
+        // Single state.
+        writeln!(out, "single state, one thread")?;
+        let mut table = Table::new(&[
+            ("N", Align::Right),
+            ("steps/s", Align::Right),
+            ("µs/step", Align::Right),
+            ("ns/step/segment", Align::Right),
+        ]);
+        for s in &self.single {
+            table.row(vec![
+                s.segments.to_string(),
+                grouped(s.steps_per_second),
+                sig(s.seconds_per_step * 1e6, 3),
+                sig(s.seconds_per_step_per_segment * 1e9, 3),
+            ]);
+        }
+        table.write(out, "  ")?;
+        writeln!(out)?;
+
+        // Batch.
+        let b = &self.batch;
+        writeln!(out, "batch of {} states, N = {}", b.states, b.segments)?;
+        let mut table = Table::new(&[
+            ("threads", Align::Right),
+            ("state-steps/s", Align::Right),
+            ("ns/state-step", Align::Right),
+            ("speedup", Align::Right),
+        ]);
+        table.row(vec![
+            "1".into(),
+            grouped(b.single_thread_state_steps_per_second),
+            sig(b.single_thread_seconds_per_state_step * 1e9, 3),
+            "1.00".into(),
+        ]);
+        table.row(vec![
+            b.threads.to_string(),
+            grouped(b.state_steps_per_second),
+            sig(b.seconds_per_state_step * 1e9, 3),
+            format!("{:.2}", b.speedup),
+        ]);
+        table.write(out, "  ")?;
+        writeln!(out)?;
+
+        // Scaling.
+        let s = &self.scaling;
+        writeln!(
+            out,
+            "cost per segment at N = {} over N = {}: {:.2} (1 for a step that is O(N))",
+            s.to_segments, s.from_segments, s.ratio
+        )
+    }
+}
