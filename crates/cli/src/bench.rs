@@ -1,8 +1,10 @@
 //! `vibrissa bench`: how fast the segment chain steps on this machine.
 //!
 //! Three figures:
-//! - single state on one thread, for several segment counts N: steps per second and the cost of
-//!   one step per segment (constant if the step is O(N));
+//! - single state on one thread, for several segment counts N and two motions (a small first-mode
+//!   vibration, and a release from a large deflection whose geometry is iterated): steps per
+//!   second, articulated-body solves per step and the cost of one step per segment (constant if
+//!   the step is O(N));
 //! - a batch of states against one model on every core, and the same batch on one thread, for
 //!   the parallel speedup;
 //! - the ratio of the per-segment cost at the largest N to that at the smallest.
@@ -93,11 +95,16 @@ impl Plan {
     }
 }
 
-/// Single-state speed at one segment count.
+/// Single-state speed at one segment count and one kind of motion.
 #[derive(Debug, Clone, Serialize)]
 struct Single {
     /// Segment count N.
     segments: usize,
+    /// `small` (1 mrad first-mode vibration) or `large` (release from a tip deflection of about
+    /// 0.3 L, under W = EI/L²).
+    motion: &'static str,
+    /// Geometric iterations (articulated-body solves) per step, averaged.
+    solves_per_step: f64,
     /// Steps per second.
     steps_per_second: f64,
     /// Seconds per step.
@@ -185,52 +192,72 @@ pub fn run(args: &Args) -> Result<()> {
     let inputs = Inputs::default();
     let threads = rayon::current_num_threads();
 
-    // A model at `n` segments and a state passing through its rest shape with the joint rates
-    // of a first-mode vibration of amplitude `AMPLITUDE`: free motion of the lowest mode, as a
-    // released or flicked whisker shows.
-    let setup = |n: usize| -> Result<(Model, State)> {
+    // A model at `n` segments and a state in `motion`: passing through its rest shape with the
+    // joint rates of a first-mode vibration of amplitude `AMPLITUDE` (free motion of the lowest
+    // mode, as a flicked whisker shows), or released at rest from the static shape under a tip
+    // load W = EI/L² (large rotations: the geometry is iterated).
+    let setup = |n: usize, motion: &str| -> Result<(Model, State)> {
         let model = Model::new(&whisker, n, discretisation)?;
-        let modes = model.modes()?;
-        let shape = &modes.shapes[0];
-        let peak = shape.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-        let omega = 2.0 * std::f64::consts::PI * modes.frequencies[0];
         let mut state = State::at_rest(&model, 0);
-        for (v, x) in state.v_mut().iter_mut().zip(shape) {
-            *v = omega * AMPLITUDE * x / peak;
+        if motion == "small" {
+            let modes = model.modes()?;
+            let shape = &modes.shapes[0];
+            let peak = shape.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            let omega = 2.0 * std::f64::consts::PI * modes.frequencies[0];
+            for (v, x) in state.v_mut().iter_mut().zip(shape) {
+                *v = omega * AMPLITUDE * x / peak;
+            }
+        } else {
+            let p = whisker.params();
+            let ei = p.youngs_modulus * 0.25 * std::f64::consts::PI * p.base_radius.powi(4);
+            let load = vibrissa_core::PointLoad {
+                segment: n - 1,
+                along: model.len[n - 1],
+                force: [0.0, ei / (p.length * p.length)],
+            };
+            let eq = vibrissa_core::statics::solve(&model, &[load])?;
+            state.q_mut().copy_from_slice(&eq.q);
         }
         let mut ws = Workspace::new(&model);
         dynamics::initialize(&model, &mut state, &inputs, &mut ws)?;
         Ok((model, state))
     };
 
-    // (a) One state on one thread, for every N.
-    let mut single = Vec::with_capacity(SEGMENTS.len());
-    for &n in &SEGMENTS {
-        eprintln!("bench: single state, N = {n}");
-        let (model, initial) = setup(n)?;
-        let mut state = initial.clone();
-        let mut ws = Workspace::new(&model);
-        let per_call = best_seconds_per_call(&plan, || {
-            state.clone_from(&initial);
-            let start = Instant::now();
-            for _ in 0..plan.steps {
-                dynamics::step(&model, &stepper, &mut state, &inputs, &mut ws)?;
-            }
-            black_box(&mut state);
-            Ok(start.elapsed())
-        })
-        .with_context(|| format!("single-state run at N = {n}"))?;
-        let seconds_per_step = per_call / plan.steps as f64;
-        single.push(Single {
-            segments: n,
-            steps_per_second: 1.0 / seconds_per_step,
-            seconds_per_step,
-            seconds_per_step_per_segment: seconds_per_step / n as f64,
-        });
+    // (a) One state on one thread, for every N and both motions.
+    let mut single = Vec::with_capacity(2 * SEGMENTS.len());
+    for motion in ["small", "large"] {
+        for &n in &SEGMENTS {
+            eprintln!("bench: single state, N = {n}, {motion} motion");
+            let (model, initial) = setup(n, motion)?;
+            let mut state = initial.clone();
+            let mut ws = Workspace::new(&model);
+            let (mut solves, mut steps) = (0usize, 0usize);
+            let per_call = best_seconds_per_call(&plan, || {
+                state.clone_from(&initial);
+                let start = Instant::now();
+                for _ in 0..plan.steps {
+                    dynamics::step(&model, &stepper, &mut state, &inputs, &mut ws)?;
+                    solves += ws.iterations;
+                }
+                steps += plan.steps;
+                black_box(&mut state);
+                Ok(start.elapsed())
+            })
+            .with_context(|| format!("single-state run at N = {n}"))?;
+            let seconds_per_step = per_call / plan.steps as f64;
+            single.push(Single {
+                segments: n,
+                motion,
+                solves_per_step: solves as f64 / steps as f64,
+                steps_per_second: 1.0 / seconds_per_step,
+                seconds_per_step,
+                seconds_per_step_per_segment: seconds_per_step / n as f64,
+            });
+        }
     }
 
     // (b) A batch of states against one model, on every thread and then on one.
-    let (model, initial) = setup(BATCH_SEGMENTS)?;
+    let (model, initial) = setup(BATCH_SEGMENTS, "small")?;
     let initial = vec![initial; plan.batch_states];
     let mut states = initial.clone();
     let mut batch_call = || -> Result<Duration> {
@@ -268,8 +295,8 @@ pub fn run(args: &Args) -> Result<()> {
         speedup: one_thread / parallel,
     };
 
-    // (c) Growth of the per-segment cost from the smallest to the largest N.
-    let (first, last) = (&single[0], &single[single.len() - 1]);
+    // (c) Growth of the per-segment cost from the smallest to the largest N (small motion).
+    let (first, last) = (&single[0], &single[SEGMENTS.len() - 1]);
     let scaling = Scaling {
         from_segments: first.segments,
         to_segments: last.segments,
@@ -337,14 +364,18 @@ impl Render for BenchReport {
         // Single state.
         writeln!(out, "single state, one thread")?;
         let mut table = Table::new(&[
+            ("motion", Align::Left),
             ("N", Align::Right),
+            ("solves/step", Align::Right),
             ("steps/s", Align::Right),
             ("µs/step", Align::Right),
             ("ns/step/segment", Align::Right),
         ]);
         for s in &self.single {
             table.row(vec![
+                s.motion.to_string(),
                 s.segments.to_string(),
+                format!("{:.2}", s.solves_per_step),
                 grouped(s.steps_per_second),
                 sig(s.seconds_per_step * 1e6, 3),
                 sig(s.seconds_per_step_per_segment * 1e9, 3),

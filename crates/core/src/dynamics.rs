@@ -193,8 +193,9 @@ pub struct Inputs<'a> {
     pub noise: f64,
 }
 
-/// One whisker's dynamic state. Cheap to clone; many states share one [`Model`].
-#[derive(Debug, Clone, PartialEq)]
+/// One whisker's dynamic state. Cheap to clone (`clone_from` reuses the buffer); many states
+/// share one [`Model`].
+#[derive(Debug, PartialEq)]
 pub struct State {
     /// Simulated time, s.
     pub t: f64,
@@ -209,6 +210,29 @@ pub struct State {
     pub base_wrench: [f64; 3],
     /// The state's own random stream (process noise).
     pub rng: Rng,
+}
+
+impl Clone for State {
+    fn clone(&self) -> Self {
+        State {
+            t: self.t,
+            base: self.base,
+            x: self.x.clone(),
+            wrench_alpha: self.wrench_alpha,
+            base_wrench: self.base_wrench,
+            rng: self.rng.clone(),
+        }
+    }
+
+    /// Copies `source` into `self` without allocating when the segment counts agree.
+    fn clone_from(&mut self, source: &Self) {
+        self.t = source.t;
+        self.base = source.base;
+        self.x.clone_from(&source.x);
+        self.wrench_alpha = source.wrench_alpha;
+        self.base_wrench = source.base_wrench;
+        self.rng.clone_from(&source.rng);
+    }
 }
 
 impl State {
