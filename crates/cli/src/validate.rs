@@ -99,7 +99,7 @@ impl Render for Report {
         let passed = self.checks.iter().filter(|c| c.pass == Some(true)).count();
         writeln!(
             out,
-            "{} checks, {} with a target: {} pass, {} fail",
+            "{} checks, {} with a requirement: {} pass, {} fail",
             self.checks.len(),
             targeted,
             passed,
@@ -180,7 +180,7 @@ mod tests {
         // A pure number shows no unit after its error.
         assert!(text.contains("+2.50e-6  ≤ 0.0100  PASS"), "{text}");
         assert!(
-            text.contains("4 checks, 3 with a target: 2 pass, 1 fail"),
+            text.contains("4 checks, 3 with a requirement: 2 pass, 1 fail"),
             "{text}"
         );
     }
