@@ -14,6 +14,7 @@ pub mod beam;
 pub mod chain;
 pub mod dynamics;
 pub mod error;
+pub mod objects;
 pub mod rng;
 pub mod sensors;
 pub mod statics;

@@ -1,0 +1,2 @@
+//! Scenario files and time-series formats for vibrissa.
+#![warn(missing_docs)]
