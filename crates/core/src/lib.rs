@@ -17,6 +17,7 @@ pub mod error;
 pub mod objects;
 pub mod rng;
 pub mod sensors;
+pub mod sim;
 pub mod statics;
 pub mod validate;
 pub mod whisker;
