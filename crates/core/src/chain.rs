@@ -99,6 +99,8 @@ pub struct Model {
     pub damping: Vec<f64>,
     /// Rest angle of joint i, rad: `[N]`.
     pub rest: Vec<f64>,
+    /// Whisker radius at node i, m: `[N+1]` (contact happens at the surface).
+    pub radius: Vec<f64>,
 }
 
 /// Gauss–Legendre nodes and weights on [-1, 1], by Newton iteration on P_n.
@@ -257,6 +259,7 @@ impl Model {
             damping: vec![0.0; n],
             stiffness,
             rest,
+            radius: (0..=n).map(|i| whisker.radius(i as f64 * arc)).collect(),
         };
 
         // Joint dampers from the damping rule.
@@ -281,6 +284,11 @@ impl Model {
         model.damping = damping;
         model.damping[0] += follicle_damping;
         Ok(model)
+    }
+
+    /// The whisker's arc length, m.
+    pub fn whisker_length(&self) -> f64 {
+        self.arc * self.n as f64
     }
 
     /// Segment and distance along its chord (m from its proximal node) of arc length `s`.

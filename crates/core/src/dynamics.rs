@@ -26,6 +26,8 @@
 
 use crate::chain::Model;
 use crate::error::{check_finite, Error, Result};
+use crate::contact::{self, ContactReport};
+use crate::objects::Object;
 use crate::rng::Rng;
 
 /// Largest time step accepted, s.
@@ -155,6 +157,15 @@ impl Stepper {
     pub fn alpha_f(&self) -> f64 {
         self.alpha_f
     }
+    pub(crate) fn beta_coef(&self) -> f64 {
+        self.beta
+    }
+    pub(crate) fn gamma_coef(&self) -> f64 {
+        self.gamma
+    }
+    pub(crate) fn alpha_m_coef(&self) -> f64 {
+        self.alpha_m
+    }
 }
 
 /// Prescribed rotation of the base (the follicle's mount) about the origin.
@@ -191,6 +202,8 @@ pub struct Inputs<'a> {
     /// `intensity·sqrt(l/h)` in x and in y at its centre of mass (so the forcing does not depend
     /// on N or h). Zero disables it.
     pub noise: f64,
+    /// Rigid objects the whisker may touch (kinematic: their motion is prescribed).
+    pub objects: &'a [Object],
 }
 
 /// One whisker's dynamic state. Cheap to clone (`clone_from` reuses the buffer); many states
@@ -208,6 +221,8 @@ pub struct State {
     wrench_alpha: [f64; 3],
     /// Wrench the base applies to the whisker at time `t`, world frame: (moment N·m, fx N, fy N).
     pub base_wrench: [f64; 3],
+    /// Contact during the last step, if any (the contact nearest the base).
+    pub contact: Option<ContactReport>,
     /// The state's own random stream (process noise).
     pub rng: Rng,
 }
@@ -220,6 +235,7 @@ impl Clone for State {
             x: self.x.clone(),
             wrench_alpha: self.wrench_alpha,
             base_wrench: self.base_wrench,
+            contact: self.contact,
             rng: self.rng.clone(),
         }
     }
@@ -231,6 +247,7 @@ impl Clone for State {
         self.x.clone_from(&source.x);
         self.wrench_alpha = source.wrench_alpha;
         self.base_wrench = source.base_wrench;
+        self.contact = source.contact;
         self.rng.clone_from(&source.rng);
     }
 }
@@ -247,6 +264,7 @@ impl State {
             x,
             wrench_alpha: [0.0; 3],
             base_wrench: [0.0; 3],
+            contact: None,
             rng: Rng::new(seed),
         }
     }
@@ -287,24 +305,24 @@ impl State {
 
 /// Per-segment scratch, kept together for locality.
 #[derive(Debug, Clone, Copy, Default)]
-struct Seg {
+pub(crate) struct Seg {
     /// Unit vector along the chord (cos φ, sin φ).
-    dir: [f64; 2],
+    pub(crate) dir: [f64; 2],
     /// Spatial velocity about the joint: (ω, vx, vy of the joint point).
-    vel: [f64; 3],
+    pub(crate) vel: [f64; 3],
     /// Velocity-product acceleration of the joint (its first component is always 0).
-    bias: [f64; 2],
+    pub(crate) bias: [f64; 2],
     /// First row of the spatial inertia about the joint: (J + m|c|², -m·cy, m·cx); the rest is
     /// (m, 0, m).
-    inertia: [f64; 3],
+    pub(crate) inertia: [f64; 3],
     /// External spatial force about the joint.
-    f_ext: [f64; 3],
+    pub(crate) f_ext: [f64; 3],
     /// Articulated-body quantities: `U = IA·S`, `1/D`, `u`.
-    u_vec: [f64; 3],
-    inv_d: f64,
-    u: f64,
+    pub(crate) u_vec: [f64; 3],
+    pub(crate) inv_d: f64,
+    pub(crate) u: f64,
     /// Spatial acceleration about the joint.
-    acc: [f64; 3],
+    pub(crate) acc: [f64; 3],
 }
 
 /// Scratch memory for stepping one state at a time; reuse it across steps and states.
@@ -313,34 +331,36 @@ struct Seg {
 /// with world-parallel axes, so every revolute joint has the motion vector `(1, 0, 0)`.
 #[derive(Debug, Clone)]
 pub struct Workspace {
-    n: usize,
+    pub(crate) n: usize,
     /// Joint angles and rates at which kinematics was last evaluated, `[N]`.
-    q: Vec<f64>,
-    v: Vec<f64>,
+    pub(crate) q: Vec<f64>,
+    pub(crate) v: Vec<f64>,
     /// Node positions, world frame, m: `[N+1][2]`.
-    node: Vec<[f64; 2]>,
+    pub(crate) node: Vec<[f64; 2]>,
     /// Per-segment scratch `[N]`.
-    seg: Vec<Seg>,
+    pub(crate) seg: Vec<Seg>,
     /// Joint torque and armature handed to the solver: `[N]`.
-    tau: Vec<f64>,
-    arm: Vec<f64>,
+    pub(crate) tau: Vec<f64>,
+    pub(crate) arm: Vec<f64>,
     /// Articulated inertia and bias force of body 0 (for the base reaction).
-    ia0: [f64; 6],
-    pa0: [f64; 3],
+    pub(crate) ia0: [f64; 6],
+    pub(crate) pa0: [f64; 3],
     /// Solved joint accelerations `[N]`.
-    qdd: Vec<f64>,
+    pub(crate) qdd: Vec<f64>,
     /// Intermediate angles and rates at b = 0 (the linearisation point of the springs) `[N]`.
-    q_lin: Vec<f64>,
-    v_lin: Vec<f64>,
+    pub(crate) q_lin: Vec<f64>,
+    pub(crate) v_lin: Vec<f64>,
     /// Process-noise forces drawn for the current step, world frame, N: `[N][2]`.
-    noise: Vec<[f64; 2]>,
+    pub(crate) noise: Vec<[f64; 2]>,
+    /// Contact scratch.
+    pub(crate) contacts: contact::Scratch,
     /// Geometric iterations used by the last step.
     pub iterations: usize,
 }
 
 /// `a·b + c`, fused where the target has FMA.
 #[inline(always)]
-fn fma(a: f64, b: f64, c: f64) -> f64 {
+pub(crate) fn fma(a: f64, b: f64, c: f64) -> f64 {
     #[cfg(target_feature = "fma")]
     {
         a.mul_add(b, c)
@@ -407,7 +427,7 @@ fn dot3(a: [f64; 3], b: [f64; 3]) -> f64 {
 
 /// Moves a packed spatial inertia's reference point by `d = (dx, dy)` (new point minus old).
 #[inline]
-fn shift_inertia(i: &[f64; 6], dx: f64, dy: f64) -> [f64; 6] {
+pub(crate) fn shift_inertia(i: &[f64; 6], dx: f64, dy: f64) -> [f64; 6] {
     let [a, b, c, d, e, f] = *i;
     let (p, q) = (dy, -dx);
     let t1 = fma(d, p, fma(e, q, b));
@@ -418,7 +438,7 @@ fn shift_inertia(i: &[f64; 6], dx: f64, dy: f64) -> [f64; 6] {
 
 /// Moves a spatial force's reference point by `d = (dx, dy)` (new point minus old).
 #[inline]
-fn shift_force(f: [f64; 3], dx: f64, dy: f64) -> [f64; 3] {
+pub(crate) fn shift_force(f: [f64; 3], dx: f64, dy: f64) -> [f64; 3] {
     [fma(dy, f[1], fma(-dx, f[2], f[0])), f[1], f[2]]
 }
 
@@ -440,6 +460,7 @@ impl Workspace {
             q_lin: vec![0.0; n],
             v_lin: vec![0.0; n],
             noise: vec![[0.0; 2]; n],
+            contacts: contact::Scratch::new(n),
             iterations: 0,
         }
     }
@@ -484,7 +505,7 @@ impl Workspace {
     }
 
     /// Stage: forward kinematics at joint angles `self.q`, rates `self.v`, base motion `base`.
-    fn kinematics(&mut self, model: &Model, base: &BaseMotion) {
+    pub(crate) fn kinematics(&mut self, model: &Model, base: &BaseMotion) {
         let n = self.n;
         let (sb, cb) = base.angle.sin_cos();
         let (mut cs, mut sn) = (cb, sb);
@@ -539,7 +560,7 @@ impl Workspace {
     }
 
     /// Stage: external forces from point loads and the drawn process noise.
-    fn forces(&mut self, model: &Model, inputs: &Inputs) {
+    pub(crate) fn forces(&mut self, model: &Model, inputs: &Inputs) {
         for load in inputs.loads {
             let p = self.point(load.segment, load.along);
             self.add_force(load.segment, p, load.force);
@@ -555,7 +576,7 @@ impl Workspace {
 
     /// Stage: articulated-body solve of `(M + diag(arm)) q̈ = tau - c - (external)`.
     /// Fills `qdd`, the spatial accelerations and the articulated quantities of body 0.
-    fn solve(&mut self, model: &Model, base: &BaseMotion) {
+    pub(crate) fn solve(&mut self, model: &Model, base: &BaseMotion) {
         let n = self.n;
         let (seg, node) = (&mut self.seg[..n], &self.node[..=n]);
         let (mass, tau, arm) = (&model.mass[..n], &self.tau[..n], &self.arm[..n]);
@@ -640,7 +661,7 @@ impl Workspace {
     }
 
     /// Wrench transmitted from the base to segment 0 after [`Self::solve`], about the base.
-    fn base_wrench(&self) -> [f64; 3] {
+    pub(crate) fn base_wrench(&self) -> [f64; 3] {
         let f = sym_mul(&self.ia0, self.seg[0].acc);
         [f[0] + self.pa0[0], f[1] + self.pa0[1], f[2] + self.pa0[2]]
     }
@@ -761,6 +782,11 @@ pub fn step_with<F: Forcing + ?Sized>(
         forcing.apply(t_mid, model, ws);
         // Stage: solve for b.
         ws.solve(model, &base);
+        // Stage: contact forces that keep the whisker out of the objects at the end of the step.
+        if !inputs.objects.is_empty() {
+            let start = contact::StepStart { q, v, a };
+            contact::solve(model, st, ws, inputs, &start, state.t, &base)?;
+        }
         if ws.iterations >= st.max_iterations {
             break;
         }
@@ -798,6 +824,7 @@ pub fn step_with<F: Forcing + ?Sized>(
         *out = if first { wk } else { wk + af * (wk - prev) };
     }
     state.wrench_alpha = w;
+    state.contact = ws.contacts.report(model, inputs.objects.is_empty());
     state.t = t_next;
     state.base = inputs.base;
     check_state(state, model)

@@ -12,6 +12,7 @@
 pub mod batch;
 pub mod beam;
 pub mod chain;
+pub mod contact;
 pub mod dynamics;
 pub mod error;
 pub mod objects;

@@ -1,9 +1,12 @@
 //! Whole runs: a scenario (whisker, objects, base motion, noise, timing) stepped and sampled into
 //! the contract's time series.
 
-use crate::chain::Discretisation;
-use crate::dynamics::{BaseMotion, Integrator};
-use crate::error::{check_non_negative, check_positive, Error, Result};
+use crate::chain::{Discretisation, Model};
+use crate::dynamics::{initialize, step, BaseMotion, Inputs, Integrator, State, Workspace};
+use crate::objects::closest;
+use crate::rng::Rng;
+use crate::sensors::Sensors;
+use crate::error::{check_finite, check_non_negative, check_positive, Error, Result};
 use crate::objects::Object;
 use crate::whisker::WhiskerParams;
 
@@ -112,13 +115,143 @@ impl Default for Scenario {
 impl BaseDrive {
     /// Angle, rate and acceleration at time `t`.
     pub fn at(&self, t: f64) -> BaseMotion {
-        let _ = t;
-        unimplemented!("written next")
+        match self {
+            BaseDrive::Fixed => BaseMotion::default(),
+            BaseDrive::Sinusoid {
+                amplitude,
+                frequency,
+                phase,
+                offset,
+            } => {
+                let w = 2.0 * std::f64::consts::PI * frequency;
+                let (s, c) = (w * t + phase).sin_cos();
+                BaseMotion {
+                    angle: offset + amplitude * s,
+                    rate: amplitude * w * c,
+                    accel: -amplitude * w * w * s,
+                }
+            }
+            BaseDrive::Ramp {
+                rate,
+                start,
+                stop,
+                smoothing,
+            } => ramp(*rate, *start, *stop, *smoothing, t),
+            BaseDrive::Trajectory { t: ts, angle } => hermite(ts, angle, t),
+        }
     }
 
     /// Checks the drive's parameters.
     pub fn check(&self) -> Result<()> {
-        Ok(())
+        match self {
+            BaseDrive::Fixed => Ok(()),
+            BaseDrive::Sinusoid {
+                amplitude,
+                frequency,
+                phase,
+                offset,
+            } => {
+                check_finite("base.amplitude", *amplitude)?;
+                check_non_negative("base.frequency", *frequency)?;
+                check_finite("base.phase", *phase)?;
+                check_finite("base.offset", *offset).map(|_| ())
+            }
+            BaseDrive::Ramp {
+                rate,
+                start,
+                stop,
+                smoothing,
+            } => {
+                check_finite("base.rate", *rate)?;
+                check_finite("base.start", *start)?;
+                check_non_negative("base.smoothing", *smoothing)?;
+                if stop.is_nan() || *stop < start + smoothing {
+                    return Err(Error::invalid(
+                        "base.stop",
+                        stop,
+                        format!("a time >= base.start + base.smoothing = {} (or omitted)", start + smoothing),
+                    ));
+                }
+                Ok(())
+            }
+            BaseDrive::Trajectory { t, angle } => {
+                if t.len() != angle.len() || t.len() < 2 {
+                    return Err(Error::invalid(
+                        "base.trajectory",
+                        format!("{} times, {} angles", t.len(), angle.len()),
+                        "at least two (t, angle) rows",
+                    ));
+                }
+                for k in 0..t.len() {
+                    if !(t[k].is_finite() && angle[k].is_finite()) {
+                        return Err(Error::invalid(
+                            format!("base.trajectory row {}", k + 1),
+                            format!("({}, {})", t[k], angle[k]),
+                            "finite numbers",
+                        ));
+                    }
+                    if k > 0 && t[k] <= t[k - 1] {
+                        return Err(Error::invalid(
+                            format!("base.trajectory row {} t", k + 1),
+                            t[k],
+                            format!("a time later than the previous row's {}", t[k - 1]),
+                        ));
+                    }
+                }
+                Ok(())
+            }
+        }
+    }
+}
+
+/// A ramp of rate `r` from `t0` to `t1` with linear-velocity blends of `tau` at both corners.
+fn ramp(r: f64, t0: f64, t1: f64, tau: f64, t: f64) -> BaseMotion {
+    let motion = |angle, rate, accel| BaseMotion { angle, rate, accel };
+    if t <= t0 {
+        return motion(0.0, 0.0, 0.0);
+    }
+    let a1 = if tau > 0.0 { 0.5 * r * tau } else { 0.0 };
+    if tau > 0.0 && t < t0 + tau {
+        let x = t - t0;
+        return motion(0.5 * r * x * x / tau, r * x / tau, r / tau);
+    }
+    if t < t1 {
+        return motion(a1 + r * (t - t0 - tau), r, 0.0);
+    }
+    let a2 = a1 + r * (t1 - t0 - tau);
+    if tau > 0.0 && t < t1 + tau {
+        let x = t - t1;
+        return motion(a2 + r * (x - 0.5 * x * x / tau), r * (1.0 - x / tau), -r / tau);
+    }
+    motion(a2 + a1, 0.0, 0.0)
+}
+
+/// Cubic Hermite interpolation of `(ts, ys)` with finite-difference slopes, and its first two
+/// derivatives; constant outside the samples.
+fn hermite(ts: &[f64], ys: &[f64], t: f64) -> BaseMotion {
+    let n = ts.len();
+    if t <= ts[0] {
+        return BaseMotion { angle: ys[0], ..Default::default() };
+    }
+    if t >= ts[n - 1] {
+        return BaseMotion { angle: ys[n - 1], ..Default::default() };
+    }
+    let k = ts.partition_point(|&x| x <= t).clamp(1, n - 1) - 1;
+    let slope = |i: usize| {
+        let (a, b) = (i.saturating_sub(1), (i + 1).min(n - 1));
+        (ys[b] - ys[a]) / (ts[b] - ts[a])
+    };
+    let h = ts[k + 1] - ts[k];
+    let x = (t - ts[k]) / h;
+    let (y0, y1, m0, m1) = (ys[k], ys[k + 1], slope(k) * h, slope(k + 1) * h);
+    let (x2, x3) = (x * x, x * x * x);
+    let angle = (2.0 * x3 - 3.0 * x2 + 1.0) * y0 + (x3 - 2.0 * x2 + x) * m0 + (-2.0 * x3 + 3.0 * x2) * y1 + (x3 - x2) * m1;
+    let d1 = (6.0 * x2 - 6.0 * x) * y0 + (3.0 * x2 - 4.0 * x + 1.0) * m0 + (-6.0 * x2 + 6.0 * x) * y1 + (3.0 * x2 - 2.0 * x) * m1;
+    let d2 = (12.0 * x - 6.0) * y0 + (6.0 * x - 4.0) * m0 + (-12.0 * x + 6.0) * y1 + (6.0 * x - 2.0) * m1;
+    BaseMotion {
+        angle,
+        rate: d1 / h,
+        accel: d2 / (h * h),
     }
 }
 
@@ -152,4 +285,134 @@ impl Scenario {
         }
         Ok(())
     }
+}
+
+/// One run's output: rows of [`COLUMNS`] at the sample times, and how it was computed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Output {
+    /// Rows `[t, theta01, theta12, m0, fx, fy, contact, cx, cy, s]`.
+    pub rows: Vec<[f64; 10]>,
+    /// Segment count.
+    pub segments: usize,
+    /// Time step actually used, s (the requested one shortened to divide the sample period).
+    pub dt: f64,
+    /// Steps taken.
+    pub steps: usize,
+    /// Largest penetration of the whisker's surface into an object at the end of any step, m.
+    pub max_penetration: f64,
+}
+
+/// Runs `scenario`, calling `progress` with the fraction done now and then.
+pub fn run(scenario: &Scenario, progress: &mut dyn FnMut(f64)) -> Result<Output> {
+    scenario.check()?;
+    let whisker = scenario.whisker.check()?;
+    let model = Model::new(&whisker, scenario.segments, scenario.discretisation)?;
+    // A step that divides the sample period.
+    let period = 1.0 / scenario.sample_rate;
+    let per_sample = (period / scenario.integrator.dt * (1.0 - 1e-12)).ceil().max(1.0) as usize;
+    let stepper = Integrator {
+        dt: period / per_sample as f64,
+        ..scenario.integrator
+    }
+    .check()?;
+    let samples = (scenario.duration * scenario.sample_rate + 1e-9).floor() as usize + 1;
+
+    // The whisker at rest, clear of every object.
+    let mut state = State::at_rest(&model, scenario.seed);
+    let mut ws = Workspace::new(&model);
+    let base0 = scenario.base.at(0.0);
+    state.base = base0;
+    let mut inputs = Inputs {
+        base: base0,
+        loads: &[],
+        noise: scenario.process_noise,
+        objects: &scenario.objects,
+    };
+    initialize(&model, &mut state, &inputs, &mut ws)?;
+    check_clear(&model, &ws, &scenario.objects)?;
+
+    let mut sensor_rng = Rng::stream(scenario.seed, 1);
+    let mut rows = Vec::with_capacity(samples);
+    let mut max_penetration = 0.0f64;
+    let mut steps = 0;
+    for k in 0..samples {
+        if k > 0 {
+            for j in 1..=per_sample {
+                let t = ((k - 1) * per_sample + j) as f64 * stepper.dt;
+                inputs.base = scenario.base.at(t);
+                step(&model, &stepper, &mut state, &inputs, &mut ws)?;
+                steps += 1;
+                if !scenario.objects.is_empty() {
+                    max_penetration = max_penetration.max(penetration(&model, &state, &mut ws, &scenario.objects));
+                }
+            }
+        }
+        rows.push(sample(&state, k as f64 * period, &scenario.sensor_noise, &mut sensor_rng));
+        if k % 64 == 0 {
+            progress(k as f64 / samples as f64);
+        }
+    }
+    progress(1.0);
+    Ok(Output {
+        rows,
+        segments: model.n,
+        dt: stepper.dt,
+        steps,
+        max_penetration,
+    })
+}
+
+/// The contract's row for `state` at sample time `t`, with sensor noise.
+fn sample(state: &State, t: f64, noise: &SensorNoise, rng: &mut Rng) -> [f64; 10] {
+    let s = Sensors::read(state);
+    let mut add = |x: f64, sd: f64| if sd > 0.0 { x + sd * rng.normal() } else { x };
+    let (theta01, theta12) = (add(s.theta01, noise.theta01), add(s.theta12, noise.theta12));
+    let (m0, fx, fy) = (add(s.m0, noise.m0), add(s.fx, noise.fx), add(s.fy, noise.fy));
+    let (contact, cx, cy, arc) = match state.contact {
+        Some(c) => {
+            // The contact point in the (possibly rotated) base frame.
+            let (sn, cs) = state.base.angle.sin_cos();
+            let p = c.point;
+            (1.0, cs * p[0] + sn * p[1], -sn * p[0] + cs * p[1], c.s)
+        }
+        None => (0.0, f64::NAN, f64::NAN, f64::NAN),
+    };
+    [t, theta01, theta12, m0, fx, fy, contact, cx, cy, arc]
+}
+
+/// Refuses objects that overlap the whisker at t = 0.
+fn check_clear(model: &Model, ws: &Workspace, objects: &[Object]) -> Result<()> {
+    for (k, o) in objects.iter().enumerate() {
+        let pose = o.pose(0.0);
+        for i in 0..model.n {
+            let nodes = ws.nodes();
+            let c = closest(&o.shape, &pose, nodes[i], nodes[i + 1]);
+            let r = model.radius[i] + c.u * (model.radius[i + 1] - model.radius[i]);
+            if c.distance < r {
+                return Err(Error::invalid(
+                    format!("objects[{k}]"),
+                    format!("an object overlapping the whisker at t = 0 (segment {i}, gap {:.3e} m)", c.distance - r),
+                    "objects clear of the whisker's surface at t = 0",
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Deepest penetration of the whisker's surface into any object at the state's configuration
+/// and time, m (0 when clear).
+pub fn penetration(model: &Model, state: &State, ws: &mut Workspace, objects: &[Object]) -> f64 {
+    ws.evaluate(model, state);
+    let nodes = ws.nodes();
+    let mut worst = 0.0f64;
+    for o in objects {
+        let pose = o.pose(state.t);
+        for i in 0..model.n {
+            let c = closest(&o.shape, &pose, nodes[i], nodes[i + 1]);
+            let r = model.radius[i] + c.u * (model.radius[i + 1] - model.radius[i]);
+            worst = worst.max(r - c.distance);
+        }
+    }
+    worst
 }

@@ -276,7 +276,7 @@ fn sensors_are_expressed_in_the_rotated_base_frame() {
         let inputs = Inputs {
             base,
             loads: &loads,
-            noise: 0.0,
+            ..Default::default()
         };
         let mut state = State::at_rest(&m, 0);
         state.base = base;

@@ -1,0 +1,369 @@
+//! Contact between the whisker and rigid kinematic objects, as constraints.
+//!
+//! Contacts are found at the step's geometric evaluation point: for every object near the
+//! whisker and every segment, the nearest points of the segment's axis and the object; a pair
+//! closer than the whisker's radius plus what the relative motion can close in a step is a
+//! candidate. Each candidate gets a normal force `λn ≥ 0` (and, with friction, a tangential
+//! force `|λt| ≤ μ·λn`) chosen so that, to first order, the whisker's surface ends the step on
+//! or outside the object (`gap ≥ 0`, `λn·gap = 0`: Signorini's condition at the end of the
+//! step) and, while sticking, its contact point has no tangential velocity relative to the object.
+//!
+//! The step is linear in these forces at fixed geometry: the articulated-body factorisation of
+//! `M + A` from the unconstrained solve is reused to apply `(M + A)⁻¹` to each contact's
+//! generalised force, which gives the small Delassus matrix of the contacts; a projected
+//! Gauss–Seidel iteration solves the resulting complementarity problem. The forces are then
+//! added to the segments' external forces and the step solved once more, so the accelerations,
+//! the base reaction and everything downstream include them. No penalty stiffness is involved,
+//! so contact keeps the time step of the free whisker.
+
+use crate::chain::Model;
+use crate::dynamics::{fma, shift_force, BaseMotion, Inputs, Stepper, Workspace};
+use crate::error::{Error, Result};
+use crate::objects::{bounds, closest};
+
+/// Largest number of simultaneous contact candidates handled in one step.
+pub const MAX_CONTACTS: usize = 8;
+
+/// The contact nearest the whisker's base after a step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContactReport {
+    /// Contact point on the whisker's axis, world frame, m.
+    pub point: [f64; 2],
+    /// Arc length from the base to the contact point, m.
+    pub s: f64,
+    /// Force the object applies to the whisker there, world frame, N.
+    pub force: [f64; 2],
+    /// Number of contacts carrying force.
+    pub count: usize,
+    /// Index of the object touched.
+    pub object: usize,
+}
+
+/// One contact candidate.
+#[derive(Debug, Clone, Copy, Default)]
+struct Candidate {
+    /// Segment and whisker point (world).
+    seg: usize,
+    point: [f64; 2],
+    /// Arc length of the point.
+    s: f64,
+    /// Normal (object → whisker) and tangent.
+    n: [f64; 2],
+    t: [f64; 2],
+    /// Constant parts of the end-of-step gap (m) and tangential slip velocity (m/s).
+    c_n: f64,
+    c_t: f64,
+    /// Friction coefficient and object index.
+    mu: f64,
+    object: usize,
+    /// Forces.
+    lambda_n: f64,
+    lambda_t: f64,
+}
+
+/// Preallocated contact scratch, part of a [`Workspace`].
+#[derive(Debug, Clone)]
+pub struct Scratch {
+    count: usize,
+    cand: [Candidate; MAX_CONTACTS],
+    /// Generalised forces of unit normal and tangential forces: `[2·MAX_CONTACTS][N]`.
+    jac: Vec<f64>,
+    /// `(M + A)⁻¹` applied to them: `[2·MAX_CONTACTS][N]`.
+    resp: Vec<f64>,
+    /// Delassus matrix `[2·MAX_CONTACTS]²` (rows/columns: n0, t0, n1, t1, …).
+    w: Vec<f64>,
+    /// Scratch for one application of `(M + A)⁻¹`: `u` per joint.
+    u: Vec<f64>,
+    /// End-of-step angles and rates at b = 0 (`q_end = q0 + cq·b`, `v_end = v0 + cv·b`).
+    q0: Vec<f64>,
+    v0: Vec<f64>,
+}
+
+impl Scratch {
+    /// Scratch for an `n`-segment model.
+    pub fn new(n: usize) -> Scratch {
+        Scratch {
+            count: 0,
+            cand: [Candidate::default(); MAX_CONTACTS],
+            jac: vec![0.0; 2 * MAX_CONTACTS * n],
+            resp: vec![0.0; 2 * MAX_CONTACTS * n],
+            w: vec![0.0; 4 * MAX_CONTACTS * MAX_CONTACTS],
+            u: vec![0.0; n],
+            q0: vec![0.0; n],
+            v0: vec![0.0; n],
+        }
+    }
+
+    /// The report of the last solve (`None` without objects or contact force).
+    pub(crate) fn report(&self, model: &Model, no_objects: bool) -> Option<ContactReport> {
+        if no_objects {
+            return None;
+        }
+        let active = || self.cand[..self.count].iter().filter(|c| c.lambda_n > 0.0);
+        let count = active().count();
+        let c = active().min_by(|a, b| a.s.total_cmp(&b.s))?;
+        let _ = model;
+        Some(ContactReport {
+            point: c.point,
+            s: c.s,
+            force: [
+                c.lambda_n * c.n[0] + c.lambda_t * c.t[0],
+                c.lambda_n * c.n[1] + c.lambda_t * c.t[1],
+            ],
+            count,
+            object: c.object,
+        })
+    }
+}
+
+/// The step's starting angles, rates and accelerations.
+pub(crate) struct StepStart<'a> {
+    pub q: &'a [f64],
+    pub v: &'a [f64],
+    pub a: &'a [f64],
+}
+
+/// Generalised force of a unit world force `f` at world point `p` of segment `seg`:
+/// joint j ≤ seg gets `(p - p_j) × f`.
+fn generalised(ws: &Workspace, seg: usize, p: [f64; 2], f: [f64; 2], out: &mut [f64]) {
+    for (j, o) in out.iter_mut().enumerate() {
+        *o = if j <= seg {
+            let r = ws.node[j];
+            (p[0] - r[0]) * f[1] - (p[1] - r[1]) * f[0]
+        } else {
+            0.0
+        };
+    }
+}
+
+/// `x = (M + A)⁻¹ τ` with the articulated-body quantities of the last solve (no velocity terms,
+/// no base acceleration).
+fn apply_inverse(ws: &Workspace, tau: &[f64], u: &mut [f64], x: &mut [f64]) {
+    let n = ws.n;
+    let (seg, node) = (&ws.seg[..n], &ws.node[..=n]);
+    // Inward pass: bias forces of the torque alone.
+    let mut pa_c = [0.0f64; 3];
+    for i in (0..n).rev() {
+        let sg = &seg[i];
+        let ui = tau[i] - pa_c[0];
+        u[i] = ui;
+        if i == 0 {
+            break;
+        }
+        let k = ui * sg.inv_d;
+        let uv = sg.u_vec;
+        let pa = [
+            fma(uv[0], k, pa_c[0]),
+            fma(uv[1], k, pa_c[1]),
+            fma(uv[2], k, pa_c[2]),
+        ];
+        let (pp, pi) = (node[i - 1], node[i]);
+        pa_c = shift_force(pa, pp[0] - pi[0], pp[1] - pi[1]);
+    }
+    // Outward pass.
+    let mut acc = [0.0f64; 3];
+    for i in 0..n {
+        if i > 0 {
+            let (p, o) = (node[i - 1], node[i]);
+            let (dx, dy) = (o[0] - p[0], o[1] - p[1]);
+            acc = [acc[0], fma(-acc[0], dy, acc[1]), fma(acc[0], dx, acc[2])];
+        }
+        let sg = &seg[i];
+        let uv = sg.u_vec;
+        let xi = (u[i] - fma(uv[0], acc[0], fma(uv[1], acc[1], uv[2] * acc[2]))) * sg.inv_d;
+        acc[0] += xi;
+        x[i] = xi;
+    }
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// Stage: find contacts at the evaluation point, solve for their forces, and re-solve the step
+/// with them. `t0` is the time at the start of the step.
+pub(crate) fn solve(
+    model: &Model,
+    st: &Stepper,
+    ws: &mut Workspace,
+    inputs: &Inputs,
+    start: &StepStart,
+    t0: f64,
+    base: &BaseMotion,
+) -> Result<()> {
+    let n = model.n;
+    let h = st.dt;
+    let (beta, gamma, am) = (st.beta_coef(), st.gamma_coef(), st.alpha_m_coef());
+    let t_eval = t0 + (1.0 - st.alpha_f()) * h;
+    let t_end = t0 + h;
+
+    // End-of-step angles and rates as affine functions of b.
+    let cq = h * h * beta / (1.0 - am);
+    let cv = h * gamma / (1.0 - am);
+    {
+        let c = &mut ws.contacts;
+        for i in 0..n {
+            let (q, v, a) = (start.q[i], start.v[i], start.a[i]);
+            c.q0[i] = q + h * v + h * h * (0.5 - beta - beta * am / (1.0 - am)) * a;
+            c.v0[i] = v + h * (1.0 - gamma - gamma * am / (1.0 - am)) * a;
+        }
+    }
+
+    // Broad phase: the whisker's bounding box at the evaluation point.
+    let mut wb = [f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY];
+    for p in &ws.node[..=n] {
+        wb = [wb[0].min(p[0]), wb[1].min(p[1]), wb[2].max(p[0]), wb[3].max(p[1])];
+    }
+    let rmax = model.radius.iter().cloned().fold(0.0, f64::max);
+
+    // Narrow phase: candidates.
+    let mut count = 0usize;
+    for (k, obj) in inputs.objects.iter().enumerate() {
+        let pose = obj.pose(t_eval);
+        let pose_end = obj.pose(t_end);
+        // Reach: how far the object and the whisker can close in a step, plus the radius.
+        let speed = pose.velocity[0].hypot(pose.velocity[1]) + pose.angular_velocity.abs() * 0.1;
+        let wmax = ws.seg[..n].iter().fold(0.0f64, |m, s| m.max(s.vel[1].hypot(s.vel[2]) + s.vel[0].abs() * model.whisker_length()));
+        let reach = rmax + 2.0 * h * (speed + wmax) + 1e-6;
+        let ob = bounds(&obj.shape, &pose);
+        if ob[0] > wb[2] + reach || ob[2] < wb[0] - reach || ob[1] > wb[3] + reach || ob[3] < wb[1] - reach {
+            continue;
+        }
+        let mut prev_tip: Option<[f64; 2]> = None;
+        for i in 0..n {
+            let (a, b) = (ws.node[i], ws.node[i + 1]);
+            let c = closest(&obj.shape, &pose, a, b);
+            let radius = model.radius[i] + c.u * (model.radius[i + 1] - model.radius[i]);
+            let gap = c.distance - radius;
+            // The shared node of two segments is one candidate, not two.
+            let at_start = c.u <= 0.0;
+            let duplicate = at_start && prev_tip.is_some_and(|p| p == c.on_whisker);
+            prev_tip = (c.u >= 1.0).then_some(c.on_whisker);
+            if duplicate || gap > reach - rmax {
+                continue;
+            }
+            if count == MAX_CONTACTS {
+                return Err(Error::Diverged {
+                    t: t0,
+                    detail: format!("more than {MAX_CONTACTS} simultaneous contact candidates"),
+                });
+            }
+            // Object motion over the rest of the step, at the object's contact point.
+            let local = pose.to_local(c.on_object);
+            let o_end = pose_end.to_world(local);
+            let d_obj = [o_end[0] - c.on_object[0], o_end[1] - c.on_object[1]];
+            let v_obj = pose_end.velocity_at(o_end);
+            let nrm = c.normal;
+            let tan = [-nrm[1], nrm[0]];
+            ws.contacts.cand[count] = Candidate {
+                seg: i,
+                point: c.on_whisker,
+                s: (i as f64 + c.u) * model.arc,
+                n: nrm,
+                t: tan,
+                c_n: gap - (nrm[0] * d_obj[0] + nrm[1] * d_obj[1]),
+                c_t: -(tan[0] * v_obj[0] + tan[1] * v_obj[1]),
+                mu: obj.friction,
+                object: k,
+                lambda_n: 0.0,
+                lambda_t: 0.0,
+            };
+            count += 1;
+        }
+    }
+    ws.contacts.count = count;
+    if count == 0 {
+        return Ok(());
+    }
+
+    // Generalised forces of unit normal/tangential forces and their responses (M + A)⁻¹ J.
+    let mut jac = std::mem::take(&mut ws.contacts.jac);
+    let mut resp = std::mem::take(&mut ws.contacts.resp);
+    let mut u = std::mem::take(&mut ws.contacts.u);
+    for k in 0..count {
+        let c = ws.contacts.cand[k];
+        for (r, dir) in [(2 * k, c.n), (2 * k + 1, c.t)] {
+            let row = &mut jac[r * n..(r + 1) * n];
+            generalised(ws, c.seg, c.point, dir, row);
+            apply_inverse(ws, &jac[r * n..(r + 1) * n], &mut u, &mut resp[r * n..(r + 1) * n]);
+        }
+    }
+
+    // Constant terms: the end-of-step gap and slip velocity with the unconstrained b.
+    let m = 2 * count;
+    let sc = &mut ws.contacts;
+    for k in 0..count {
+        let (jn, jt) = (&jac[2 * k * n..(2 * k + 1) * n], &jac[(2 * k + 1) * n..(2 * k + 2) * n]);
+        // Whisker point displacement from the evaluation point: J (q_end - q_eval).
+        let mut dn = 0.0;
+        let mut vt = 0.0;
+        for i in 0..n {
+            let q_end = sc.q0[i] + cq * ws.qdd[i];
+            let v_end = sc.v0[i] + cv * ws.qdd[i];
+            dn += jn[i] * (q_end - ws.q[i]);
+            vt += jt[i] * v_end;
+        }
+        let c = &mut sc.cand[k];
+        c.c_n += dn;
+        c.c_t += vt;
+    }
+    // Delassus matrix: rows n_k use position (cq), rows t_k velocity (cv).
+    for r in 0..m {
+        let scale = if r % 2 == 0 { cq } else { cv };
+        for col in 0..m {
+            sc.w[r * m + col] = scale * dot(&jac[r * n..(r + 1) * n], &resp[col * n..(col + 1) * n]);
+        }
+    }
+
+    // Projected Gauss–Seidel on the complementarity problem.
+    for _ in 0..200 {
+        let mut change = 0.0f64;
+        for k in 0..count {
+            let (rn, rt) = (2 * k, 2 * k + 1);
+            // Normal: gap at the end of the step >= 0, force >= 0.
+            let mut g = sc.cand[k].c_n;
+            for j in 0..count {
+                g += sc.w[rn * m + 2 * j] * sc.cand[j].lambda_n + sc.w[rn * m + 2 * j + 1] * sc.cand[j].lambda_t;
+            }
+            let old = sc.cand[k].lambda_n;
+            let new = (old - g / sc.w[rn * m + rn]).max(0.0);
+            sc.cand[k].lambda_n = new;
+            change = change.max((new - old).abs());
+            // Tangential: no slip while |λt| < μ λn.
+            if sc.cand[k].mu > 0.0 {
+                let mut s = sc.cand[k].c_t;
+                for j in 0..count {
+                    s += sc.w[rt * m + 2 * j] * sc.cand[j].lambda_n + sc.w[rt * m + 2 * j + 1] * sc.cand[j].lambda_t;
+                }
+                let bound = sc.cand[k].mu * sc.cand[k].lambda_n;
+                let old = sc.cand[k].lambda_t;
+                let new = (old - s / sc.w[rt * m + rt]).clamp(-bound, bound);
+                sc.cand[k].lambda_t = new;
+                change = change.max((new - old).abs());
+            } else {
+                sc.cand[k].lambda_t = 0.0;
+            }
+        }
+        let scale = sc.cand[..count].iter().fold(1e-30f64, |a, c| a.max(c.lambda_n));
+        if change <= 1e-12 * scale {
+            break;
+        }
+    }
+    ws.contacts.jac = jac;
+    ws.contacts.resp = resp;
+    ws.contacts.u = u;
+
+    // Apply the forces and solve the step again with them.
+    for k in 0..count {
+        let c = ws.contacts.cand[k];
+        if c.lambda_n > 0.0 {
+            let f = [
+                c.lambda_n * c.n[0] + c.lambda_t * c.t[0],
+                c.lambda_n * c.n[1] + c.lambda_t * c.t[1],
+            ];
+            ws.add_force(c.seg, c.point, f);
+        }
+    }
+    ws.solve(model, base);
+    Ok(())
+}

@@ -1,0 +1,214 @@
+//! Time series in the contract's formats.
+//!
+//! A [`Series`] is a table of named `f64` columns plus `key = value` metadata (the segment count
+//! of a run, its scenario, …). It is written as:
+//!
+//! - **CSV** ([`write_csv`], read back by [`read_csv`]): the contract's format. `# key = value`
+//!   comment lines carry the metadata, then one header row and one row per sample; values are
+//!   written with enough digits to read back bit for bit, `.` as decimal point and `NaN` for a
+//!   missing value.
+//! - **NPY** ([`write_npy`]): one 2-D little-endian `float64` array, rows × columns in C order,
+//!   NPY format version 1.0 (`numpy.load` reads it). The columns are in the series' order, which
+//!   for a simulated run is the contract's ([`vibrissa_core::sim::COLUMNS`]); NPY has no place for
+//!   names or metadata.
+//! - **NPZ** ([`write_npz`]): a ZIP archive (stored, uncompressed) of one 1-D NPY array per
+//!   column, named after it (`t.npy`, `theta01.npy`, …), so `numpy.load(f)["theta12"]` works.
+//!   Metadata is not stored.
+//!
+//! [`write`] picks the format from the file's extension. Every writer first writes a temporary
+//! file beside the target and renames it into place when everything has been written, so a
+//! failure never leaves a half-written file behind.
+//!
+//! Values must be finite or `NaN`: infinities are refused on writing and on reading.
+
+mod csv;
+mod npy;
+mod zip;
+
+pub use csv::{read_csv, read_csv_str, to_csv_string, write_csv};
+pub use npy::{npy_header, write_npy, write_npz};
+pub use zip::crc32;
+
+pub(crate) use csv::parse_csv;
+
+use crate::error::{Error, Result};
+use std::path::Path;
+
+/// Output formats by extension, as accepted by [`write`].
+pub const EXTENSIONS: [&str; 3] = ["csv", "npy", "npz"];
+
+/// A table of named columns of `f64` plus metadata.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Series {
+    /// Column names, in order.
+    pub columns: Vec<String>,
+    /// Values, column-major: `data[c][row]`; every column has the same length.
+    pub data: Vec<Vec<f64>>,
+    /// `key = value` metadata, in order (CSV comment lines).
+    pub meta: Vec<(String, String)>,
+}
+
+impl Series {
+    /// An empty series (no rows) with these columns.
+    pub fn new<S: AsRef<str>>(columns: &[S]) -> Self {
+        Series {
+            columns: columns.iter().map(|c| c.as_ref().to_string()).collect(),
+            data: vec![Vec::new(); columns.len()],
+            meta: Vec::new(),
+        }
+    }
+
+    /// Appends one row.
+    ///
+    /// # Panics
+    /// If `row` does not have one value per column.
+    pub fn push_row(&mut self, row: &[f64]) {
+        assert_eq!(
+            row.len(),
+            self.columns.len(),
+            "a row needs one value per column"
+        );
+        for (col, &x) in self.data.iter_mut().zip(row) {
+            col.push(x);
+        }
+    }
+
+    /// Adds (or replaces) a metadata entry.
+    pub fn set_meta(&mut self, key: impl Into<String>, value: impl ToString) {
+        let (key, value) = (key.into(), value.to_string());
+        match self.meta.iter_mut().find(|(k, _)| *k == key) {
+            Some(entry) => entry.1 = value,
+            None => self.meta.push((key, value)),
+        }
+    }
+
+    /// The value of a metadata entry.
+    pub fn meta_value(&self, key: &str) -> Option<&str> {
+        self.meta
+            .iter()
+            .find(|(k, _)| k == key)
+            .map(|(_, v)| v.as_str())
+    }
+
+    /// Number of rows (0 without columns).
+    pub fn rows(&self) -> usize {
+        self.data.first().map_or(0, Vec::len)
+    }
+
+    /// The values of a column.
+    pub fn column(&self, name: &str) -> Option<&[f64]> {
+        self.columns
+            .iter()
+            .position(|c| c == name)
+            .map(|k| self.data[k].as_slice())
+    }
+
+    /// The values of each named column, in the order asked; an error lists every missing column
+    /// and the columns present.
+    pub fn require(&self, names: &[&str]) -> Result<Vec<&[f64]>> {
+        let missing: Vec<String> = names
+            .iter()
+            .filter(|n| self.column(n).is_none())
+            .map(|n| n.to_string())
+            .collect();
+        if !missing.is_empty() {
+            return Err(Error::MissingColumns {
+                missing,
+                present: self.columns.clone(),
+            });
+        }
+        Ok(names.iter().filter_map(|n| self.column(n)).collect())
+    }
+
+    /// Checks that the series can be written: one data vector per column, all of one length,
+    /// unique column names that a CSV header can hold, metadata that fits on comment lines, and
+    /// no infinite values.
+    pub fn check(&self) -> Result<()> {
+        let bad = |m: String| Err(Error::InvalidSeries(m));
+        // Shape.
+        if self.data.len() != self.columns.len() {
+            return bad(format!(
+                "{} columns named but {} data vectors",
+                self.columns.len(),
+                self.data.len()
+            ));
+        }
+        let rows = self.rows();
+        for (name, col) in self.columns.iter().zip(&self.data) {
+            if col.len() != rows {
+                return bad(format!(
+                    "column `{name}` has {} values, column `{}` has {rows}",
+                    col.len(),
+                    self.columns[0]
+                ));
+            }
+        }
+        // Names.
+        for (k, name) in self.columns.iter().enumerate() {
+            if !is_column_name(name) {
+                return bad(format!(
+                    "column name {name:?}: names must be non-empty, without commas, quotes, \
+                     line breaks or surrounding spaces, and must not start with `#`"
+                ));
+            }
+            if self.columns[..k].contains(name) {
+                return bad(format!("column `{name}` appears twice"));
+            }
+        }
+        // Metadata.
+        for (key, value) in &self.meta {
+            if !is_meta_key(key) {
+                return bad(format!(
+                    "metadata key {key:?}: keys are letters, digits, `_`, `-` and `.`"
+                ));
+            }
+            if value.contains(['\n', '\r']) {
+                return bad(format!("metadata `{key}`: the value contains a line break"));
+            }
+        }
+        // Values.
+        for (name, col) in self.columns.iter().zip(&self.data) {
+            if let Some(row) = col.iter().position(|x| x.is_infinite()) {
+                return bad(format!(
+                    "column `{name}`, row {row}: {} (values must be finite or NaN)",
+                    col[row]
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Whether `name` can be a column name in every format.
+fn is_column_name(name: &str) -> bool {
+    !name.is_empty()
+        && name.trim() == name
+        && !name.starts_with('#')
+        && !name.contains([',', '"', '\n', '\r'])
+}
+
+/// Whether `key` is a metadata key (what [`read_csv`] recognises on a comment line).
+pub(crate) fn is_meta_key(key: &str) -> bool {
+    !key.is_empty()
+        && key
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.'))
+}
+
+/// Writes `series` in the format its extension names: `.csv`, `.npy` or `.npz` (any case).
+pub fn write(series: &Series, path: impl AsRef<Path>) -> Result<()> {
+    let path = path.as_ref();
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("csv") => write_csv(series, path),
+        Some("npy") => write_npy(series, path),
+        Some("npz") => write_npz(series, path),
+        _ => Err(Error::Format {
+            path: path.to_path_buf(),
+            allowed: EXTENSIONS.iter().map(|e| format!(".{e}")).collect(),
+        }),
+    }
+}
