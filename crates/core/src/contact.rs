@@ -18,11 +18,11 @@
 
 use crate::chain::Model;
 use crate::dynamics::{fma, shift_force, BaseMotion, Inputs, Stepper, Workspace};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::objects::{bounds, closest};
 
 /// Largest number of simultaneous contact candidates handled in one step.
-pub const MAX_CONTACTS: usize = 8;
+pub const MAX_CONTACTS: usize = 24;
 
 /// The contact nearest the whisker's base after a step.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -33,6 +33,12 @@ pub struct ContactReport {
     pub s: f64,
     /// Force the object applies to the whisker there, world frame, N.
     pub force: [f64; 2],
+    /// Contact normal (from the object towards the whisker), world frame.
+    pub normal: [f64; 2],
+    /// Normal force, N (≥ 0).
+    pub normal_force: f64,
+    /// Tangential (friction) force along the normal turned +90°, N (|·| ≤ μ·normal force).
+    pub tangential_force: f64,
     /// Number of contacts carrying force.
     pub count: usize,
     /// Index of the object touched.
@@ -47,6 +53,8 @@ struct Candidate {
     point: [f64; 2],
     /// Arc length of the point.
     s: f64,
+    /// Gap at the evaluation point, m.
+    gap: f64,
     /// Normal (object → whisker) and tangent.
     n: [f64; 2],
     t: [f64; 2],
@@ -110,6 +118,9 @@ impl Scratch {
                 c.lambda_n * c.n[0] + c.lambda_t * c.t[0],
                 c.lambda_n * c.n[1] + c.lambda_t * c.t[1],
             ],
+            normal: c.n,
+            normal_force: c.lambda_n,
+            tangential_force: c.lambda_t,
             count,
             object: c.object,
         })
@@ -194,7 +205,6 @@ pub(crate) fn solve(
     let n = model.n;
     let h = st.dt;
     let (beta, gamma, am) = (st.beta_coef(), st.gamma_coef(), st.alpha_m_coef());
-    let t_eval = t0 + (1.0 - st.alpha_f()) * h;
     let t_end = t0 + h;
 
     // End-of-step angles and rates as affine functions of b.
@@ -219,7 +229,10 @@ pub(crate) fn solve(
     // Narrow phase: candidates.
     let mut count = 0usize;
     for (k, obj) in inputs.objects.iter().enumerate() {
-        let pose = obj.pose(t_eval);
+        // Features are found with the object where it starts the step, so that a fast object
+        // cannot jump past a feature of the whisker (its tip) within one step; its motion over the
+        // step enters the end-of-step gap.
+        let pose = obj.pose(t0);
         let pose_end = obj.pose(t_end);
         // Reach: how far the object and the whisker can close in a step, plus the radius.
         let speed = pose.velocity[0].hypot(pose.velocity[1]) + pose.angular_velocity.abs() * 0.1;
@@ -242,20 +255,30 @@ pub(crate) fn solve(
             if duplicate || gap > reach - rmax {
                 continue;
             }
-            if count == MAX_CONTACTS {
-                return Err(Error::Diverged {
-                    t: t0,
-                    detail: format!("more than {MAX_CONTACTS} simultaneous contact candidates"),
-                });
-            }
-            // Object motion over the rest of the step, at the object's contact point.
+            // When full, a closer candidate replaces the farthest one.
+            let slot = if count < MAX_CONTACTS {
+                count += 1;
+                count - 1
+            } else {
+                let (far, far_gap) = ws.contacts.cand[..count]
+                    .iter()
+                    .enumerate()
+                    .map(|(j, c)| (j, c.gap))
+                    .fold((0, f64::NEG_INFINITY), |a, b| if b.1 > a.1 { b } else { a });
+                if gap >= far_gap {
+                    continue;
+                }
+                far
+            };
+            // Object motion over the step, at the object's contact point.
             let local = pose.to_local(c.on_object);
             let o_end = pose_end.to_world(local);
             let d_obj = [o_end[0] - c.on_object[0], o_end[1] - c.on_object[1]];
             let v_obj = pose_end.velocity_at(o_end);
             let nrm = c.normal;
             let tan = [-nrm[1], nrm[0]];
-            ws.contacts.cand[count] = Candidate {
+            ws.contacts.cand[slot] = Candidate {
+                gap,
                 seg: i,
                 point: c.on_whisker,
                 s: (i as f64 + c.u) * model.arc,
@@ -268,7 +291,6 @@ pub(crate) fn solve(
                 lambda_n: 0.0,
                 lambda_t: 0.0,
             };
-            count += 1;
         }
     }
     ws.contacts.count = count;
@@ -282,7 +304,16 @@ pub(crate) fn solve(
     let mut u = std::mem::take(&mut ws.contacts.u);
     for k in 0..count {
         let c = ws.contacts.cand[k];
-        for (r, dir) in [(2 * k, c.n), (2 * k + 1, c.t)] {
+        let rows: &[(usize, [f64; 2])] = if c.mu > 0.0 {
+            &[(2 * k, c.n), (2 * k + 1, c.t)]
+        } else {
+            &[(2 * k, c.n)]
+        };
+        if c.mu == 0.0 {
+            jac[(2 * k + 1) * n..(2 * k + 2) * n].fill(0.0);
+            resp[(2 * k + 1) * n..(2 * k + 2) * n].fill(0.0);
+        }
+        for &(r, dir) in rows {
             let row = &mut jac[r * n..(r + 1) * n];
             generalised(ws, c.seg, c.point, dir, row);
             apply_inverse(ws, &jac[r * n..(r + 1) * n], &mut u, &mut resp[r * n..(r + 1) * n]);
@@ -326,11 +357,13 @@ pub(crate) fn solve(
                 g += sc.w[rn * m + 2 * j] * sc.cand[j].lambda_n + sc.w[rn * m + 2 * j + 1] * sc.cand[j].lambda_t;
             }
             let old = sc.cand[k].lambda_n;
-            let new = (old - g / sc.w[rn * m + rn]).max(0.0);
+            let diag = sc.w[rn * m + rn];
+            // A point the whisker cannot move (the clamped base) takes no force.
+            let new = if diag > 0.0 { (old - g / diag).max(0.0) } else { 0.0 };
             sc.cand[k].lambda_n = new;
             change = change.max((new - old).abs());
             // Tangential: no slip while |λt| < μ λn.
-            if sc.cand[k].mu > 0.0 {
+            if sc.cand[k].mu > 0.0 && sc.w[rt * m + rt] > 0.0 {
                 let mut s = sc.cand[k].c_t;
                 for j in 0..count {
                     s += sc.w[rt * m + 2 * j] * sc.cand[j].lambda_n + sc.w[rt * m + 2 * j + 1] * sc.cand[j].lambda_t;

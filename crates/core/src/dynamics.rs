@@ -73,7 +73,7 @@ impl Integrator {
 pub const DEFAULT_TOLERANCE: f64 = 1.0e-5;
 
 /// Default cap on geometric iterations per step.
-pub const DEFAULT_MAX_ITERATIONS: usize = 3;
+pub const DEFAULT_MAX_ITERATIONS: usize = 6;
 
 /// Default high-frequency spectral radius. Smaller values damp unresolved stiff modes faster but
 /// make the method overshoot when a stiff, heavily damped mode is kicked (a release, an impact):

@@ -298,7 +298,7 @@ pub struct Output {
     pub dt: f64,
     /// Steps taken.
     pub steps: usize,
-    /// Largest penetration of the whisker's surface into an object at the end of any step, m.
+    /// Largest penetration of the whisker's surface into an object at any sample in contact, m.
     pub max_penetration: f64,
 }
 
@@ -342,9 +342,9 @@ pub fn run(scenario: &Scenario, progress: &mut dyn FnMut(f64)) -> Result<Output>
                 inputs.base = scenario.base.at(t);
                 step(&model, &stepper, &mut state, &inputs, &mut ws)?;
                 steps += 1;
-                if !scenario.objects.is_empty() {
-                    max_penetration = max_penetration.max(penetration(&model, &state, &mut ws, &scenario.objects));
-                }
+            }
+            if state.contact.is_some() {
+                max_penetration = max_penetration.max(penetration(&model, &state, &mut ws, &scenario.objects));
             }
         }
         rows.push(sample(&state, k as f64 * period, &scenario.sensor_noise, &mut sensor_rng));

@@ -1,0 +1,319 @@
+//! Scenario files: TOML in, [`vibrissa_core::sim::Scenario`] out.
+//!
+//! A scenario is named by [`load`] as a built-in (`e1`, `e2`: the seed's experiments, see
+//! EXPERIMENTS.md) or as the path of a TOML file. Built-ins are TOML text too ([`builtin`]), read
+//! by the same parser. `key=value` overrides (`--set` on the command line) are applied to the
+//! document before it is read, so they obey the same schema.
+//!
+//! # File schema
+//!
+//! All quantities are SI (m, s, rad, Hz, Pa, kg/m³, N·m/rad). Every key is optional unless
+//! marked; an absent key keeps the value of [`Scenario::default`] (the `w30` whisker, 20
+//! segments, Gregory stiffness, dt = 1e-4 s, 150 ms at 1 kHz, no objects, a fixed base, no noise,
+//! seed 0). Unknown keys are errors.
+//!
+//! ```toml
+//! # A built-in experiment family: generates the box from d and v (and `objects` may add more).
+//! experiment = "e2"          # "e1" | "e2"
+//! d = 0.020                  # m, near edge of the box from the base along x (default 0.020)
+//! v = 0.6                    # m/s, box speed along +y (default 0.6)
+//!
+//! duration = 0.15            # s, simulated time
+//! sample_rate = 1000         # Hz, output samples (t = 0, 1/rate, … up to duration)
+//! dt = 1e-4                  # s, integrator step
+//! rho_inf = 0.99             # integrator: high-frequency spectral radius, [0.5, 1]
+//! tolerance = 1e-5           # integrator: geometric tolerance, rad
+//! max_iterations = 3         # integrator: geometric iterations per step, 1..=20
+//! segments = 20              # segment count N
+//! discretisation = "gregory" # "gregory" | "trapezoid" | "seed"
+//! process_noise = 0.0        # N·s^½·m^-½, random forces on every segment
+//! seed = 1                   # seed of all randomness
+//!
+//! [whisker]                  # a preset, then any field overrides it
+//! preset = "w30"             # "w30" | "rat" | "robot" (default: w30)
+//! length = 0.030             # m
+//! base_radius = 1e-4         # m
+//! tip_radius = 1e-4          # m (< base_radius: conical taper)
+//! rest_curvature = 0.0       # 1/m, counter-clockwise positive
+//! youngs_modulus = 3.0e9     # Pa
+//! density = 1100.0           # kg/m³
+//! follicle = { kind = "clamped" }
+//! # follicle = { kind = "spring", stiffness = 2e-5, damping = 1e-8 }   # N·m/rad, N·m·s/rad
+//! damping = { kind = "modal_ratio", ratio = 0.05 }
+//! # damping = { kind = "segment_q", q = 10.0 } | { kind = "stiffness_proportional", beta = 1e-4 }
+//! # damping = { kind = "none" }
+//!
+//! [sensor_noise]             # standard deviation of Gaussian noise per observed channel
+//! theta01 = 0.0              # rad (also theta12; m0 in N·m; fx, fy in N)
+//!
+//! [base]                     # prescribed base rotation (active whisking)
+//! kind = "sinusoid"          # required: "fixed" | "sinusoid" | "ramp" | "trajectory"
+//! amplitude = 0.3            # sinusoid (required), rad: offset + amplitude·sin(2π·frequency·t + phase)
+//! frequency = 8.0            # sinusoid (required), Hz
+//! phase = 0.0                # sinusoid, rad
+//! offset = 0.0               # sinusoid, rad
+//! # ramp: rate (required, rad/s), start = 0 s, stop = inf s, smoothing = 0.005 s
+//! # trajectory: file = "whisk.csv" (required): CSV with the header `t,angle`, finite values,
+//! #             strictly increasing t; the path is relative to the scenario file's folder
+//!
+//! [[objects]]                # any number of rigid objects
+//! shape = "box"              # required: "box" | "circle" | "wall" | "polygon"
+//! width = 0.01               # box (required), m, along the object's x
+//! height = 0.01              # box (required), m, along the object's y
+//! # circle: radius (required); wall: no keys (the half-plane y <= 0 of the object's frame);
+//! # polygon: vertices = [[x, y], ...] (required; convex, counter-clockwise)
+//! position = [0.025, -0.006] # m, the object's frame at t = 0 (required without waypoints)
+//! angle = 0.0                # rad
+//! friction = 0.0             # Coulomb coefficient against the whisker
+//! velocity = [0.0, 0.6]      # m/s, constant
+//! angular_velocity = 0.0     # rad/s, constant
+//! # or, instead of position, angle, velocity and angular_velocity:
+//! # waypoints = [[t, x, y, angle], ...]   # piecewise-linear path, times strictly increasing
+//! ```
+//!
+//! With `experiment`, the box ([`experiment_box`]) is appended after the file's own objects, so
+//! those keep their indices. `e1` and `e2` generate the same box; they differ in which parameters
+//! an estimator treats as unknown ([`Experiment::unknowns`]).
+//!
+//! # Errors
+//!
+//! A syntax error, an unknown key or a wrong type is reported with the file's name and the
+//! parser's line, column, offending text and expectation (after overrides, the key path instead
+//! of a line). A key given to a kind that does not take it names the key and the kind's keys; a
+//! value out of range is core's [`Scenario::check`] verdict, prefixed with the file's name.
+
+mod overrides;
+mod schema;
+
+use crate::error::{Error, Result};
+use crate::series::parse_csv;
+use serde::Deserialize;
+use std::path::Path;
+use vibrissa_core::objects::{Motion, Object, Shape};
+use vibrissa_core::sim::Scenario;
+
+/// Names of the built-in scenarios.
+pub const BUILTINS: [&str; 2] = ["e1", "e2"];
+
+/// Default near-edge distance of the experiments' box, m.
+pub const DEFAULT_D: f64 = 0.020;
+
+/// Default speed of the experiments' box, m/s.
+pub const DEFAULT_V: f64 = 0.6;
+
+/// Side of the experiments' square box, m.
+pub const BOX_SIDE: f64 = 0.010;
+
+/// Gap between the experiments' box and the whisker at t = 0, m.
+pub const BOX_GAP: f64 = 0.001;
+
+/// The seed's experiment families (EXPERIMENTS.md).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Experiment {
+    /// Distance only: the box's speed is known.
+    E1,
+    /// Distance and speed.
+    E2,
+}
+
+impl Experiment {
+    /// The family's name (`e1`, `e2`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Experiment::E1 => "e1",
+            Experiment::E2 => "e2",
+        }
+    }
+
+    /// The parameters an estimator of this family infers.
+    pub fn unknowns(self) -> &'static [&'static str] {
+        match self {
+            Experiment::E1 => &["d"],
+            Experiment::E2 => &["d", "v"],
+        }
+    }
+}
+
+/// An experiment family with its parameter values, as a scenario file set them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ExperimentRun {
+    /// The family.
+    pub experiment: Experiment,
+    /// Near-edge distance of the box from the base along x, m.
+    pub d: f64,
+    /// Box speed along +y, m/s.
+    pub v: f64,
+}
+
+/// A loaded scenario with what the file said about it beyond the [`Scenario`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Loaded {
+    /// The checked scenario.
+    pub scenario: Scenario,
+    /// The experiment family and parameters, if the file named one.
+    pub experiment: Option<ExperimentRun>,
+    /// The file's path or the built-in's name, as used in messages.
+    pub origin: String,
+}
+
+/// TOML text of the built-in `e1`.
+const E1: &str = r#"# The seed's experiment e1 (distance only): the w30 whisker struck by a 10 mm square box
+# moving along +y at v; the box's near edge is at x = d, its top 1 mm below the whisker.
+experiment = "e1"
+d = 0.020
+v = 0.6
+duration = 0.15
+sample_rate = 1000
+dt = 1e-4
+segments = 20
+
+[whisker]
+preset = "w30"
+"#;
+
+/// TOML text of the built-in `e2`.
+const E2: &str = r#"# The seed's experiment e2 (distance and speed): the w30 whisker struck by a 10 mm square box
+# moving along +y at v; the box's near edge is at x = d, its top 1 mm below the whisker.
+experiment = "e2"
+d = 0.020
+v = 0.6
+duration = 0.15
+sample_rate = 1000
+dt = 1e-4
+segments = 20
+
+[whisker]
+preset = "w30"
+"#;
+
+/// The TOML text of a built-in scenario (see [`BUILTINS`]).
+pub fn builtin(name: &str) -> Option<&'static str> {
+    match name {
+        "e1" => Some(E1),
+        "e2" => Some(E2),
+        _ => None,
+    }
+}
+
+/// The experiments' box: 10 mm × 10 mm, frictionless, its top-left corner at (d, −1 mm) at
+/// t = 0 (centre at (d + 5 mm, −6 mm)), moving along +y at `v`.
+pub fn experiment_box(d: f64, v: f64) -> Object {
+    Object {
+        shape: Shape::Box {
+            width: BOX_SIDE,
+            height: BOX_SIDE,
+        },
+        position: [d + 0.5 * BOX_SIDE, -BOX_GAP - 0.5 * BOX_SIDE],
+        angle: 0.0,
+        motion: Motion::Constant {
+            velocity: [0.0, v],
+            angular_velocity: 0.0,
+        },
+        friction: 0.0,
+    }
+}
+
+/// Loads a scenario: `spec` is a built-in name ([`BUILTINS`]) or the path of a TOML file, and
+/// `sets` are `key=value` overrides applied in order (`whisker.length=0.04`,
+/// `objects.0.friction=0.3`, `d=0.023`; values are TOML, or bare strings).
+pub fn load(spec: &str, sets: &[String]) -> Result<Scenario> {
+    load_full(spec, sets).map(|l| l.scenario)
+}
+
+/// As [`load`], and also returns the experiment family and the scenario's origin.
+pub fn load_full(spec: &str, sets: &[String]) -> Result<Loaded> {
+    // A built-in name wins over a file of the same name (write ./e1 for the file).
+    if let Some(text) = builtin(spec) {
+        return parse(text, &format!("built-in scenario `{spec}`"), Path::new(""), sets);
+    }
+    let path = Path::new(spec);
+    if !path.is_file() {
+        return Err(Error::UnknownScenario {
+            spec: spec.to_string(),
+            builtins: BUILTINS.iter().map(|b| b.to_string()).collect(),
+        });
+    }
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io("read", path, e))?;
+    let dir = path.parent().unwrap_or(Path::new(""));
+    parse(&text, &path.display().to_string(), dir, sets)
+}
+
+/// Loads a scenario from TOML text; `origin` names it in errors, and relative paths in it
+/// (a base trajectory) are taken from `origin`'s folder.
+pub fn load_str(text: &str, origin: &str, sets: &[String]) -> Result<Scenario> {
+    let dir = Path::new(origin).parent().unwrap_or(Path::new(""));
+    parse(text, origin, dir, sets).map(|l| l.scenario)
+}
+
+/// Reads a base trajectory CSV: the header `t,angle`, then rows of two finite numbers with t
+/// strictly increasing. Errors name the file and the line.
+pub fn read_trajectory(path: &Path) -> Result<(Vec<f64>, Vec<f64>)> {
+    let origin = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io("read", path, e))?;
+    let (series, lines) = parse_csv(&text, &origin)?;
+    if series.columns != ["t", "angle"] {
+        return Err(Error::data(
+            &origin,
+            0,
+            format!(
+                "the header must be `t,angle` (time in s, base angle in rad), not `{}`",
+                series.columns.join(",")
+            ),
+        ));
+    }
+    let (t, angle) = (&series.data[0], &series.data[1]);
+    if t.is_empty() {
+        return Err(Error::data(&origin, 0, "no rows after the header `t,angle`"));
+    }
+    for (k, &line) in lines.iter().enumerate() {
+        if t[k].is_nan() || angle[k].is_nan() {
+            return Err(Error::data(&origin, line, "NaN is not allowed in a trajectory"));
+        }
+        if k > 0 && t[k] <= t[k - 1] {
+            return Err(Error::data(
+                &origin,
+                line,
+                format!(
+                    "t = {} does not increase (the previous row has t = {})",
+                    t[k],
+                    t[k - 1]
+                ),
+            ));
+        }
+    }
+    Ok((t.clone(), angle.clone()))
+}
+
+/// Parses, applies the overrides, reads the schema and checks the result.
+fn parse(text: &str, origin: &str, base_dir: &Path, sets: &[String]) -> Result<Loaded> {
+    let toml_error = |origin: &str, e: toml::de::Error| Error::Toml {
+        origin: origin.to_string(),
+        message: e.to_string().trim_end().to_string(),
+    };
+    let file: schema::FileTable = if sets.is_empty() {
+        // Straight from the text, so that errors carry line and column.
+        toml::from_str(text).map_err(|e| toml_error(origin, e))?
+    } else {
+        let mut doc: toml::Table = toml::from_str(text).map_err(|e| toml_error(origin, e))?;
+        for set in sets {
+            overrides::apply(&mut doc, set)?;
+        }
+        match schema::FileTable::deserialize(toml::Value::Table(doc)) {
+            Ok(file) => file,
+            Err(e) => {
+                // An error the file has without the overrides is shown where it is in the file.
+                if let Err(plain) = toml::from_str::<schema::FileTable>(text) {
+                    if plain.message() == e.message() {
+                        return Err(toml_error(origin, plain));
+                    }
+                }
+                return Err(toml_error(
+                    &format!("{origin} with --set {}", sets.join(" --set ")),
+                    e,
+                ));
+            }
+        }
+    };
+    file.into_loaded(&schema::Ctx { origin, base_dir })
+}

@@ -1,0 +1,521 @@
+//! Scenario files: the schema, built-ins, overrides and error messages.
+
+use std::f64::consts::PI;
+use std::fs;
+use std::path::PathBuf;
+use vibrissa_core::chain::Discretisation;
+use vibrissa_core::objects::{Motion, Shape};
+use vibrissa_core::sim::{BaseDrive, Scenario};
+use vibrissa_core::whisker::{Damping, Follicle, WhiskerParams};
+use vibrissa_io::scenario::{self, builtin, experiment_box, load_full, Experiment, BUILTINS};
+use vibrissa_io::{load, load_str, Error};
+
+fn sets(items: &[&str]) -> Vec<String> {
+    items.iter().map(|s| s.to_string()).collect()
+}
+
+/// The message of a load that must fail.
+fn load_err(text: &str, set: &[&str]) -> String {
+    match load_str(text, "test.toml", &sets(set)) {
+        Ok(s) => panic!("expected an error, loaded {s:?}"),
+        Err(e) => e.to_string(),
+    }
+}
+
+/// A fresh folder for this test's files.
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("scenario-{name}"));
+    let _ = fs::remove_dir_all(&dir);
+    fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+#[test]
+fn builtins_are_the_seed_experiments() {
+    for name in BUILTINS {
+        let text = builtin(name).unwrap();
+        assert!(text.contains(&format!("experiment = \"{name}\"")));
+        let loaded = load_full(name, &[]).unwrap();
+        let s = &loaded.scenario;
+        // EXPERIMENTS.md: w30, 150 ms at 1 kHz; this project's N = 20 and dt = 0.1 ms.
+        assert_eq!(s.whisker, WhiskerParams::w30());
+        assert_eq!(s.segments, 20);
+        assert_eq!(s.duration, 0.15);
+        assert_eq!(s.sample_rate, 1000.0);
+        assert_eq!(s.integrator.dt, 1e-4);
+        assert_eq!(s.base, BaseDrive::Fixed);
+        assert_eq!(s.objects, vec![experiment_box(0.020, 0.6)]);
+        let run = loaded.experiment.unwrap();
+        assert_eq!(run.experiment.name(), name);
+        assert_eq!((run.d, run.v), (0.020, 0.6));
+    }
+    assert!(builtin("e3").is_none());
+    assert_eq!(Experiment::E1.unknowns(), ["d"]);
+    assert_eq!(Experiment::E2.unknowns(), ["d", "v"]);
+}
+
+#[test]
+fn experiment_box_geometry() {
+    let b = experiment_box(0.023, 0.9);
+    assert_eq!(
+        b.shape,
+        Shape::Box {
+            width: 0.010,
+            height: 0.010
+        }
+    );
+    // Top-left corner at (d, -1 mm): centre at (d + 5 mm, -6 mm).
+    assert!((b.position[0] - 0.028).abs() < 1e-15);
+    assert!((b.position[1] + 0.006).abs() < 1e-15);
+    assert_eq!(b.angle, 0.0);
+    assert_eq!(b.friction, 0.0);
+    assert_eq!(
+        b.motion,
+        Motion::Constant {
+            velocity: [0.0, 0.9],
+            angular_velocity: 0.0
+        }
+    );
+    // The pose at t = 0.1 s has moved 90 mm along +y.
+    let p = b.pose(0.1);
+    assert!((p.position[1] - (-0.006 + 0.09)).abs() < 1e-15);
+}
+
+#[test]
+fn builtin_overrides_set_d_and_v() {
+    let loaded = load_full("e2", &sets(&["d=0.015", "v=1.5", "seed=3"])).unwrap();
+    assert_eq!(loaded.scenario.objects, vec![experiment_box(0.015, 1.5)]);
+    assert_eq!(loaded.scenario.seed, 3);
+    let run = loaded.experiment.unwrap();
+    assert_eq!((run.experiment, run.d, run.v), (Experiment::E2, 0.015, 1.5));
+    assert!(loaded.origin.contains("e2"));
+}
+
+#[test]
+fn experiment_in_a_file_defaults_d_and_v_and_appends_its_box() {
+    let text = r#"
+experiment = "e1"
+[[objects]]
+shape = "circle"
+radius = 0.001
+position = [0.01, 0.01]
+"#;
+    let s = load_str(text, "test.toml", &[]).unwrap();
+    assert_eq!(s.objects.len(), 2);
+    assert_eq!(s.objects[0].shape, Shape::Circle { radius: 0.001 });
+    assert_eq!(s.objects[1], experiment_box(0.020, 0.6));
+}
+
+#[test]
+fn empty_file_is_the_default_scenario() {
+    assert_eq!(load_str("", "empty.toml", &[]).unwrap(), Scenario::default());
+}
+
+#[test]
+fn every_key_maps_to_the_scenario() {
+    let text = r#"
+duration = 0.2
+dt = 5e-5
+rho_inf = 0.9
+tolerance = 1e-6
+max_iterations = 5
+sample_rate = 2000
+seed = 42
+segments = 30
+discretisation = "trapezoid"
+process_noise = 1e-6
+
+[whisker]
+preset = "rat"
+length = 0.04
+base_radius = 8e-5
+tip_radius = 1e-5
+rest_curvature = 10.0
+youngs_modulus = 4e9
+density = 1200
+follicle = { kind = "spring", stiffness = 3e-5, damping = 2e-8 }
+damping = { kind = "segment_q", q = 12.0 }
+
+[sensor_noise]
+theta01 = 0.001
+theta12 = 0.002
+m0 = 1e-9
+fx = 1e-6
+fy = 2e-6
+
+[base]
+kind = "ramp"
+rate = 2.0
+start = 0.01
+
+[[objects]]
+shape = "box"
+width = 0.01
+height = 0.005
+position = [0.02, -0.01]
+angle = 0.1
+friction = 0.3
+velocity = [0.1, 0.5]
+angular_velocity = 1.0
+
+[[objects]]
+shape = "polygon"
+vertices = [[0, 0], [0.002, 0], [0, 0.002]]
+waypoints = [[0, 0.01, -0.005, 0], [0.1, 0.012, 0.005, 0.5]]
+
+[[objects]]
+shape = "wall"
+position = [0, 0.01]
+angle = 3.141592653589793
+"#;
+    let s = load_str(text, "full.toml", &[]).unwrap();
+    assert_eq!(s.duration, 0.2);
+    assert_eq!(s.integrator.dt, 5e-5);
+    assert_eq!(s.integrator.rho_inf, 0.9);
+    assert_eq!(s.integrator.tolerance, 1e-6);
+    assert_eq!(s.integrator.max_iterations, 5);
+    assert_eq!(s.sample_rate, 2000.0);
+    assert_eq!(s.seed, 42);
+    assert_eq!(s.segments, 30);
+    assert_eq!(s.discretisation, Discretisation::Trapezoid);
+    assert_eq!(s.process_noise, 1e-6);
+
+    let w = &s.whisker;
+    assert_eq!(
+        (w.length, w.base_radius, w.tip_radius, w.rest_curvature, w.youngs_modulus, w.density),
+        (0.04, 8e-5, 1e-5, 10.0, 4e9, 1200.0)
+    );
+    assert_eq!(
+        w.follicle,
+        Follicle::Spring {
+            stiffness: 3e-5,
+            damping: 2e-8
+        }
+    );
+    assert_eq!(w.damping, Damping::SegmentQ { q: 12.0 });
+
+    let n = &s.sensor_noise;
+    assert_eq!((n.theta01, n.theta12, n.m0, n.fx, n.fy), (0.001, 0.002, 1e-9, 1e-6, 2e-6));
+
+    // Ramp defaults: never stops, 5 ms corners.
+    assert_eq!(
+        s.base,
+        BaseDrive::Ramp {
+            rate: 2.0,
+            start: 0.01,
+            stop: f64::INFINITY,
+            smoothing: 0.005
+        }
+    );
+
+    assert_eq!(s.objects.len(), 3);
+    let b = &s.objects[0];
+    assert_eq!(
+        b.shape,
+        Shape::Box {
+            width: 0.01,
+            height: 0.005
+        }
+    );
+    assert_eq!((b.position, b.angle, b.friction), ([0.02, -0.01], 0.1, 0.3));
+    assert_eq!(
+        b.motion,
+        Motion::Constant {
+            velocity: [0.1, 0.5],
+            angular_velocity: 1.0
+        }
+    );
+    // Waypoints: the initial pose is the first waypoint's; friction defaults to 0.
+    let p = &s.objects[1];
+    assert_eq!((p.position, p.angle, p.friction), ([0.01, -0.005], 0.0, 0.0));
+    assert_eq!(
+        p.motion,
+        Motion::Waypoints {
+            points: vec![[0.0, 0.01, -0.005, 0.0], [0.1, 0.012, 0.005, 0.5]]
+        }
+    );
+    assert_eq!(s.objects[2].shape, Shape::Wall);
+    assert_eq!(s.objects[2].angle, PI);
+}
+
+#[test]
+fn sinusoid_and_fixed_base() {
+    let s = load_str(
+        "[base]\nkind = \"sinusoid\"\namplitude = 0.3\nfrequency = 8\n",
+        "t.toml",
+        &[],
+    )
+    .unwrap();
+    assert_eq!(
+        s.base,
+        BaseDrive::Sinusoid {
+            amplitude: 0.3,
+            frequency: 8.0,
+            phase: 0.0,
+            offset: 0.0
+        }
+    );
+    let s = load_str("[base]\nkind = \"fixed\"\n", "t.toml", &[]).unwrap();
+    assert_eq!(s.base, BaseDrive::Fixed);
+}
+
+#[test]
+fn whisker_table_without_preset_overrides_w30() {
+    let s = load_str("[whisker]\nlength = 0.04\n", "t.toml", &[]).unwrap();
+    let mut expected = WhiskerParams::w30();
+    expected.length = 0.04;
+    assert_eq!(s.whisker, expected);
+}
+
+#[test]
+fn unknown_key_names_file_line_and_allowed_keys() {
+    let e = load_err("duration = 0.1\n[whisker]\nlenght = 0.03\n", &[]);
+    assert!(e.starts_with("test.toml: "), "{e}");
+    assert!(e.contains("line 3, column 1"), "{e}");
+    assert!(e.contains("unknown field `lenght`"), "{e}");
+    assert!(e.contains("`length`") && e.contains("`youngs_modulus`"), "{e}");
+
+    let e = load_err("durration = 0.1\n", &[]);
+    assert!(e.contains("line 1") && e.contains("`durration`") && e.contains("`duration`"), "{e}");
+}
+
+#[test]
+fn wrong_type_and_bad_choice_name_the_place() {
+    let e = load_err("seed = 1\nduration = \"long\"\n", &[]);
+    assert!(e.contains("test.toml") && e.contains("line 2, column 12"), "{e}");
+    assert!(e.contains("expected f64"), "{e}");
+
+    let e = load_err("discretisation = \"exact\"\n", &[]);
+    assert!(e.contains("line 1") && e.contains("`gregory`") && e.contains("`seed`"), "{e}");
+
+    let e = load_err("[[objects]]\nshape = \"cone\"\nposition = [0, 0]\n", &[]);
+    assert!(e.contains("line 2") && e.contains("`polygon`"), "{e}");
+
+    let e = load_err("experiment = \"e3\"\n", &[]);
+    assert!(e.contains("`e1`") && e.contains("`e2`"), "{e}");
+
+    // Syntax errors too.
+    let e = load_err("duration = \n", &[]);
+    assert!(e.contains("test.toml") && e.contains("line 1"), "{e}");
+}
+
+#[test]
+fn keys_of_the_wrong_kind_are_named() {
+    let e = load_err(
+        "[[objects]]\nshape = \"box\"\nwidth = 0.01\nheight = 0.01\nradius = 0.01\nposition = [0, 0]\n",
+        &[],
+    );
+    assert!(e.contains("`objects[0].radius`"), "{e}");
+    assert!(e.contains("shape = \"box\"") && e.contains("width, height"), "{e}");
+
+    let e = load_err("[[objects]]\nshape = \"circle\"\nposition = [0, 0]\n", &[]);
+    assert!(e.contains("`objects[0].radius` is required"), "{e}");
+
+    let e = load_err("[[objects]]\nshape = \"circle\"\nradius = 0.001\n", &[]);
+    assert!(e.contains("`objects[0].position` is required"), "{e}");
+
+    let e = load_err(
+        "[[objects]]\nshape = \"wall\"\nposition = [0, 0]\nwaypoints = [[0, 0, 0, 0]]\n",
+        &[],
+    );
+    assert!(e.contains("`objects[0].position`") && e.contains("waypoints"), "{e}");
+
+    let e = load_err("[base]\nkind = \"sinusoid\"\namplitude = 0.3\n", &[]);
+    assert!(e.contains("`base.frequency` is required"), "{e}");
+
+    let e = load_err("[base]\nkind = \"sinusoid\"\namplitude = 0.3\nfrequency = 5\nrate = 1\n", &[]);
+    assert!(e.contains("`base.rate` does not apply"), "{e}");
+
+    let e = load_err("[base]\nkind = \"fixed\"\namplitude = 0.3\n", &[]);
+    assert!(e.contains("`base.amplitude`"), "{e}");
+
+    let e = load_err("[whisker]\nfollicle = { kind = \"spring\", stiffness = 1e-5 }\n", &[]);
+    assert!(e.contains("`whisker.follicle.damping` is required"), "{e}");
+
+    let e = load_err("[whisker]\nfollicle = { kind = \"clamped\", stiffness = 1e-5 }\n", &[]);
+    assert!(e.contains("`whisker.follicle.stiffness` does not apply"), "{e}");
+
+    let e = load_err("[whisker]\ndamping = { kind = \"modal_ratio\", q = 10 }\n", &[]);
+    assert!(e.contains("`whisker.damping.q`") && e.contains("ratio"), "{e}");
+
+    let e = load_err("[whisker]\nfollicle = { kind = \"spring\", stiffness = 1, damping = 0, extra = 1 }\n", &[]);
+    assert!(e.contains("unknown field `extra`"), "{e}");
+
+    let e = load_err("d = 0.02\n", &[]);
+    assert!(e.contains("`d`") && e.contains("experiment"), "{e}");
+}
+
+#[test]
+fn out_of_range_values_are_cores_verdict_with_the_file() {
+    let e = load_str("[whisker]\nlength = -0.03\n", "bad.toml", &[]).unwrap_err();
+    assert!(matches!(e.core(), Some(vibrissa_core::Error::InvalidParameter { .. })));
+    let e = e.to_string();
+    assert!(e.starts_with("bad.toml: ") && e.contains("whisker.length"), "{e}");
+
+    let e = load_err("[whisker]\npreset = \"cat\"\n", &[]);
+    assert!(e.contains("whisker.preset") && e.contains("w30"), "{e}");
+
+    let e = load_err("duration = 0\n", &[]);
+    assert!(e.contains("duration"), "{e}");
+
+    let e = load_err("dt = 0.01\n", &[]);
+    assert!(e.contains("dt"), "{e}");
+
+    let e = load_err("[[objects]]\nshape = \"box\"\nwidth = 0.01\nheight = -1\nposition = [0, 0]\n", &[]);
+    assert!(e.contains("objects[0].height"), "{e}");
+
+    let e = load_err("[[objects]]\nshape = \"polygon\"\nvertices = [[0, 0], [0, 1], [1, 0]]\nposition = [0, 0]\n", &[]);
+    assert!(e.contains("objects[0].vertices") && e.contains("counter-clockwise"), "{e}");
+
+    let e = load_err("experiment = \"e2\"\nd = nan\n", &[]);
+    assert!(e.contains("invalid d"), "{e}");
+}
+
+#[test]
+fn overrides_set_nested_keys_and_array_elements() {
+    let text = r#"
+[[objects]]
+shape = "circle"
+radius = 0.001
+position = [0.02, 0.004]
+"#;
+    let s = load_str(
+        text,
+        "t.toml",
+        &sets(&[
+            "whisker.length=0.04",
+            "whisker.preset=rat",
+            "objects.0.friction=0.3",
+            "objects.0.velocity=[0, 0.6]",
+            "objects.1.shape=wall",
+            "objects.1.position=[0, 0.01]",
+            "segments = 40",
+            "discretisation=seed",
+            "base.kind=ramp",
+            "base.rate=1",
+            "base.stop=inf",
+        ]),
+    )
+    .unwrap();
+    let mut rat = WhiskerParams::rat();
+    rat.length = 0.04;
+    assert_eq!(s.whisker, rat);
+    assert_eq!(s.segments, 40);
+    assert_eq!(s.discretisation, Discretisation::Seed);
+    assert_eq!(s.objects[0].friction, 0.3);
+    assert_eq!(
+        s.objects[0].motion,
+        Motion::Constant {
+            velocity: [0.0, 0.6],
+            angular_velocity: 0.0
+        }
+    );
+    assert_eq!(s.objects[1].shape, Shape::Wall);
+    assert_eq!(s.objects[1].position, [0.0, 0.01]);
+    assert!(matches!(s.base, BaseDrive::Ramp { rate, stop, .. } if rate == 1.0 && stop.is_infinite()));
+
+    // Later overrides win.
+    let s = load("e2", &sets(&["d=0.02", "d=0.03"])).unwrap();
+    assert_eq!(s.objects[0], experiment_box(0.03, 0.6));
+}
+
+#[test]
+fn bad_overrides_are_errors() {
+    // No `=`.
+    let e = load_err("", &["whisker.length"]);
+    assert!(e.contains("--set `whisker.length`") && e.contains("key=value"), "{e}");
+    // Empty key part.
+    let e = load_err("", &["whisker..length=1"]);
+    assert!(e.contains("whisker..length"), "{e}");
+    // A key that the schema does not have: caught when the document is read.
+    let e = load_err("", &["whisker.lenght=0.04"]);
+    assert!(e.contains("unknown field `lenght`") && e.contains("whisker"), "{e}");
+    assert!(e.contains("--set whisker.lenght=0.04"), "{e}");
+    let e = load_err("", &["colour=1"]);
+    assert!(e.contains("unknown field `colour`"), "{e}");
+    // Indexing past the end, or into a number.
+    let e = load_err("", &["objects.2.shape=box"]);
+    assert!(e.contains("`objects` has 0 entries"), "{e}");
+    let e = load_err("", &["objects.first.shape=box"]);
+    assert!(e.contains("array") && e.contains("`first`"), "{e}");
+    let e = load_err("duration = 0.1\n", &["duration.x=1"]);
+    assert!(e.contains("`duration` is a float"), "{e}");
+    // A value of the wrong type.
+    let e = load_err("", &["duration=long"]);
+    assert!(e.contains("duration") && e.contains("expected f64"), "{e}");
+}
+
+#[test]
+fn errors_in_the_file_keep_their_line_under_overrides() {
+    let e = load_err("seed = 1\nlenght = 3\n", &["duration=0.1"]);
+    assert!(e.contains("line 2") && e.contains("`lenght`"), "{e}");
+}
+
+#[test]
+fn unknown_spec_lists_the_builtins() {
+    let e = load("e7", &[]).unwrap_err();
+    assert!(matches!(e, Error::UnknownScenario { .. }));
+    let e = e.to_string();
+    assert!(e.contains("`e7`") && e.contains("e1, e2") && e.contains(".toml"), "{e}");
+}
+
+#[test]
+fn files_load_by_path_and_name_themselves_in_errors() {
+    let dir = temp_dir("by-path");
+    let good = dir.join("good.toml");
+    fs::write(&good, "experiment = \"e2\"\nd = 0.025\n").unwrap();
+    let s = load(good.to_str().unwrap(), &[]).unwrap();
+    assert_eq!(s.objects, vec![experiment_box(0.025, 0.6)]);
+
+    let bad = dir.join("bad.toml");
+    fs::write(&bad, "[whisker]\nlength = \"long\"\n").unwrap();
+    let e = load(bad.to_str().unwrap(), &[]).unwrap_err().to_string();
+    assert!(e.contains("bad.toml") && e.contains("line 2"), "{e}");
+}
+
+#[test]
+fn trajectory_is_read_relative_to_the_scenario() {
+    let dir = temp_dir("trajectory");
+    fs::create_dir_all(dir.join("data")).unwrap();
+    fs::write(
+        dir.join("data/whisk.csv"),
+        "# recorded\nt,angle\n0,0\n0.05,0.2\n0.1,0.1\n",
+    )
+    .unwrap();
+    let path = dir.join("run.toml");
+    fs::write(&path, "[base]\nkind = \"trajectory\"\nfile = \"data/whisk.csv\"\n").unwrap();
+    let s = load(path.to_str().unwrap(), &[]).unwrap();
+    assert_eq!(
+        s.base,
+        BaseDrive::Trajectory {
+            t: vec![0.0, 0.05, 0.1],
+            angle: vec![0.0, 0.2, 0.1]
+        }
+    );
+}
+
+#[test]
+fn trajectory_errors_name_file_and_line() {
+    let dir = temp_dir("trajectory-errors");
+    let cases = [
+        ("t,angle\n0,0\n0.1,0.2\n0.1,0.3\n", "line 4", "does not increase"),
+        ("t,angle\n0,0\n0.1,abc\n", "line 3", "not a number"),
+        ("t,angle\n0,0\n0.1,NaN\n", "line 3", "NaN"),
+        ("t,angle\n0,0\n0.1,inf\n", "line 3", "not finite"),
+        ("t,angle\n0,0\n0.1\n", "line 3", "values"),
+        ("time,angle\n0,0\n", "t,angle", "header"),
+        ("t,angle\n", "no rows", "t,angle"),
+        ("", "no header", "empty"),
+    ];
+    for (k, (csv, a, b)) in cases.iter().enumerate() {
+        let file = dir.join(format!("w{k}.csv"));
+        fs::write(&file, csv).unwrap();
+        let e = scenario::read_trajectory(&file).unwrap_err().to_string();
+        assert!(e.contains(&format!("w{k}.csv")) && e.contains(a) && e.contains(b), "{csv:?}: {e}");
+    }
+    // A missing file, through a scenario.
+    let path = dir.join("run.toml");
+    fs::write(&path, "[base]\nkind = \"trajectory\"\nfile = \"none.csv\"\n").unwrap();
+    let e = load(path.to_str().unwrap(), &[]).unwrap_err().to_string();
+    assert!(e.contains("cannot read") && e.contains("none.csv"), "{e}");
+}
