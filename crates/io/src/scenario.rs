@@ -9,8 +9,8 @@
 //!
 //! All quantities are SI (m, s, rad, Hz, Pa, kg/m³, N·m/rad). Every key is optional unless
 //! marked; an absent key keeps the value of [`Scenario::default`] (the `w30` whisker, 20
-//! segments, Gregory stiffness, dt = 1e-4 s, 150 ms at 1 kHz, no objects, a fixed base, no noise,
-//! seed 0). Unknown keys are errors.
+//! segments, Gregory stiffness, dt = 1e-4 s and core's other integrator defaults, 150 ms at
+//! 1 kHz, no objects, a fixed base, no noise, seed 0). Unknown keys are errors.
 //!
 //! ```toml
 //! # A built-in experiment family: generates the box from d and v (and `objects` may add more).
@@ -23,7 +23,7 @@
 //! dt = 1e-4                  # s, integrator step
 //! rho_inf = 0.99             # integrator: high-frequency spectral radius, [0.5, 1]
 //! tolerance = 1e-5           # integrator: geometric tolerance, rad
-//! max_iterations = 3         # integrator: geometric iterations per step, 1..=20
+//! max_iterations = 6         # integrator: most geometric iterations per step, 1..=20
 //! segments = 20              # segment count N
 //! discretisation = "gregory" # "gregory" | "trapezoid" | "seed"
 //! process_noise = 0.0        # N·s^½·m^-½, random forces on every segment
@@ -225,16 +225,26 @@ pub fn load(spec: &str, sets: &[String]) -> Result<Scenario> {
 pub fn load_full(spec: &str, sets: &[String]) -> Result<Loaded> {
     // A built-in name wins over a file of the same name (write ./e1 for the file).
     if let Some(text) = builtin(spec) {
-        return parse(text, &format!("built-in scenario `{spec}`"), Path::new(""), sets);
+        return parse(
+            text,
+            &format!("built-in scenario `{spec}`"),
+            Path::new(""),
+            sets,
+        );
     }
     let path = Path::new(spec);
-    if !path.is_file() {
-        return Err(Error::UnknownScenario {
-            spec: spec.to_string(),
-            builtins: BUILTINS.iter().map(|b| b.to_string()).collect(),
-        });
-    }
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io("read", path, e))?;
+    let text = std::fs::read_to_string(path).map_err(|e| {
+        // A bare word that is no file was probably meant as a built-in name.
+        let word = !spec.contains(['/', '\\', '.']);
+        if e.kind() == std::io::ErrorKind::NotFound && word {
+            Error::UnknownScenario {
+                spec: spec.to_string(),
+                builtins: BUILTINS.iter().map(|b| b.to_string()).collect(),
+            }
+        } else {
+            Error::io("read", path, e)
+        }
+    })?;
     let dir = path.parent().unwrap_or(Path::new(""));
     parse(&text, &path.display().to_string(), dir, sets)
 }
@@ -264,11 +274,19 @@ pub fn read_trajectory(path: &Path) -> Result<(Vec<f64>, Vec<f64>)> {
     }
     let (t, angle) = (&series.data[0], &series.data[1]);
     if t.is_empty() {
-        return Err(Error::data(&origin, 0, "no rows after the header `t,angle`"));
+        return Err(Error::data(
+            &origin,
+            0,
+            "no rows after the header `t,angle`",
+        ));
     }
     for (k, &line) in lines.iter().enumerate() {
         if t[k].is_nan() || angle[k].is_nan() {
-            return Err(Error::data(&origin, line, "NaN is not allowed in a trajectory"));
+            return Err(Error::data(
+                &origin,
+                line,
+                "NaN is not allowed in a trajectory",
+            ));
         }
         if k > 0 && t[k] <= t[k - 1] {
             return Err(Error::data(

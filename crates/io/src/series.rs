@@ -15,7 +15,7 @@
 //!   column, named after it (`t.npy`, `theta01.npy`, …), so `numpy.load(f)["theta12"]` works.
 //!   Metadata is not stored.
 //!
-//! [`write`] picks the format from the file's extension. Every writer first writes a temporary
+//! [`write()`] picks the format from the file's extension. Every writer first writes a temporary
 //! file beside the target and renames it into place when everything has been written, so a
 //! failure never leaves a half-written file behind.
 //!
@@ -34,7 +34,7 @@ pub(crate) use csv::parse_csv;
 use crate::error::{Error, Result};
 use std::path::Path;
 
-/// Output formats by extension, as accepted by [`write`].
+/// Output formats by extension, as accepted by [`write()`].
 pub const EXTENSIONS: [&str; 3] = ["csv", "npy", "npz"];
 
 /// A table of named columns of `f64` plus metadata.

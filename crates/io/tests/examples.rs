@@ -29,7 +29,10 @@ fn every_example_loads() {
         "polygon_friction",
         "rat_curved",
     ] {
-        assert!(names.iter().any(|n| n == expected), "{expected} missing from {names:?}");
+        assert!(
+            names.iter().any(|n| n == expected),
+            "{expected} missing from {names:?}"
+        );
     }
 }
 
@@ -47,7 +50,9 @@ fn examples_say_what_their_names_say() {
 
     let peg = example("peg_whisk.toml").scenario;
     assert_eq!(peg.objects[0].shape, Shape::Circle { radius: 0.001 });
-    assert!(matches!(peg.base, BaseDrive::Sinusoid { amplitude, frequency, .. } if amplitude == 0.3 && frequency == 5.0));
+    assert!(
+        matches!(peg.base, BaseDrive::Sinusoid { amplitude, frequency, .. } if amplitude == 0.3 && frequency == 5.0)
+    );
 
     let wall = example("wall_ramp.toml").scenario;
     assert_eq!(wall.objects[0].shape, Shape::Wall);

@@ -108,7 +108,10 @@ position = [0.01, 0.01]
 
 #[test]
 fn empty_file_is_the_default_scenario() {
-    assert_eq!(load_str("", "empty.toml", &[]).unwrap(), Scenario::default());
+    assert_eq!(
+        load_str("", "empty.toml", &[]).unwrap(),
+        Scenario::default()
+    );
 }
 
 #[test]
@@ -182,7 +185,14 @@ angle = 3.141592653589793
 
     let w = &s.whisker;
     assert_eq!(
-        (w.length, w.base_radius, w.tip_radius, w.rest_curvature, w.youngs_modulus, w.density),
+        (
+            w.length,
+            w.base_radius,
+            w.tip_radius,
+            w.rest_curvature,
+            w.youngs_modulus,
+            w.density
+        ),
         (0.04, 8e-5, 1e-5, 10.0, 4e9, 1200.0)
     );
     assert_eq!(
@@ -195,7 +205,10 @@ angle = 3.141592653589793
     assert_eq!(w.damping, Damping::SegmentQ { q: 12.0 });
 
     let n = &s.sensor_noise;
-    assert_eq!((n.theta01, n.theta12, n.m0, n.fx, n.fy), (0.001, 0.002, 1e-9, 1e-6, 2e-6));
+    assert_eq!(
+        (n.theta01, n.theta12, n.m0, n.fx, n.fy),
+        (0.001, 0.002, 1e-9, 1e-6, 2e-6)
+    );
 
     // Ramp defaults: never stops, 5 ms corners.
     assert_eq!(
@@ -227,7 +240,10 @@ angle = 3.141592653589793
     );
     // Waypoints: the initial pose is the first waypoint's; friction defaults to 0.
     let p = &s.objects[1];
-    assert_eq!((p.position, p.angle, p.friction), ([0.01, -0.005], 0.0, 0.0));
+    assert_eq!(
+        (p.position, p.angle, p.friction),
+        ([0.01, -0.005], 0.0, 0.0)
+    );
     assert_eq!(
         p.motion,
         Motion::Waypoints {
@@ -273,20 +289,32 @@ fn unknown_key_names_file_line_and_allowed_keys() {
     assert!(e.starts_with("test.toml: "), "{e}");
     assert!(e.contains("line 3, column 1"), "{e}");
     assert!(e.contains("unknown field `lenght`"), "{e}");
-    assert!(e.contains("`length`") && e.contains("`youngs_modulus`"), "{e}");
+    assert!(
+        e.contains("`length`") && e.contains("`youngs_modulus`"),
+        "{e}"
+    );
 
     let e = load_err("durration = 0.1\n", &[]);
-    assert!(e.contains("line 1") && e.contains("`durration`") && e.contains("`duration`"), "{e}");
+    assert!(
+        e.contains("line 1") && e.contains("`durration`") && e.contains("`duration`"),
+        "{e}"
+    );
 }
 
 #[test]
 fn wrong_type_and_bad_choice_name_the_place() {
     let e = load_err("seed = 1\nduration = \"long\"\n", &[]);
-    assert!(e.contains("test.toml") && e.contains("line 2, column 12"), "{e}");
+    assert!(
+        e.contains("test.toml") && e.contains("line 2, column 12"),
+        "{e}"
+    );
     assert!(e.contains("expected f64"), "{e}");
 
     let e = load_err("discretisation = \"exact\"\n", &[]);
-    assert!(e.contains("line 1") && e.contains("`gregory`") && e.contains("`seed`"), "{e}");
+    assert!(
+        e.contains("line 1") && e.contains("`gregory`") && e.contains("`seed`"),
+        "{e}"
+    );
 
     let e = load_err("[[objects]]\nshape = \"cone\"\nposition = [0, 0]\n", &[]);
     assert!(e.contains("line 2") && e.contains("`polygon`"), "{e}");
@@ -306,7 +334,10 @@ fn keys_of_the_wrong_kind_are_named() {
         &[],
     );
     assert!(e.contains("`objects[0].radius`"), "{e}");
-    assert!(e.contains("shape = \"box\"") && e.contains("width, height"), "{e}");
+    assert!(
+        e.contains("shape = \"box\"") && e.contains("width, height"),
+        "{e}"
+    );
 
     let e = load_err("[[objects]]\nshape = \"circle\"\nposition = [0, 0]\n", &[]);
     assert!(e.contains("`objects[0].radius` is required"), "{e}");
@@ -318,27 +349,51 @@ fn keys_of_the_wrong_kind_are_named() {
         "[[objects]]\nshape = \"wall\"\nposition = [0, 0]\nwaypoints = [[0, 0, 0, 0]]\n",
         &[],
     );
-    assert!(e.contains("`objects[0].position`") && e.contains("waypoints"), "{e}");
+    assert!(
+        e.contains("`objects[0].position`") && e.contains("waypoints"),
+        "{e}"
+    );
 
     let e = load_err("[base]\nkind = \"sinusoid\"\namplitude = 0.3\n", &[]);
     assert!(e.contains("`base.frequency` is required"), "{e}");
 
-    let e = load_err("[base]\nkind = \"sinusoid\"\namplitude = 0.3\nfrequency = 5\nrate = 1\n", &[]);
+    let e = load_err(
+        "[base]\nkind = \"sinusoid\"\namplitude = 0.3\nfrequency = 5\nrate = 1\n",
+        &[],
+    );
     assert!(e.contains("`base.rate` does not apply"), "{e}");
 
     let e = load_err("[base]\nkind = \"fixed\"\namplitude = 0.3\n", &[]);
     assert!(e.contains("`base.amplitude`"), "{e}");
 
-    let e = load_err("[whisker]\nfollicle = { kind = \"spring\", stiffness = 1e-5 }\n", &[]);
+    let e = load_err(
+        "[whisker]\nfollicle = { kind = \"spring\", stiffness = 1e-5 }\n",
+        &[],
+    );
     assert!(e.contains("`whisker.follicle.damping` is required"), "{e}");
 
-    let e = load_err("[whisker]\nfollicle = { kind = \"clamped\", stiffness = 1e-5 }\n", &[]);
-    assert!(e.contains("`whisker.follicle.stiffness` does not apply"), "{e}");
+    let e = load_err(
+        "[whisker]\nfollicle = { kind = \"clamped\", stiffness = 1e-5 }\n",
+        &[],
+    );
+    assert!(
+        e.contains("`whisker.follicle.stiffness` does not apply"),
+        "{e}"
+    );
 
-    let e = load_err("[whisker]\ndamping = { kind = \"modal_ratio\", q = 10 }\n", &[]);
-    assert!(e.contains("`whisker.damping.q`") && e.contains("ratio"), "{e}");
+    let e = load_err(
+        "[whisker]\ndamping = { kind = \"modal_ratio\", q = 10 }\n",
+        &[],
+    );
+    assert!(
+        e.contains("`whisker.damping.q`") && e.contains("ratio"),
+        "{e}"
+    );
 
-    let e = load_err("[whisker]\nfollicle = { kind = \"spring\", stiffness = 1, damping = 0, extra = 1 }\n", &[]);
+    let e = load_err(
+        "[whisker]\nfollicle = { kind = \"spring\", stiffness = 1, damping = 0, extra = 1 }\n",
+        &[],
+    );
     assert!(e.contains("unknown field `extra`"), "{e}");
 
     let e = load_err("d = 0.02\n", &[]);
@@ -348,9 +403,15 @@ fn keys_of_the_wrong_kind_are_named() {
 #[test]
 fn out_of_range_values_are_cores_verdict_with_the_file() {
     let e = load_str("[whisker]\nlength = -0.03\n", "bad.toml", &[]).unwrap_err();
-    assert!(matches!(e.core(), Some(vibrissa_core::Error::InvalidParameter { .. })));
+    assert!(matches!(
+        e.core(),
+        Some(vibrissa_core::Error::InvalidParameter { .. })
+    ));
     let e = e.to_string();
-    assert!(e.starts_with("bad.toml: ") && e.contains("whisker.length"), "{e}");
+    assert!(
+        e.starts_with("bad.toml: ") && e.contains("whisker.length"),
+        "{e}"
+    );
 
     let e = load_err("[whisker]\npreset = \"cat\"\n", &[]);
     assert!(e.contains("whisker.preset") && e.contains("w30"), "{e}");
@@ -361,11 +422,17 @@ fn out_of_range_values_are_cores_verdict_with_the_file() {
     let e = load_err("dt = 0.01\n", &[]);
     assert!(e.contains("dt"), "{e}");
 
-    let e = load_err("[[objects]]\nshape = \"box\"\nwidth = 0.01\nheight = -1\nposition = [0, 0]\n", &[]);
+    let e = load_err(
+        "[[objects]]\nshape = \"box\"\nwidth = 0.01\nheight = -1\nposition = [0, 0]\n",
+        &[],
+    );
     assert!(e.contains("objects[0].height"), "{e}");
 
     let e = load_err("[[objects]]\nshape = \"polygon\"\nvertices = [[0, 0], [0, 1], [1, 0]]\nposition = [0, 0]\n", &[]);
-    assert!(e.contains("objects[0].vertices") && e.contains("counter-clockwise"), "{e}");
+    assert!(
+        e.contains("objects[0].vertices") && e.contains("counter-clockwise"),
+        "{e}"
+    );
 
     let e = load_err("experiment = \"e2\"\nd = nan\n", &[]);
     assert!(e.contains("invalid d"), "{e}");
@@ -412,7 +479,9 @@ position = [0.02, 0.004]
     );
     assert_eq!(s.objects[1].shape, Shape::Wall);
     assert_eq!(s.objects[1].position, [0.0, 0.01]);
-    assert!(matches!(s.base, BaseDrive::Ramp { rate, stop, .. } if rate == 1.0 && stop.is_infinite()));
+    assert!(
+        matches!(s.base, BaseDrive::Ramp { rate, stop, .. } if rate == 1.0 && stop.is_infinite())
+    );
 
     // Later overrides win.
     let s = load("e2", &sets(&["d=0.02", "d=0.03"])).unwrap();
@@ -423,21 +492,34 @@ position = [0.02, 0.004]
 fn bad_overrides_are_errors() {
     // No `=`.
     let e = load_err("", &["whisker.length"]);
-    assert!(e.contains("--set `whisker.length`") && e.contains("key=value"), "{e}");
+    assert!(
+        e.contains("--set `whisker.length`") && e.contains("key=value"),
+        "{e}"
+    );
     // Empty key part.
     let e = load_err("", &["whisker..length=1"]);
     assert!(e.contains("whisker..length"), "{e}");
     // A key that the schema does not have: caught when the document is read.
     let e = load_err("", &["whisker.lenght=0.04"]);
-    assert!(e.contains("unknown field `lenght`") && e.contains("whisker"), "{e}");
+    assert!(
+        e.contains("unknown field `lenght`") && e.contains("whisker"),
+        "{e}"
+    );
     assert!(e.contains("--set whisker.lenght=0.04"), "{e}");
     let e = load_err("", &["colour=1"]);
     assert!(e.contains("unknown field `colour`"), "{e}");
     // Indexing past the end, or into a number.
     let e = load_err("", &["objects.2.shape=box"]);
     assert!(e.contains("`objects` has 0 entries"), "{e}");
-    let e = load_err("", &["objects.first.shape=box"]);
+    let one = "[[objects]]\nshape = \"wall\"\nposition = [0, 0.01]\n";
+    let e = load_err(one, &["objects.first.shape=box"]);
     assert!(e.contains("array") && e.contains("`first`"), "{e}");
+    // Without objects in the file, a named level is a table, which the schema refuses.
+    let e = load_err("", &["objects.first.shape=box"]);
+    assert!(
+        e.contains("expected a sequence") && e.contains("objects"),
+        "{e}"
+    );
     let e = load_err("duration = 0.1\n", &["duration.x=1"]);
     assert!(e.contains("`duration` is a float"), "{e}");
     // A value of the wrong type.
@@ -456,7 +538,10 @@ fn unknown_spec_lists_the_builtins() {
     let e = load("e7", &[]).unwrap_err();
     assert!(matches!(e, Error::UnknownScenario { .. }));
     let e = e.to_string();
-    assert!(e.contains("`e7`") && e.contains("e1, e2") && e.contains(".toml"), "{e}");
+    assert!(
+        e.contains("`e7`") && e.contains("e1, e2") && e.contains(".toml"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -483,7 +568,11 @@ fn trajectory_is_read_relative_to_the_scenario() {
     )
     .unwrap();
     let path = dir.join("run.toml");
-    fs::write(&path, "[base]\nkind = \"trajectory\"\nfile = \"data/whisk.csv\"\n").unwrap();
+    fs::write(
+        &path,
+        "[base]\nkind = \"trajectory\"\nfile = \"data/whisk.csv\"\n",
+    )
+    .unwrap();
     let s = load(path.to_str().unwrap(), &[]).unwrap();
     assert_eq!(
         s.base,
@@ -498,7 +587,11 @@ fn trajectory_is_read_relative_to_the_scenario() {
 fn trajectory_errors_name_file_and_line() {
     let dir = temp_dir("trajectory-errors");
     let cases = [
-        ("t,angle\n0,0\n0.1,0.2\n0.1,0.3\n", "line 4", "does not increase"),
+        (
+            "t,angle\n0,0\n0.1,0.2\n0.1,0.3\n",
+            "line 4",
+            "does not increase",
+        ),
         ("t,angle\n0,0\n0.1,abc\n", "line 3", "not a number"),
         ("t,angle\n0,0\n0.1,NaN\n", "line 3", "NaN"),
         ("t,angle\n0,0\n0.1,inf\n", "line 3", "not finite"),
@@ -511,11 +604,18 @@ fn trajectory_errors_name_file_and_line() {
         let file = dir.join(format!("w{k}.csv"));
         fs::write(&file, csv).unwrap();
         let e = scenario::read_trajectory(&file).unwrap_err().to_string();
-        assert!(e.contains(&format!("w{k}.csv")) && e.contains(a) && e.contains(b), "{csv:?}: {e}");
+        assert!(
+            e.contains(&format!("w{k}.csv")) && e.contains(a) && e.contains(b),
+            "{csv:?}: {e}"
+        );
     }
     // A missing file, through a scenario.
     let path = dir.join("run.toml");
-    fs::write(&path, "[base]\nkind = \"trajectory\"\nfile = \"none.csv\"\n").unwrap();
+    fs::write(
+        &path,
+        "[base]\nkind = \"trajectory\"\nfile = \"none.csv\"\n",
+    )
+    .unwrap();
     let e = load(path.to_str().unwrap(), &[]).unwrap_err().to_string();
     assert!(e.contains("cannot read") && e.contains("none.csv"), "{e}");
 }

@@ -6,7 +6,8 @@ use toml::{Table, Value};
 /// Applies one override to `doc`.
 ///
 /// The key is dotted (`whisker.length`); a numeric part indexes an array (`objects.0.friction`),
-/// and the index one past the end appends a new table. Missing tables on the way are created.
+/// and the index one past the end appends a new table. Missing levels on the way are created
+/// (arrays where the next part is a number, tables otherwise).
 /// The value is read as a TOML value (`0.02`, `"w30"`, `[0, 0.6]`, `true`, `inf`), or taken as a
 /// bare string if it is not one (`w30`). Whether the key exists in the schema is decided later,
 /// when the document is read.
@@ -47,7 +48,12 @@ fn parse_value(raw: &str) -> Value {
 }
 
 /// Sets `parts[depth..]` below `node` (which `parts[..depth]` reached).
-fn set(node: &mut Value, parts: &[&str], value: Value, depth: usize) -> std::result::Result<(), String> {
+fn set(
+    node: &mut Value,
+    parts: &[&str],
+    value: Value,
+    depth: usize,
+) -> std::result::Result<(), String> {
     let part = parts[depth];
     let here = || {
         if depth == 0 {
@@ -63,13 +69,22 @@ fn set(node: &mut Value, parts: &[&str], value: Value, depth: usize) -> std::res
                 t.insert(part.to_string(), value);
                 return Ok(());
             }
-            t.entry(part.to_string())
-                .or_insert_with(|| Value::Table(Table::new()))
+            // A missing level is an array if indexed by a number, else a table.
+            t.entry(part.to_string()).or_insert_with(|| {
+                if parts[depth + 1].parse::<usize>().is_ok() {
+                    Value::Array(Vec::new())
+                } else {
+                    Value::Table(Table::new())
+                }
+            })
         }
         Value::Array(a) => {
             let len = a.len();
             let k: usize = part.parse().map_err(|_| {
-                format!("{} is an array: index it with a number from 0 to {len}, not `{part}`", here())
+                format!(
+                    "{} is an array: index it with a number from 0 to {len}, not `{part}`",
+                    here()
+                )
             })?;
             if k > len {
                 return Err(format!(

@@ -3,7 +3,9 @@
 //! Tables whose keys depend on a `kind` (or `shape`) are read as flat structs and sorted out here,
 //! so that a wrong type names its key and a key given to the wrong kind is reported by name.
 
-use super::{experiment_box, read_trajectory, Experiment, ExperimentRun, Loaded, DEFAULT_D, DEFAULT_V};
+use super::{
+    experiment_box, read_trajectory, Experiment, ExperimentRun, Loaded, DEFAULT_D, DEFAULT_V,
+};
 use crate::error::{Error, Result};
 use serde::Deserialize;
 use std::path::Path;
@@ -201,7 +203,9 @@ impl Ctx<'_> {
         }
         for &name in needs {
             if !given.iter().any(|&(n, present)| n == name && present) {
-                return Err(self.field(format!("{table}.{name}"), format!("is required for {kind}")));
+                return Err(
+                    self.field(format!("{table}.{name}"), format!("is required for {kind}"))
+                );
             }
         }
         Ok(())
@@ -233,8 +237,10 @@ impl FileTable {
             .collect::<Result<Vec<_>>>()?;
         let experiment = match self.experiment {
             Some(experiment) => {
-                let d = check_finite("d", self.d.unwrap_or(DEFAULT_D)).map_err(|e| ctx.invalid(e))?;
-                let v = check_finite("v", self.v.unwrap_or(DEFAULT_V)).map_err(|e| ctx.invalid(e))?;
+                let d =
+                    check_finite("d", self.d.unwrap_or(DEFAULT_D)).map_err(|e| ctx.invalid(e))?;
+                let v =
+                    check_finite("v", self.v.unwrap_or(DEFAULT_V)).map_err(|e| ctx.invalid(e))?;
                 objects.push(experiment_box(d, v));
                 Some(ExperimentRun { experiment, d, v })
             }
@@ -267,13 +273,15 @@ impl FileTable {
                 None => defaults.base,
             },
             process_noise: self.process_noise.unwrap_or(defaults.process_noise),
-            sensor_noise: self.sensor_noise.map_or(defaults.sensor_noise, |n| SensorNoise {
-                theta01: n.theta01,
-                theta12: n.theta12,
-                m0: n.m0,
-                fx: n.fx,
-                fy: n.fy,
-            }),
+            sensor_noise: self
+                .sensor_noise
+                .map_or(defaults.sensor_noise, |n| SensorNoise {
+                    theta01: n.theta01,
+                    theta12: n.theta12,
+                    m0: n.m0,
+                    fx: n.fx,
+                    fy: n.fy,
+                }),
             seed: self.seed.unwrap_or(defaults.seed),
         };
         scenario.check().map_err(|e| ctx.invalid(e))?;
@@ -351,7 +359,9 @@ impl DampingTable {
             DampingKind::None => ("kind = \"none\"", None),
             DampingKind::ModalRatio => ("kind = \"modal_ratio\"", Some("ratio")),
             DampingKind::SegmentQ => ("kind = \"segment_q\"", Some("q")),
-            DampingKind::StiffnessProportional => ("kind = \"stiffness_proportional\"", Some("beta")),
+            DampingKind::StiffnessProportional => {
+                ("kind = \"stiffness_proportional\"", Some("beta"))
+            }
         };
         let keys: Vec<&str> = key.into_iter().collect();
         ctx.kind_keys(table, kind, &given, &keys, &keys)?;

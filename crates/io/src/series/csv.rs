@@ -141,7 +141,7 @@ pub(crate) fn parse_csv(text: &str, origin: &str) -> Result<(Series, Vec<usize>)
             let cell = cell.trim();
             let x = parse_number(cell).ok_or_else(|| {
                 let what = if cell.is_empty() {
-                    "is empty (write NaN for a missing value)".to_string()
+                    "the cell is empty (write NaN for a missing value)".to_string()
                 } else if cell.parse::<f64>().is_ok() {
                     format!("`{cell}` is not finite (allowed: finite numbers or NaN)")
                 } else {
@@ -150,7 +150,7 @@ pub(crate) fn parse_csv(text: &str, origin: &str) -> Result<(Series, Vec<usize>)
                 Error::data(
                     origin,
                     line_no,
-                    format!("column `{}` {what}", series.columns[c]),
+                    format!("column `{}`: {what}", series.columns[c]),
                 )
             })?;
             series.data[c].push(x);

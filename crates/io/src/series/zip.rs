@@ -75,13 +75,15 @@ impl<W: Write> ZipWriter<W> {
 
     /// Appends one stored entry.
     pub(crate) fn add(&mut self, name: &str, data: &[u8]) -> io::Result<()> {
-        let too_big = || io::Error::other("archive over 4 GiB or 65 535 entries (ZIP64 is not supported)");
+        let too_big =
+            || io::Error::other("archive over 4 GiB or 65 535 entries (ZIP64 is not supported)");
         if self.entries.len() >= u16::MAX as usize {
             return Err(too_big());
         }
         let size = u32::try_from(data.len()).map_err(|_| too_big())?;
         let offset = u32::try_from(self.offset).map_err(|_| too_big())?;
-        let name_len = u16::try_from(name.len()).map_err(|_| io::Error::other("entry name too long"))?;
+        let name_len =
+            u16::try_from(name.len()).map_err(|_| io::Error::other("entry name too long"))?;
         // Bit 11: the name is UTF-8.
         let flags = if name.is_ascii() { 0 } else { 1 << 11 };
         let crc = crc32(data);
@@ -181,7 +183,11 @@ mod tests {
         for &b in &data {
             c ^= b as u32;
             for _ in 0..8 {
-                c = if c & 1 != 0 { 0xEDB8_8320 ^ (c >> 1) } else { c >> 1 };
+                c = if c & 1 != 0 {
+                    0xEDB8_8320 ^ (c >> 1)
+                } else {
+                    c >> 1
+                };
             }
         }
         assert_eq!(crc32(&data), !c);

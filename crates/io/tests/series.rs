@@ -1,0 +1,427 @@
+//! Time series: CSV round trips and errors, NPY and NPZ bytes.
+
+use std::fs;
+use std::path::PathBuf;
+use vibrissa_core::sim::COLUMNS;
+use vibrissa_io::series::{
+    crc32, read_csv, read_csv_str, to_csv_string, write, write_csv, write_npy, write_npz, Series,
+};
+use vibrissa_io::Error;
+
+/// A fresh folder for this test's files.
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("series-{name}"));
+    let _ = fs::remove_dir_all(&dir);
+    fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// A run-like series in the contract's columns with awkward values.
+fn sample() -> Series {
+    let mut s = Series::new(&COLUMNS);
+    s.set_meta("segments", 20);
+    s.set_meta("scenario", "e2 (d = 0.023)");
+    let awkward = [
+        0.1,
+        -0.0,
+        1.0 / 3.0,
+        1e-7,
+        -2.5e-12,
+        6.02214076e23,
+        f64::MIN_POSITIVE,
+        5e-324,
+        f64::MAX,
+        123456.789,
+    ];
+    for r in 0..7 {
+        let row: Vec<f64> = (0..COLUMNS.len())
+            .map(|c| match (r, c) {
+                (_, 0) => r as f64 * 1e-3,
+                (3, 7..=9) => f64::NAN,
+                _ => awkward[(r + c) % awkward.len()] * if c % 2 == 0 { 1.0 } else { -1.0 },
+            })
+            .collect();
+        s.push_row(&row);
+    }
+    s
+}
+
+/// Same columns, metadata and bits (NaN equal to NaN).
+fn assert_same(a: &Series, b: &Series) {
+    assert_eq!(a.columns, b.columns);
+    assert_eq!(a.meta, b.meta);
+    for (x, y) in a.data.iter().zip(&b.data) {
+        let xb: Vec<u64> = x.iter().map(|v| v.to_bits()).collect();
+        let yb: Vec<u64> = y.iter().map(|v| v.to_bits()).collect();
+        assert_eq!(xb.len(), yb.len());
+        for (p, q) in xb.iter().zip(&yb) {
+            let (p, q) = (f64::from_bits(*p), f64::from_bits(*q));
+            assert!(
+                p.to_bits() == q.to_bits() || (p.is_nan() && q.is_nan()),
+                "{p} != {q}"
+            );
+        }
+    }
+}
+
+#[test]
+fn csv_round_trip_is_exact() {
+    let dir = temp_dir("round-trip");
+    let path = dir.join("run.csv");
+    let s = sample();
+    write_csv(&s, &path).unwrap();
+    let back = read_csv(&path).unwrap();
+    assert_same(&s, &back);
+    assert_eq!(back.meta_value("segments"), Some("20"));
+    assert_eq!(back.rows(), 7);
+
+    // The layout the contract describes.
+    let text = fs::read_to_string(&path).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines[0], "# segments = 20");
+    assert_eq!(lines[1], "# scenario = e2 (d = 0.023)");
+    assert_eq!(lines[2], COLUMNS.join(","));
+    assert!(lines[3].starts_with("0,"));
+    assert!(lines[6].ends_with("NaN,NaN,NaN"), "{}", lines[6]);
+    assert!(!text.contains("inf"));
+    assert_eq!(to_csv_string(&s).unwrap(), text);
+
+    // Nothing else is left in the folder.
+    assert_eq!(fs::read_dir(&dir).unwrap().count(), 1);
+}
+
+#[test]
+fn csv_reader_skips_comments_and_blank_lines() {
+    let text = "\u{feff}# written by hand\r\n\r\n# segments = 10\r\nt, theta01 ,theta12\r\n0,0.1,NaN\r\n# a note = between rows\r\n\r\n1e-3,-2E-1,nan\r\n";
+    let s = read_csv_str(text, "hand.csv").unwrap();
+    assert_eq!(s.columns, ["t", "theta01", "theta12"]);
+    assert_eq!(s.column("t").unwrap(), [0.0, 1e-3]);
+    assert_eq!(s.column("theta01").unwrap(), [0.1, -0.2]);
+    assert!(s.column("theta12").unwrap().iter().all(|x| x.is_nan()));
+    // `# key = value` with a key of letters, digits, `_`, `-`, `.` is metadata; other comments are not.
+    assert_eq!(s.meta, [("segments".to_string(), "10".to_string())]);
+    assert!(s.column("m0").is_none());
+}
+
+#[test]
+fn require_lists_missing_and_present_columns() {
+    let s = read_csv_str("t,theta01,m0\n0,1,2\n", "x.csv").unwrap();
+    let cols = s.require(&["t", "theta01"]).unwrap();
+    assert_eq!(cols, [&[0.0][..], &[1.0][..]]);
+    let e = s.require(&["t", "theta01", "theta12", "fy"]).unwrap_err();
+    assert!(matches!(&e, Error::MissingColumns { missing, .. } if missing == &["theta12", "fy"]));
+    let e = e.to_string();
+    assert!(
+        e.contains("theta12, fy") && e.contains("t, theta01, m0"),
+        "{e}"
+    );
+}
+
+#[test]
+fn csv_errors_name_file_line_and_column() {
+    let cases = [
+        (
+            "t,theta01\n0,0.1\n1,abc\n",
+            "line 3",
+            "`theta01`: `abc` is not a number",
+        ),
+        (
+            "t,theta01\n0,0.1\n1,inf\n",
+            "line 3",
+            "`theta01`: `inf` is not finite",
+        ),
+        ("t,theta01\n0,-infinity\n", "line 2", "not finite"),
+        ("t,theta01\n0,\n", "line 2", "`theta01`: the cell is empty"),
+        (
+            "t,theta01\n0,0.1\n1,0.2,0.3\n",
+            "line 3",
+            "3 values, but the header has 2 columns",
+        ),
+        ("t,theta01\n0\n", "line 2", "1 values"),
+        ("t,t\n0,0\n", "line 1", "`t` appears twice"),
+        ("t,,x\n", "line 1", "column 2"),
+        ("", "line 0", "no header row"),
+        ("# only a comment\n\n", "line 0", "no header row"),
+    ];
+    for (text, a, b) in cases {
+        let e = read_csv_str(text, "obs.csv").unwrap_err().to_string();
+        assert!(
+            e.starts_with("obs.csv, ") && e.contains(a) && e.contains(b),
+            "{text:?}: {e}"
+        );
+    }
+    // From a file: the path is named; a missing file too.
+    let dir = temp_dir("csv-errors");
+    let path = dir.join("ragged.csv");
+    fs::write(&path, "t,a\n0,1\n1\n").unwrap();
+    let e = read_csv(&path).unwrap_err().to_string();
+    assert!(e.contains("ragged.csv, line 3"), "{e}");
+    let e = read_csv(dir.join("none.csv")).unwrap_err().to_string();
+    assert!(e.contains("cannot read") && e.contains("none.csv"), "{e}");
+}
+
+#[test]
+fn header_only_csv_has_no_rows() {
+    let s = read_csv_str("t,theta01,theta12\n", "h.csv").unwrap();
+    assert_eq!(s.rows(), 0);
+    assert_eq!(s.require(&["t", "theta01", "theta12"]).unwrap()[2].len(), 0);
+}
+
+#[test]
+fn failed_writes_leave_old_files_alone() {
+    let dir = temp_dir("atomic");
+    let mut bad = Series::new(&["t", "x"]);
+    bad.push_row(&[0.0, 1.0]);
+    bad.push_row(&[1.0, f64::INFINITY]);
+    for name in ["out.csv", "out.npy", "out.npz"] {
+        let path = dir.join(name);
+        fs::write(&path, "old").unwrap();
+        let e = write(&bad, &path).unwrap_err().to_string();
+        assert!(e.contains("`x`") && e.contains("row 1"), "{e}");
+        assert_eq!(fs::read_to_string(&path).unwrap(), "old");
+    }
+    // Other invalid series: ragged, duplicate or unwritable names, bad metadata.
+    let mut ragged = Series::new(&["t", "x"]);
+    ragged.data[0].push(0.0);
+    let mut dup = Series::new(&["t", "t"]);
+    dup.push_row(&[0.0, 0.0]);
+    let comma = Series::new(&["a,b"]);
+    let mut meta = Series::new(&["t"]);
+    meta.set_meta("two\nlines", 1);
+    for s in [ragged, dup, comma, meta] {
+        assert!(matches!(
+            write_csv(&s, dir.join("out.csv")),
+            Err(Error::InvalidSeries(_))
+        ));
+    }
+    assert!(matches!(
+        write_npz(&Series::new(&["a/b"]), dir.join("out.npz")),
+        Err(Error::InvalidSeries(_))
+    ));
+    // A folder that does not exist.
+    let e = write_csv(&sample(), dir.join("no/such/dir/out.csv")).unwrap_err();
+    assert!(matches!(e, Error::Io { .. }), "{e}");
+    // Only the three old files remain: no temporary files.
+    assert_eq!(fs::read_dir(&dir).unwrap().count(), 3);
+}
+
+#[test]
+fn format_follows_the_extension() {
+    let dir = temp_dir("extension");
+    let s = sample();
+    write(&s, dir.join("a.csv")).unwrap();
+    write(&s, dir.join("a.NPY")).unwrap();
+    write(&s, dir.join("a.npz")).unwrap();
+    assert!(fs::read(dir.join("a.csv"))
+        .unwrap()
+        .starts_with(b"# segments"));
+    assert!(fs::read(dir.join("a.NPY"))
+        .unwrap()
+        .starts_with(b"\x93NUMPY"));
+    assert!(fs::read(dir.join("a.npz"))
+        .unwrap()
+        .starts_with(b"PK\x03\x04"));
+    for bad in ["a.txt", "a", "a.csv.gz"] {
+        let e = write(&s, dir.join(bad)).unwrap_err();
+        assert!(matches!(e, Error::Format { .. }));
+        let e = e.to_string();
+        assert!(e.contains(".csv, .npy, .npz"), "{e}");
+    }
+}
+
+/// Parses an NPY header, checking its layout: the shape and where the data starts.
+fn parse_npy_header(bytes: &[u8]) -> (Vec<usize>, usize) {
+    assert_eq!(&bytes[..8], b"\x93NUMPY\x01\x00", "magic and version 1.0");
+    let header_len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+    let data_start = 10 + header_len;
+    assert_eq!(data_start % 64, 0, "data aligned to 64 bytes");
+    let header = std::str::from_utf8(&bytes[10..data_start]).unwrap();
+    assert!(header.ends_with('\n'));
+    let dict = header.trim_end_matches('\n').trim_end_matches(' ');
+    // A Python dict literal with exactly numpy's three keys.
+    assert!(
+        dict.starts_with("{'descr': '<f8', 'fortran_order': False, 'shape': ("),
+        "{dict}"
+    );
+    assert!(dict.ends_with("), }"), "{dict}");
+    let inner = &dict[dict.find("'shape': (").unwrap() + 10..dict.len() - 4];
+    let shape = inner
+        .split(',')
+        .map(str::trim)
+        .filter(|p| !p.is_empty())
+        .map(|p| p.parse().unwrap())
+        .collect();
+    (shape, data_start)
+}
+
+/// Parses an NPY file: shape and float64 values.
+fn parse_npy(bytes: &[u8]) -> (Vec<usize>, Vec<f64>) {
+    let (shape, data_start) = parse_npy_header(bytes);
+    assert_eq!((bytes.len() - data_start) % 8, 0);
+    let values: Vec<f64> = bytes[data_start..]
+        .chunks_exact(8)
+        .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
+        .collect();
+    assert_eq!(values.len(), shape.iter().product::<usize>());
+    (shape, values)
+}
+
+fn same_bits(a: f64, b: f64) -> bool {
+    a.to_bits() == b.to_bits()
+}
+
+#[test]
+fn npy_holds_rows_by_columns_in_c_order() {
+    let dir = temp_dir("npy");
+    let s = sample();
+    let path = dir.join("run.npy");
+    write_npy(&s, &path).unwrap();
+    let (shape, values) = parse_npy(&fs::read(&path).unwrap());
+    assert_eq!(shape, [s.rows(), s.columns.len()]);
+    for r in 0..s.rows() {
+        for c in 0..s.columns.len() {
+            assert!(same_bits(values[r * s.columns.len() + c], s.data[c][r]));
+        }
+    }
+    // Header padding for a range of shapes, one-dimensional ones included.
+    for (shape, text) in [
+        (vec![0, 0], "(0, 0)"),
+        (vec![151, 10], "(151, 10)"),
+        (vec![123456789, 12], "(123456789, 12)"),
+        (vec![5], "(5,)"),
+    ] {
+        let h = vibrissa_io::series::npy_header(&shape);
+        assert_eq!(h.len() % 64, 0);
+        assert!(String::from_utf8_lossy(&h).contains(text));
+        assert_eq!(parse_npy_header(&h), (shape, h.len()));
+    }
+    // An empty series is a valid (0, C) array.
+    write_npy(&Series::new(&COLUMNS), &path).unwrap();
+    assert_eq!(parse_npy(&fs::read(&path).unwrap()).0, [0, COLUMNS.len()]);
+}
+
+fn u16_at(b: &[u8], i: usize) -> usize {
+    u16::from_le_bytes([b[i], b[i + 1]]) as usize
+}
+
+fn u32_at(b: &[u8], i: usize) -> u32 {
+    u32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]])
+}
+
+/// Reads a stored ZIP archive through its central directory: (name, data) per entry, checking
+/// signatures, sizes and CRCs.
+fn parse_zip(b: &[u8]) -> Vec<(String, Vec<u8>)> {
+    // End of central directory record: the last 22 bytes (no comment).
+    let eocd = b.len() - 22;
+    assert_eq!(
+        u32_at(b, eocd),
+        0x0605_4b50,
+        "end of central directory signature"
+    );
+    let entries = u16_at(b, eocd + 10);
+    assert_eq!(entries, u16_at(b, eocd + 8));
+    let cd_size = u32_at(b, eocd + 12) as usize;
+    let cd_start = u32_at(b, eocd + 16) as usize;
+    assert_eq!(cd_start + cd_size, eocd);
+
+    let mut out = Vec::new();
+    let mut p = cd_start;
+    for _ in 0..entries {
+        assert_eq!(u32_at(b, p), 0x0201_4b50, "central directory header");
+        assert_eq!(u16_at(b, p + 10), 0, "stored");
+        let crc = u32_at(b, p + 16);
+        let (csize, usize_) = (u32_at(b, p + 20) as usize, u32_at(b, p + 24) as usize);
+        assert_eq!(csize, usize_);
+        let name_len = u16_at(b, p + 28);
+        let extra = u16_at(b, p + 30) + u16_at(b, p + 32);
+        let local = u32_at(b, p + 42) as usize;
+        let name = String::from_utf8(b[p + 46..p + 46 + name_len].to_vec()).unwrap();
+
+        // The local header agrees, and the data's CRC matches.
+        assert_eq!(u32_at(b, local), 0x0403_4b50, "local file header");
+        assert_eq!(u32_at(b, local + 14), crc);
+        assert_eq!(u32_at(b, local + 18) as usize, csize);
+        let local_name_len = u16_at(b, local + 26);
+        let data_start = local + 30 + local_name_len + u16_at(b, local + 28);
+        assert_eq!(&b[local + 30..local + 30 + local_name_len], name.as_bytes());
+        let data = b[data_start..data_start + csize].to_vec();
+        assert_eq!(crc32(&data), crc, "{name}");
+        out.push((name, data));
+        p += 46 + name_len + extra;
+    }
+    assert_eq!(p, eocd);
+    out
+}
+
+#[test]
+fn npz_is_a_zip_of_one_npy_per_column() {
+    let dir = temp_dir("npz");
+    let s = sample();
+    let path = dir.join("run.npz");
+    write_npz(&s, &path).unwrap();
+    let bytes = fs::read(&path).unwrap();
+    let entries = parse_zip(&bytes);
+    let names: Vec<&str> = entries.iter().map(|(n, _)| n.as_str()).collect();
+    let expected: Vec<String> = COLUMNS.iter().map(|c| format!("{c}.npy")).collect();
+    assert_eq!(names, expected);
+    for ((_, data), col) in entries.iter().zip(&s.data) {
+        let (shape, values) = parse_npy(data);
+        assert_eq!(shape, [s.rows()]);
+        assert!(values.iter().zip(col).all(|(a, b)| same_bits(*a, *b)));
+    }
+    // The same data gives the same bytes.
+    write_npz(&s, dir.join("again.npz")).unwrap();
+    assert_eq!(fs::read(dir.join("again.npz")).unwrap(), bytes);
+}
+
+#[test]
+fn crc32_check_value() {
+    assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
+    assert_eq!(
+        crc32(b"The quick brown fox jumps over the lazy dog"),
+        0x414F_A339
+    );
+}
+
+/// Whether `python3` with numpy runs here.
+fn numpy_available() -> bool {
+    std::process::Command::new("python3")
+        .args(["-c", "import numpy"])
+        .output()
+        .is_ok_and(|o| o.status.success())
+}
+
+#[test]
+fn numpy_reads_what_is_written_when_available() {
+    if !numpy_available() {
+        eprintln!("numpy_reads_what_is_written_when_available: skipped (no python3 with numpy)");
+        return;
+    }
+    let dir = temp_dir("numpy");
+    let s = sample();
+    let (npy, npz, csv) = (dir.join("r.npy"), dir.join("r.npz"), dir.join("r.csv"));
+    write_npy(&s, &npy).unwrap();
+    write_npz(&s, &npz).unwrap();
+    write_csv(&s, &csv).unwrap();
+    let script = r##"
+import sys, numpy as np
+a = np.load(sys.argv[1]); z = np.load(sys.argv[2])
+c = np.genfromtxt(sys.argv[3], delimiter=",", names=True, comments="#")
+assert a.dtype == np.float64 and a.shape == (7, 10), a.shape
+for k, name in enumerate(z.files):
+    col = z[name]
+    assert np.array_equal(col, a[:, k], equal_nan=True), name
+    assert np.array_equal(c[name[:-4]], col, equal_nan=True), name
+print("ok")
+"##;
+    let out = std::process::Command::new("python3")
+        .args(["-c", script])
+        .args([&npy, &npz, &csv].map(|p: &PathBuf| p.as_path().to_str().unwrap().to_string()))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
