@@ -15,6 +15,15 @@
 //! added to the segments' external forces and the step solved once more, so the accelerations,
 //! the base reaction and everything downstream include them. No penalty stiffness is involved,
 //! so contact keeps the time step of the free whisker.
+//!
+//! Contact forces act as impulses within their step (Moreau's approach): a contact is active
+//! when the step would end in penetration without it, and its normal force makes the contact
+//! point's normal velocity relative to the object non-negative at the end of the step (a perfectly
+//! inelastic contact); friction holds the tangential velocity at zero up to μ·N. The impulses'
+//! accelerations change the rates by `h·a` and the angles by `h²/2·a` (which keeps static
+//! equilibria exact) and stay out of the method's acceleration history, so a force that ends
+//! with a step is not applied again in the next. What penetration remains (up to `h·v/2` after a
+//! fast impact) is removed by moving the angles, not the rates, along `(M + A)⁻¹Jᵀ`.
 
 use crate::chain::Model;
 use crate::dynamics::{fma, shift_force, BaseMotion, Inputs, Stepper, Workspace};
@@ -64,6 +73,11 @@ struct Candidate {
     /// Friction coefficient and object index.
     mu: f64,
     object: usize,
+    /// Normal relative velocity of whisker and object at the end of the step (b = 0), m/s.
+    c_v: f64,
+    /// End-of-step gap predicted without contact force, m, and whether it calls for contact.
+    g_pred: f64,
+    active: bool,
     /// Forces.
     lambda_n: f64,
     lambda_t: f64,
@@ -85,6 +99,10 @@ pub struct Scratch {
     /// End-of-step angles and rates at b = 0 (`q_end = q0 + cq·b`, `v_end = v0 + cv·b`).
     q0: Vec<f64>,
     v0: Vec<f64>,
+    /// Joint accelerations caused by the last solve's contact forces `[N]`.
+    pub(crate) acc: Vec<f64>,
+    /// Correction of the end-of-step angles that removes any remaining penetration `[N]`.
+    pub(crate) position_fix: Vec<f64>,
 }
 
 impl Scratch {
@@ -99,6 +117,17 @@ impl Scratch {
             u: vec![0.0; n],
             q0: vec![0.0; n],
             v0: vec![0.0; n],
+            acc: vec![0.0; n],
+            position_fix: vec![0.0; n],
+        }
+    }
+
+    /// Forgets the last solve's contacts (a step without objects).
+    pub(crate) fn clear(&mut self) {
+        if self.count > 0 {
+            self.count = 0;
+            self.acc.fill(0.0);
+            self.position_fix.fill(0.0);
         }
     }
 
@@ -220,9 +249,19 @@ pub(crate) fn solve(
     }
 
     // Broad phase: the whisker's bounding box at the evaluation point.
-    let mut wb = [f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY];
+    let mut wb = [
+        f64::INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::NEG_INFINITY,
+    ];
     for p in &ws.node[..=n] {
-        wb = [wb[0].min(p[0]), wb[1].min(p[1]), wb[2].max(p[0]), wb[3].max(p[1])];
+        wb = [
+            wb[0].min(p[0]),
+            wb[1].min(p[1]),
+            wb[2].max(p[0]),
+            wb[3].max(p[1]),
+        ];
     }
     let rmax = model.radius.iter().cloned().fold(0.0, f64::max);
 
@@ -236,10 +275,16 @@ pub(crate) fn solve(
         let pose_end = obj.pose(t_end);
         // Reach: how far the object and the whisker can close in a step, plus the radius.
         let speed = pose.velocity[0].hypot(pose.velocity[1]) + pose.angular_velocity.abs() * 0.1;
-        let wmax = ws.seg[..n].iter().fold(0.0f64, |m, s| m.max(s.vel[1].hypot(s.vel[2]) + s.vel[0].abs() * model.whisker_length()));
+        let wmax = ws.seg[..n].iter().fold(0.0f64, |m, s| {
+            m.max(s.vel[1].hypot(s.vel[2]) + s.vel[0].abs() * model.whisker_length())
+        });
         let reach = rmax + 2.0 * h * (speed + wmax) + 1e-6;
         let ob = bounds(&obj.shape, &pose);
-        if ob[0] > wb[2] + reach || ob[2] < wb[0] - reach || ob[1] > wb[3] + reach || ob[3] < wb[1] - reach {
+        if ob[0] > wb[2] + reach
+            || ob[2] < wb[0] - reach
+            || ob[1] > wb[3] + reach
+            || ob[3] < wb[1] - reach
+        {
             continue;
         }
         let mut prev_tip: Option<[f64; 2]> = None;
@@ -288,12 +333,17 @@ pub(crate) fn solve(
                 c_t: -(tan[0] * v_obj[0] + tan[1] * v_obj[1]),
                 mu: obj.friction,
                 object: k,
+                g_pred: 0.0,
+                active: false,
+                c_v: -(nrm[0] * v_obj[0] + nrm[1] * v_obj[1]),
                 lambda_n: 0.0,
                 lambda_t: 0.0,
             };
         }
     }
     ws.contacts.count = count;
+    ws.contacts.acc.fill(0.0);
+    ws.contacts.position_fix.fill(0.0);
     if count == 0 {
         return Ok(());
     }
@@ -316,7 +366,12 @@ pub(crate) fn solve(
         for &(r, dir) in rows {
             let row = &mut jac[r * n..(r + 1) * n];
             generalised(ws, c.seg, c.point, dir, row);
-            apply_inverse(ws, &jac[r * n..(r + 1) * n], &mut u, &mut resp[r * n..(r + 1) * n]);
+            apply_inverse(
+                ws,
+                &jac[r * n..(r + 1) * n],
+                &mut u,
+                &mut resp[r * n..(r + 1) * n],
+            );
         }
     }
 
@@ -324,25 +379,36 @@ pub(crate) fn solve(
     let m = 2 * count;
     let sc = &mut ws.contacts;
     for k in 0..count {
-        let (jn, jt) = (&jac[2 * k * n..(2 * k + 1) * n], &jac[(2 * k + 1) * n..(2 * k + 2) * n]);
+        let (jn, jt) = (
+            &jac[2 * k * n..(2 * k + 1) * n],
+            &jac[(2 * k + 1) * n..(2 * k + 2) * n],
+        );
         // Whisker point displacement from the evaluation point: J (q_end - q_eval).
         let mut dn = 0.0;
         let mut vt = 0.0;
+        let mut vn = 0.0;
         for i in 0..n {
             let q_end = sc.q0[i] + cq * ws.qdd[i];
             let v_end = sc.v0[i] + cv * ws.qdd[i];
             dn += jn[i] * (q_end - ws.q[i]);
+            vn += jn[i] * v_end;
             vt += jt[i] * v_end;
         }
         let c = &mut sc.cand[k];
         c.c_n += dn;
         c.c_t += vt;
+        c.c_v += vn;
+        // Active when the step would end in penetration without a contact force; the normal row is
+        // then the end-of-step normal velocity (an inelastic contact: v ≥ 0).
+        c.active = c.c_n <= 0.0;
+        c.g_pred = c.c_n;
+        c.c_n = c.c_v;
     }
-    // Delassus matrix: rows n_k use position (cq), rows t_k velocity (cv).
+    // Delassus matrix: every row is a velocity at the end of the step, and a contact force changes
+    // the rates by h times its acceleration.
     for r in 0..m {
-        let scale = if r % 2 == 0 { cq } else { cv };
         for col in 0..m {
-            sc.w[r * m + col] = scale * dot(&jac[r * n..(r + 1) * n], &resp[col * n..(col + 1) * n]);
+            sc.w[r * m + col] = h * dot(&jac[r * n..(r + 1) * n], &resp[col * n..(col + 1) * n]);
         }
     }
 
@@ -354,19 +420,25 @@ pub(crate) fn solve(
             // Normal: gap at the end of the step >= 0, force >= 0.
             let mut g = sc.cand[k].c_n;
             for j in 0..count {
-                g += sc.w[rn * m + 2 * j] * sc.cand[j].lambda_n + sc.w[rn * m + 2 * j + 1] * sc.cand[j].lambda_t;
+                g += sc.w[rn * m + 2 * j] * sc.cand[j].lambda_n
+                    + sc.w[rn * m + 2 * j + 1] * sc.cand[j].lambda_t;
             }
             let old = sc.cand[k].lambda_n;
             let diag = sc.w[rn * m + rn];
-            // A point the whisker cannot move (the clamped base) takes no force.
-            let new = if diag > 0.0 { (old - g / diag).max(0.0) } else { 0.0 };
+            // Inactive contacts, and points the whisker cannot move (the clamped base), take none.
+            let new = if diag > 0.0 && sc.cand[k].active {
+                (old - g / diag).max(0.0)
+            } else {
+                0.0
+            };
             sc.cand[k].lambda_n = new;
             change = change.max((new - old).abs());
             // Tangential: no slip while |λt| < μ λn.
             if sc.cand[k].mu > 0.0 && sc.w[rt * m + rt] > 0.0 {
                 let mut s = sc.cand[k].c_t;
                 for j in 0..count {
-                    s += sc.w[rt * m + 2 * j] * sc.cand[j].lambda_n + sc.w[rt * m + 2 * j + 1] * sc.cand[j].lambda_t;
+                    s += sc.w[rt * m + 2 * j] * sc.cand[j].lambda_n
+                        + sc.w[rt * m + 2 * j + 1] * sc.cand[j].lambda_t;
                 }
                 let bound = sc.cand[k].mu * sc.cand[k].lambda_n;
                 let old = sc.cand[k].lambda_t;
@@ -377,7 +449,9 @@ pub(crate) fn solve(
                 sc.cand[k].lambda_t = 0.0;
             }
         }
-        let scale = sc.cand[..count].iter().fold(1e-30f64, |a, c| a.max(c.lambda_n));
+        let scale = sc.cand[..count]
+            .iter()
+            .fold(1e-30f64, |a, c| a.max(c.lambda_n));
         if change <= 1e-12 * scale {
             break;
         }
@@ -386,7 +460,62 @@ pub(crate) fn solve(
     ws.contacts.resp = resp;
     ws.contacts.u = u;
 
-    // Apply the forces and solve the step again with them.
+    // The contact forces' accelerations, then the step solved again with the forces applied (for
+    // the base reaction and the segments' accelerations).
+    for k in 0..count {
+        let c = ws.contacts.cand[k];
+        for (r, lambda) in [(2 * k, c.lambda_n), (2 * k + 1, c.lambda_t)] {
+            if lambda != 0.0 {
+                let sc = &mut ws.contacts;
+                for (a, x) in sc.acc.iter_mut().zip(&sc.resp[r * n..(r + 1) * n]) {
+                    *a += lambda * x;
+                }
+            }
+        }
+    }
+    // Post-stabilisation: the impulses stop the contact points (h²/2 on the angles), which can
+    // leave up to h·v/2 of penetration after a fast impact; move the angles (not the rates) along
+    // (M + A)⁻¹ Jᵀ just enough to close it.
+    {
+        let sc = &mut ws.contacts;
+        let mut mu = [0.0f64; MAX_CONTACTS];
+        for _ in 0..100 {
+            let mut change = 0.0f64;
+            for k in 0..count {
+                if !sc.cand[k].active {
+                    continue;
+                }
+                let rn = 2 * k;
+                // End-of-step gap with the impulses and the corrections so far.
+                let mut g = sc.cand[k].g_pred;
+                for (j, (cj, muj)) in sc.cand[..count].iter().zip(&mu).enumerate() {
+                    let w = sc.w[rn * m + 2 * j] / h;
+                    g += w * (0.5 * h * h * cj.lambda_n + muj)
+                        + 0.5 * h * sc.w[rn * m + 2 * j + 1] * cj.lambda_t;
+                }
+                let diag = sc.w[rn * m + rn] / h;
+                if diag > 0.0 {
+                    let new = (mu[k] - g / diag).max(0.0);
+                    change = change.max((new - mu[k]).abs() * diag);
+                    mu[k] = new;
+                }
+            }
+            if change < 1e-12 {
+                break;
+            }
+        }
+        for (k, &muk) in mu.iter().enumerate().take(count) {
+            if muk > 0.0 {
+                for (f, x) in sc
+                    .position_fix
+                    .iter_mut()
+                    .zip(&sc.resp[2 * k * n..(2 * k + 1) * n])
+                {
+                    *f += muk * x;
+                }
+            }
+        }
+    }
     for k in 0..count {
         let c = ws.contacts.cand[k];
         if c.lambda_n > 0.0 {

@@ -25,8 +25,8 @@
 //! base): motion `(ω, vx, vy)`, force `(n, fx, fy)` with `n` the moment about the origin.
 
 use crate::chain::Model;
-use crate::error::{check_finite, Error, Result};
 use crate::contact::{self, ContactReport};
+use crate::error::{check_finite, Error, Result};
 use crate::objects::Object;
 use crate::rng::Rng;
 
@@ -215,7 +215,7 @@ pub struct State {
     /// Base rotation at time `t`.
     pub base: BaseMotion,
     /// `[q | q̇ | q̈ | q̇_prev]`, each `[N]`: joint angles (rad), rates (rad/s), accelerations
-    /// (rad/s²) and the rates one step earlier.
+    /// (rad/s², without contact impulses) and the rates one step earlier.
     x: Vec<f64>,
     /// Base wrench at the previous step's intermediate time (for extrapolation to `t`).
     wrench_alpha: [f64; 3],
@@ -750,6 +750,10 @@ pub fn step_with<F: Forcing + ?Sized>(
     let (q, rest) = state.x.split_at_mut(n);
     let (v, rest) = rest.split_at_mut(n);
     let (a, v_prev) = rest.split_at_mut(n);
+    ws.draw_noise(model, inputs.noise, &mut state.rng, h);
+    if inputs.objects.is_empty() {
+        ws.contacts.clear();
+    }
 
     // Stage: predict. The intermediate angles and rates are affine in the unknown
     // b = a_{n+1-αm}: q_f = q0 + dq·b, v_f = v0 + dv·b. The geometry is first evaluated at
@@ -761,7 +765,6 @@ pub fn step_with<F: Forcing + ?Sized>(
         ws.q[i] = q[i] + c1 * h * v[i];
         ws.v[i] = v[i] + c1 * (v[i] - v_prev[i]);
     }
-    ws.draw_noise(model, inputs.noise, &mut state.rng, h);
 
     // Stage: passive joint torques, implicit in the springs and dampers: with the armature
     // A = K·dq + D·dv, (M + A) b = τ enforces the spring–damper law at the intermediate time.
@@ -790,12 +793,14 @@ pub fn step_with<F: Forcing + ?Sized>(
         if ws.iterations >= st.max_iterations {
             break;
         }
-        // Stage: the intermediate state this solve implies; how far the segments moved.
+        // Stage: the intermediate state this solve implies; how far the segments moved. Contact
+        // impulses (`ac`) move with their own weights, everything else with the method's.
         let (mut phi, mut moved) = (0.0f64, 0.0f64);
         for i in 0..n {
-            let b = ws.qdd[i];
-            let qf = ws.q_lin[i] + st.dq * b;
-            let vf = ws.v_lin[i] + st.dv * b;
+            let (ac, fix) = (ws.contacts.acc[i], ws.contacts.position_fix[i]);
+            let b = ws.qdd[i] - ac;
+            let qf = ws.q_lin[i] + st.dq * b + c1 * (0.5 * h * h * ac + fix);
+            let vf = ws.v_lin[i] + st.dv * b + c1 * h * ac;
             phi += qf - ws.q[i];
             moved = moved.max(phi.abs()).max(h * (vf - ws.v[i]).abs());
             ws.q[i] = qf;
@@ -806,12 +811,15 @@ pub fn step_with<F: Forcing + ?Sized>(
         }
     }
 
-    // Stage: integrate to the end of the step.
+    // Stage: integrate to the end of the step. Contact impulses (`ac`) move the rates by h·ac and
+    // the angles by h²/2·ac and stay out of the acceleration history; `fix` removes penetration
+    // (see the contact module).
     let inv_am = 1.0 / (1.0 - am);
     for i in 0..n {
-        let a_new = (ws.qdd[i] - am * a[i]) * inv_am;
-        let q_new = q[i] + h * v[i] + h * h * ((0.5 - beta) * a[i] + beta * a_new);
-        let v_new = v[i] + h * ((1.0 - gamma) * a[i] + gamma * a_new);
+        let (ac, fix) = (ws.contacts.acc[i], ws.contacts.position_fix[i]);
+        let a_new = (ws.qdd[i] - ac - am * a[i]) * inv_am;
+        let q_new = q[i] + h * v[i] + h * h * ((0.5 - beta) * a[i] + beta * a_new + 0.5 * ac) + fix;
+        let v_new = v[i] + h * ((1.0 - gamma) * a[i] + gamma * a_new + ac);
         v_prev[i] = v[i];
         q[i] = q_new;
         v[i] = v_new;

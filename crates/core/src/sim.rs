@@ -3,15 +3,17 @@
 
 use crate::chain::{Discretisation, Model};
 use crate::dynamics::{initialize, step, BaseMotion, Inputs, Integrator, State, Workspace};
+use crate::error::{check_finite, check_non_negative, check_positive, Error, Result};
 use crate::objects::closest;
+use crate::objects::Object;
 use crate::rng::Rng;
 use crate::sensors::Sensors;
-use crate::error::{check_finite, check_non_negative, check_positive, Error, Result};
-use crate::objects::Object;
 use crate::whisker::WhiskerParams;
 
 /// The contract's time-series columns, in order.
-pub const COLUMNS: [&str; 10] = ["t", "theta01", "theta12", "m0", "fx", "fy", "contact", "cx", "cy", "s"];
+pub const COLUMNS: [&str; 10] = [
+    "t", "theta01", "theta12", "m0", "fx", "fy", "contact", "cx", "cy", "s",
+];
 
 /// Prescribed rotation of the whisker's base (active whisking).
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -169,7 +171,10 @@ impl BaseDrive {
                     return Err(Error::invalid(
                         "base.stop",
                         stop,
-                        format!("a time >= base.start + base.smoothing = {} (or omitted)", start + smoothing),
+                        format!(
+                            "a time >= base.start + base.smoothing = {} (or omitted)",
+                            start + smoothing
+                        ),
                     ));
                 }
                 Ok(())
@@ -221,7 +226,11 @@ fn ramp(r: f64, t0: f64, t1: f64, tau: f64, t: f64) -> BaseMotion {
     let a2 = a1 + r * (t1 - t0 - tau);
     if tau > 0.0 && t < t1 + tau {
         let x = t - t1;
-        return motion(a2 + r * (x - 0.5 * x * x / tau), r * (1.0 - x / tau), -r / tau);
+        return motion(
+            a2 + r * (x - 0.5 * x * x / tau),
+            r * (1.0 - x / tau),
+            -r / tau,
+        );
     }
     motion(a2 + a1, 0.0, 0.0)
 }
@@ -231,10 +240,16 @@ fn ramp(r: f64, t0: f64, t1: f64, tau: f64, t: f64) -> BaseMotion {
 fn hermite(ts: &[f64], ys: &[f64], t: f64) -> BaseMotion {
     let n = ts.len();
     if t <= ts[0] {
-        return BaseMotion { angle: ys[0], ..Default::default() };
+        return BaseMotion {
+            angle: ys[0],
+            ..Default::default()
+        };
     }
     if t >= ts[n - 1] {
-        return BaseMotion { angle: ys[n - 1], ..Default::default() };
+        return BaseMotion {
+            angle: ys[n - 1],
+            ..Default::default()
+        };
     }
     let k = ts.partition_point(|&x| x <= t).clamp(1, n - 1) - 1;
     let slope = |i: usize| {
@@ -245,9 +260,18 @@ fn hermite(ts: &[f64], ys: &[f64], t: f64) -> BaseMotion {
     let x = (t - ts[k]) / h;
     let (y0, y1, m0, m1) = (ys[k], ys[k + 1], slope(k) * h, slope(k + 1) * h);
     let (x2, x3) = (x * x, x * x * x);
-    let angle = (2.0 * x3 - 3.0 * x2 + 1.0) * y0 + (x3 - 2.0 * x2 + x) * m0 + (-2.0 * x3 + 3.0 * x2) * y1 + (x3 - x2) * m1;
-    let d1 = (6.0 * x2 - 6.0 * x) * y0 + (3.0 * x2 - 4.0 * x + 1.0) * m0 + (-6.0 * x2 + 6.0 * x) * y1 + (3.0 * x2 - 2.0 * x) * m1;
-    let d2 = (12.0 * x - 6.0) * y0 + (6.0 * x - 4.0) * m0 + (-12.0 * x + 6.0) * y1 + (6.0 * x - 2.0) * m1;
+    let angle = (2.0 * x3 - 3.0 * x2 + 1.0) * y0
+        + (x3 - 2.0 * x2 + x) * m0
+        + (-2.0 * x3 + 3.0 * x2) * y1
+        + (x3 - x2) * m1;
+    let d1 = (6.0 * x2 - 6.0 * x) * y0
+        + (3.0 * x2 - 4.0 * x + 1.0) * m0
+        + (-6.0 * x2 + 6.0 * x) * y1
+        + (3.0 * x2 - 2.0 * x) * m1;
+    let d2 = (12.0 * x - 6.0) * y0
+        + (6.0 * x - 4.0) * m0
+        + (-12.0 * x + 6.0) * y1
+        + (6.0 * x - 2.0) * m1;
     BaseMotion {
         angle,
         rate: d1 / h,
@@ -309,7 +333,9 @@ pub fn run(scenario: &Scenario, progress: &mut dyn FnMut(f64)) -> Result<Output>
     let model = Model::new(&whisker, scenario.segments, scenario.discretisation)?;
     // A step that divides the sample period.
     let period = 1.0 / scenario.sample_rate;
-    let per_sample = (period / scenario.integrator.dt * (1.0 - 1e-12)).ceil().max(1.0) as usize;
+    let per_sample = (period / scenario.integrator.dt * (1.0 - 1e-12))
+        .ceil()
+        .max(1.0) as usize;
     let stepper = Integrator {
         dt: period / per_sample as f64,
         ..scenario.integrator
@@ -344,10 +370,16 @@ pub fn run(scenario: &Scenario, progress: &mut dyn FnMut(f64)) -> Result<Output>
                 steps += 1;
             }
             if state.contact.is_some() {
-                max_penetration = max_penetration.max(penetration(&model, &state, &mut ws, &scenario.objects));
+                max_penetration =
+                    max_penetration.max(penetration(&model, &state, &mut ws, &scenario.objects));
             }
         }
-        rows.push(sample(&state, k as f64 * period, &scenario.sensor_noise, &mut sensor_rng));
+        rows.push(sample(
+            &state,
+            k as f64 * period,
+            &scenario.sensor_noise,
+            &mut sensor_rng,
+        ));
         if k % 64 == 0 {
             progress(k as f64 / samples as f64);
         }
@@ -367,7 +399,11 @@ fn sample(state: &State, t: f64, noise: &SensorNoise, rng: &mut Rng) -> [f64; 10
     let s = Sensors::read(state);
     let mut add = |x: f64, sd: f64| if sd > 0.0 { x + sd * rng.normal() } else { x };
     let (theta01, theta12) = (add(s.theta01, noise.theta01), add(s.theta12, noise.theta12));
-    let (m0, fx, fy) = (add(s.m0, noise.m0), add(s.fx, noise.fx), add(s.fy, noise.fy));
+    let (m0, fx, fy) = (
+        add(s.m0, noise.m0),
+        add(s.fx, noise.fx),
+        add(s.fy, noise.fy),
+    );
     let (contact, cx, cy, arc) = match state.contact {
         Some(c) => {
             // The contact point in the (possibly rotated) base frame.
@@ -391,7 +427,10 @@ fn check_clear(model: &Model, ws: &Workspace, objects: &[Object]) -> Result<()> 
             if c.distance < r {
                 return Err(Error::invalid(
                     format!("objects[{k}]"),
-                    format!("an object overlapping the whisker at t = 0 (segment {i}, gap {:.3e} m)", c.distance - r),
+                    format!(
+                        "an object overlapping the whisker at t = 0 (segment {i}, gap {:.3e} m)",
+                        c.distance - r
+                    ),
                     "objects clear of the whisker's surface at t = 0",
                 ));
             }
