@@ -120,8 +120,10 @@ fn quasi_static_peg_contact_obeys_beam_theory_and_newtons_third_law() {
 #[test]
 fn ringing_after_release_is_at_the_damped_first_frequency() {
     // The e2 box passes; the whisker rings freely afterwards.
-    let mut sc = Scenario::default();
-    sc.duration = 0.4;
+    let mut sc = Scenario {
+        duration: 0.4,
+        ..Default::default()
+    };
     sc.objects.push(Object {
         shape: Shape::Box {
             width: 0.01,
