@@ -28,7 +28,7 @@
 use crate::chain::Model;
 use crate::dynamics::{fma, shift_force, BaseMotion, Inputs, Stepper, Workspace};
 use crate::error::Result;
-use crate::objects::{bounds, closest};
+use crate::objects::{bounds, closest, Closest};
 
 /// Largest number of simultaneous contact candidates handled in one step.
 pub const MAX_CONTACTS: usize = 24;
@@ -290,55 +290,75 @@ pub(crate) fn solve(
         let mut prev_tip: Option<[f64; 2]> = None;
         for i in 0..n {
             let (a, b) = (ws.node[i], ws.node[i + 1]);
-            let c = closest(&obj.shape, &pose, a, b);
-            let radius = model.radius[i] + c.u * (model.radius[i + 1] - model.radius[i]);
-            let gap = c.distance - radius;
-            // The shared node of two segments is one candidate, not two.
-            let at_start = c.u <= 0.0;
-            let duplicate = at_start && prev_tip.is_some_and(|p| p == c.on_whisker);
-            prev_tip = (c.u >= 1.0).then_some(c.on_whisker);
-            if duplicate || gap > reach - rmax {
-                continue;
-            }
-            // When full, a closer candidate replaces the farthest one.
-            let slot = if count < MAX_CONTACTS {
-                count += 1;
-                count - 1
+            // Candidates: the segment's nearest point, and its far node when that is near too (a
+            // segment lying along a face touches it at both ends). A node shared with the previous
+            // segment is taken once.
+            let near = closest(&obj.shape, &pose, a, b);
+            let end = if near.u < 1.0 {
+                let a2 = [b[0] - 1e-6 * (b[0] - a[0]), b[1] - 1e-6 * (b[1] - a[1])];
+                let e = closest(&obj.shape, &pose, a2, b);
+                Some(Closest {
+                    u: 1.0,
+                    on_whisker: b,
+                    ..e
+                })
             } else {
-                let (far, far_gap) = ws.contacts.cand[..count]
-                    .iter()
-                    .enumerate()
-                    .map(|(j, c)| (j, c.gap))
-                    .fold((0, f64::NEG_INFINITY), |a, b| if b.1 > a.1 { b } else { a });
-                if gap >= far_gap {
+                None
+            };
+            let taken = prev_tip;
+            prev_tip = None;
+            for c in std::iter::once(near).chain(end) {
+                if c.u <= 0.0 && taken.is_some_and(|p| p == c.on_whisker) {
                     continue;
                 }
-                far
-            };
-            // Object motion over the step, at the object's contact point.
-            let local = pose.to_local(c.on_object);
-            let o_end = pose_end.to_world(local);
-            let d_obj = [o_end[0] - c.on_object[0], o_end[1] - c.on_object[1]];
-            let v_obj = pose_end.velocity_at(o_end);
-            let nrm = c.normal;
-            let tan = [-nrm[1], nrm[0]];
-            ws.contacts.cand[slot] = Candidate {
-                gap,
-                seg: i,
-                point: c.on_whisker,
-                s: (i as f64 + c.u) * model.arc,
-                n: nrm,
-                t: tan,
-                c_n: gap - (nrm[0] * d_obj[0] + nrm[1] * d_obj[1]),
-                c_t: -(tan[0] * v_obj[0] + tan[1] * v_obj[1]),
-                mu: obj.friction,
-                object: k,
-                g_pred: 0.0,
-                active: false,
-                c_v: -(nrm[0] * v_obj[0] + nrm[1] * v_obj[1]),
-                lambda_n: 0.0,
-                lambda_t: 0.0,
-            };
+                let radius = model.radius[i] + c.u * (model.radius[i + 1] - model.radius[i]);
+                let gap = c.distance - radius;
+                if gap > reach - rmax {
+                    continue;
+                }
+                if c.u >= 1.0 {
+                    prev_tip = Some(c.on_whisker);
+                }
+                // When full, a closer candidate replaces the farthest one.
+                let slot = if count < MAX_CONTACTS {
+                    count += 1;
+                    count - 1
+                } else {
+                    let (far, far_gap) = ws.contacts.cand[..count]
+                        .iter()
+                        .enumerate()
+                        .map(|(j, c)| (j, c.gap))
+                        .fold((0, f64::NEG_INFINITY), |a, b| if b.1 > a.1 { b } else { a });
+                    if gap >= far_gap {
+                        continue;
+                    }
+                    far
+                };
+                // Object motion over the step, at the object's contact point.
+                let local = pose.to_local(c.on_object);
+                let o_end = pose_end.to_world(local);
+                let d_obj = [o_end[0] - c.on_object[0], o_end[1] - c.on_object[1]];
+                let v_obj = pose_end.velocity_at(o_end);
+                let nrm = c.normal;
+                let tan = [-nrm[1], nrm[0]];
+                ws.contacts.cand[slot] = Candidate {
+                    gap,
+                    seg: i,
+                    point: c.on_whisker,
+                    s: (i as f64 + c.u) * model.arc,
+                    n: nrm,
+                    t: tan,
+                    c_n: gap - (nrm[0] * d_obj[0] + nrm[1] * d_obj[1]),
+                    c_t: -(tan[0] * v_obj[0] + tan[1] * v_obj[1]),
+                    mu: obj.friction,
+                    object: k,
+                    g_pred: 0.0,
+                    active: false,
+                    c_v: -(nrm[0] * v_obj[0] + nrm[1] * v_obj[1]),
+                    lambda_n: 0.0,
+                    lambda_t: 0.0,
+                };
+            }
         }
     }
     ws.contacts.count = count;
@@ -413,7 +433,7 @@ pub(crate) fn solve(
     }
 
     // Projected Gauss–Seidel on the complementarity problem.
-    for _ in 0..200 {
+    for _ in 0..2000 {
         let mut change = 0.0f64;
         for k in 0..count {
             let (rn, rt) = (2 * k, 2 * k + 1);
@@ -479,14 +499,12 @@ pub(crate) fn solve(
     {
         let sc = &mut ws.contacts;
         let mut mu = [0.0f64; MAX_CONTACTS];
-        for _ in 0..100 {
+        for _ in 0..2000 {
             let mut change = 0.0f64;
             for k in 0..count {
-                if !sc.cand[k].active {
-                    continue;
-                }
                 let rn = 2 * k;
-                // End-of-step gap with the impulses and the corrections so far.
+                // End-of-step gap with the impulses and the corrections so far (every candidate:
+                // another contact's impulse may push this one in).
                 let mut g = sc.cand[k].g_pred;
                 for (j, (cj, muj)) in sc.cand[..count].iter().zip(&mu).enumerate() {
                     let w = sc.w[rn * m + 2 * j] / h;

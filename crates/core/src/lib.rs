@@ -17,6 +17,7 @@ pub mod dynamics;
 pub mod error;
 pub mod objects;
 pub mod rng;
+pub mod scenes;
 pub mod sensors;
 pub mod sim;
 pub mod statics;

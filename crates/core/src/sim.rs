@@ -322,7 +322,8 @@ pub struct Output {
     pub dt: f64,
     /// Steps taken.
     pub steps: usize,
-    /// Largest penetration of the whisker's surface into an object at any sample in contact, m.
+    /// Largest penetration of the whisker's surface into an object at the end of any step in
+    /// contact, m.
     pub max_penetration: f64,
 }
 
@@ -368,10 +369,10 @@ pub fn run(scenario: &Scenario, progress: &mut dyn FnMut(f64)) -> Result<Output>
                 inputs.base = scenario.base.at(t);
                 step(&model, &stepper, &mut state, &inputs, &mut ws)?;
                 steps += 1;
-            }
-            if state.contact.is_some() {
-                max_penetration =
-                    max_penetration.max(penetration(&model, &state, &mut ws, &scenario.objects));
+                if state.contact.is_some() {
+                    let p = penetration(&model, &state, &mut ws, &scenario.objects);
+                    max_penetration = max_penetration.max(p);
+                }
             }
         }
         rows.push(sample(
