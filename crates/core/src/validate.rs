@@ -137,6 +137,8 @@ pub fn run(opts: &ValidateOptions, progress: &mut dyn FnMut(&str)) -> Result<Rep
     progress("time-step accuracy and stability");
     step_accuracy(opts.quick, &mut checks)?;
     stability(opts.quick, &mut checks)?;
+    progress("contact against beam theory, Newton's laws, energy and Coulomb's law");
+    contact(&mut checks)?;
     Ok(Report { checks })
 }
 
@@ -700,5 +702,120 @@ fn stability(quick: bool, out: &mut Vec<Check>) -> Result<()> {
             }
         }
     }
+    Ok(())
+}
+
+fn contact(out: &mut Vec<Check>) -> Result<()> {
+    let mut g = Group {
+        name: "contact",
+        out,
+    };
+    // Quasi-static whisk into a peg (see scenes::peg_whisk).
+    let r = crate::scenes::peg_whisk()?;
+    let label = format!(
+        "w30 N=20 whisked at 0.05 rad/s into a peg at 20 mm ({} samples)",
+        r.samples
+    );
+    g.add(
+        &label,
+        "max |m0/(|f|·s) - 1|",
+        "1",
+        r.moment_arm_error,
+        0.0,
+        ErrorUnit::Absolute,
+        Some(0.01),
+    );
+    g.add(
+        &label,
+        "max |m0/(cx·fy - cy·fx) - 1|",
+        "1",
+        r.third_law_error,
+        0.0,
+        ErrorUnit::Absolute,
+        Some(0.01),
+    );
+    g.add(
+        &label,
+        "max shape error / tip deflection",
+        "1",
+        r.shape_error,
+        0.0,
+        ErrorUnit::Absolute,
+        Some(0.01),
+    );
+    // Ringing after release.
+    let r = crate::scenes::ringing_after_release()?;
+    let label = "e2 box d=28 mm v=0.6 m/s, theta01 after the last contact";
+    g.add(
+        label,
+        "ringing frequency",
+        "Hz",
+        r.frequency,
+        r.damped_f1,
+        ErrorUnit::Relative,
+        Some(0.01),
+    );
+    // Penetration of the fastest box over the e2 distances.
+    let (pen, touched) = crate::scenes::e2_penetration(1.5)?;
+    let label = format!("e2 box v=1.5 m/s, d=15..30 mm ({touched} of 16 touch)");
+    g.add(
+        &label,
+        "max penetration",
+        "m",
+        pen,
+        0.0,
+        ErrorUnit::Absolute,
+        Some(1e-6),
+    );
+    // Energy against a stationary frictionless peg.
+    let r = crate::scenes::release_onto_peg()?;
+    let label = format!(
+        "w30 undamped released onto a peg ({} contact steps)",
+        r.contact_steps
+    );
+    let rise = (r.max_energy_ratio - 1.0).max(0.0);
+    g.add(
+        &label,
+        "energy rise above initial / initial",
+        "1",
+        rise,
+        0.0,
+        ErrorUnit::Absolute,
+        Some(1e-6),
+    );
+    let gain = r.max_episode_gain.max(0.0);
+    g.add(
+        &label,
+        "energy gained over a contact episode / before",
+        "1",
+        gain,
+        0.0,
+        ErrorUnit::Absolute,
+        Some(1e-6),
+    );
+    g.add(
+        &label,
+        "max penetration",
+        "m",
+        r.max_penetration,
+        0.0,
+        ErrorUnit::Absolute,
+        Some(1e-6),
+    );
+    // Coulomb friction: stick, then slip at the limit.
+    let r = crate::scenes::press_and_shear(0.3, |_, _| {})?;
+    let label = format!(
+        "tip pressed and sheared, mu=0.3 (stick {} steps to {:.3} s, then slip {} steps from {:.3} s)",
+        r.stick_steps, r.last_stick, r.slip_steps, r.first_slip
+    );
+    g.add(
+        &label,
+        "max |ft|/fn",
+        "1",
+        r.max_ratio,
+        r.mu,
+        ErrorUnit::Relative,
+        Some(1e-6),
+    );
     Ok(())
 }
