@@ -4,7 +4,12 @@
 //! with its causes. Usage errors are clap's (exit status 2); any other failure exits with 1.
 
 mod bench;
+mod files;
 mod output;
+mod plot;
+mod progress;
+mod simulate;
+mod sweep;
 mod validate;
 
 use anyhow::Result;
@@ -34,6 +39,20 @@ enum Command {
     /// batch of states at N = 20 on all cores and on one, and how the cost per segment grows
     /// with N. Run a release build on an otherwise idle machine.
     Bench(bench::Args),
+    /// Run one scenario and write its time series (CSV, NPY or NPZ), optionally with a figure.
+    ///
+    /// SCENARIO is a built-in experiment (e1, e2) or a TOML scenario file; `--set key=value`
+    /// overrides any of its keys. The series has the contract's columns (t, theta01, theta12,
+    /// m0, fx, fy, contact, cx, cy, s); `--plot` draws the angles, the base moment and the base
+    /// forces over time with the contact period shaded. No output file is left behind on error.
+    Simulate(simulate::Args),
+    /// Run every combination of a grid of parameter values, in parallel, one file per run.
+    ///
+    /// Grid keys are `--set` keys; e1 and e2 without `--grid` sweep their own grids. Writes
+    /// `manifest.csv` beside the runs (kept up to date as runs finish); started again on the
+    /// same folder, skips the runs already done. A failed run is reported with its parameters
+    /// and makes the sweep exit with status 1 after the others have run.
+    Sweep(sweep::Args),
 }
 
 fn main() -> ExitCode {
@@ -57,6 +76,8 @@ fn run() -> Result<()> {
     match &cli.command {
         Command::Validate(args) => validate::run(args),
         Command::Bench(args) => bench::run(args),
+        Command::Simulate(args) => simulate::run(args),
+        Command::Sweep(args) => sweep::run(args),
     }
 }
 

@@ -1,6 +1,8 @@
 //! The `vibrissa` binary run as a user runs it.
 
 use serde_json::Value;
+use std::fs;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 /// Runs the binary with `args` and returns its exit status and output.
@@ -9,6 +11,57 @@ fn vibrissa(args: &[&str]) -> Output {
         .args(args)
         .output()
         .expect("the vibrissa binary should start")
+}
+
+/// Runs the binary with `args` in the folder `dir`.
+fn vibrissa_in(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_vibrissa"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("the vibrissa binary should start")
+}
+
+/// An empty folder of its own for one test, removed when dropped.
+struct Scratch(PathBuf);
+
+impl Scratch {
+    fn new(test: &str) -> Scratch {
+        let dir = std::env::temp_dir().join(format!("vibrissa-cli-{}-{test}", std::process::id()));
+        let _ = fs::remove_dir_all(&dir);
+        fs::create_dir_all(&dir).expect("a scratch folder");
+        Scratch(dir)
+    }
+
+    fn path(&self) -> &Path {
+        &self.0
+    }
+
+    /// Names of the entries in the folder (hidden ones included), sorted.
+    fn entries(&self) -> Vec<String> {
+        entries(&self.0)
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = fs::remove_dir_all(&self.0);
+    }
+}
+
+/// Names of the entries of `dir` (hidden ones included), sorted.
+fn entries(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = fs::read_dir(dir)
+        .expect("a readable folder")
+        .map(|e| {
+            e.expect("an entry")
+                .file_name()
+                .to_string_lossy()
+                .into_owned()
+        })
+        .collect();
+    names.sort();
+    names
 }
 
 fn stdout(out: &Output) -> String {
@@ -49,7 +102,7 @@ fn help_lists_the_commands() {
     let out = vibrissa(&["--help"]);
     assert!(out.status.success());
     let text = stdout(&out);
-    for command in ["validate", "bench"] {
+    for command in ["validate", "bench", "simulate", "sweep"] {
         assert!(text.contains(command), "--help lacks {command}:\n{text}");
     }
 }
@@ -183,4 +236,263 @@ fn unknown_discretisation_lists_the_rules() {
     for rule in ["gregory", "trapezoid", "seed"] {
         assert!(err.contains(rule), "{rule} missing from:\n{err}");
     }
+}
+
+/// The contract's time-series columns (CONTRACT.md), in order.
+const CONTRACT_COLUMNS: &str = "t,theta01,theta12,m0,fx,fy,contact,cx,cy,s";
+
+/// The header and data rows of a time-series CSV (comment lines skipped).
+fn csv_rows(path: &Path) -> (String, Vec<Vec<f64>>) {
+    let text = fs::read_to_string(path).expect("the CSV is readable");
+    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
+    let header = lines.next().expect("a header row").to_string();
+    let rows = lines
+        .map(|l| {
+            l.split(',')
+                .map(|v| {
+                    v.parse::<f64>()
+                        .unwrap_or_else(|e| panic!("{v:?} in {l:?}: {e}"))
+                })
+                .collect()
+        })
+        .collect();
+    (header, rows)
+}
+
+#[test]
+fn simulate_e2_writes_the_contract_series_and_a_figure() {
+    let dir = Scratch::new("simulate-csv");
+    let out = vibrissa_in(
+        dir.path(),
+        &[
+            "simulate", "e2", "--set", "d=0.02", "--set", "v=0.6", "--out", "run.csv", "--plot",
+            "run.png",
+        ],
+    );
+    assert!(out.status.success(), "stderr:\n{}", stderr(&out));
+    assert_eq!(
+        dir.entries(),
+        ["run.csv", "run.png"],
+        "only the two outputs"
+    );
+
+    // The contract's header, 151 samples at 1 kHz, contact for a while.
+    let (header, rows) = csv_rows(&dir.path().join("run.csv"));
+    assert_eq!(header, CONTRACT_COLUMNS);
+    assert_eq!(rows.len(), 151);
+    assert!(rows.iter().all(|r| r.len() == 10));
+    assert!(
+        (rows[150][0] - 0.150).abs() < 1e-12,
+        "last t = {}",
+        rows[150][0]
+    );
+    let touching = rows.iter().filter(|r| r[6] == 1.0).count();
+    assert!(
+        touching > 0 && touching < 151,
+        "{touching} samples in contact"
+    );
+    assert!(rows.iter().all(|r| r[6] == 0.0 || r[6] == 1.0));
+
+    // The metadata says what was run.
+    let text = fs::read_to_string(dir.path().join("run.csv")).unwrap();
+    for line in [
+        "# experiment = e2",
+        "# d = 0.02",
+        "# v = 0.6",
+        "# segments = 20",
+    ] {
+        assert!(text.contains(line), "metadata lacks {line:?}");
+    }
+
+    // A PNG file.
+    let png = fs::read(dir.path().join("run.png")).unwrap();
+    assert!(png.starts_with(b"\x89PNG\r\n\x1a\n"), "not a PNG");
+
+    // The summary names the contact period.
+    assert!(stdout(&out).contains("contact"), "{}", stdout(&out));
+}
+
+#[test]
+fn simulate_writes_npz_and_json_summary() {
+    let dir = Scratch::new("simulate-npz");
+    let out = vibrissa_in(
+        dir.path(),
+        &[
+            "simulate", "e1", "--set", "d=0.025", "--out", "run.npz", "--json",
+        ],
+    );
+    assert!(out.status.success(), "stderr:\n{}", stderr(&out));
+    let npz = fs::read(dir.path().join("run.npz")).expect("run.npz exists");
+    assert!(npz.starts_with(b"PK"), "not a ZIP archive");
+    let summary = json(&out);
+    assert_eq!(summary["samples"], 151);
+    assert_eq!(summary["experiment"]["name"], "e1");
+    assert_eq!(summary["experiment"]["d"], 0.025);
+    assert!(summary["contact"]["start"].as_f64().is_some(), "{summary}");
+}
+
+#[test]
+fn simulate_refuses_bad_input_and_leaves_no_file() {
+    let cases: [(&[&str], &str); 6] = [
+        (&["e2", "--set", "whisker.lenght=1"], "lenght"),
+        (&["e2", "--set", "whisker.length=-0.03"], "whisker.length"),
+        (&["e3"], "e3"),
+        (&["e2", "--set", "d"], "key=value"),
+        (&["e2", "--out", "run.txt"], "run.txt"),
+        (&["e2", "--plot", "run.svg"], "run.svg"),
+    ];
+    for (args, named) in cases {
+        let dir = Scratch::new("simulate-refused");
+        // The case's own --out or --plot replaces the default one.
+        let mut full = vec!["simulate"];
+        full.extend_from_slice(args);
+        if !args.contains(&"--out") {
+            full.extend_from_slice(&["--out", "run.csv"]);
+        }
+        if !args.contains(&"--plot") {
+            full.extend_from_slice(&["--plot", "run.png"]);
+        }
+        let out = vibrissa_in(dir.path(), &full);
+        assert_refused(&out);
+        let err = stderr(&out);
+        assert!(
+            err.contains(named),
+            "{full:?}: message lacks {named:?}:\n{err}"
+        );
+        assert!(
+            dir.entries().is_empty(),
+            "{full:?} left {:?}",
+            dir.entries()
+        );
+    }
+}
+
+/// Runs a 2 × 2 sweep of e2 into `dir`, with a JSON report.
+fn small_sweep(dir: &Path) -> Output {
+    vibrissa(&[
+        "sweep",
+        "e2",
+        "--out",
+        dir.to_str().unwrap(),
+        "--grid",
+        "d=0.015,0.03",
+        "--grid",
+        "v=0.3,1.5",
+        "--jobs",
+        "2",
+        "--json",
+    ])
+}
+
+#[test]
+fn sweep_writes_one_file_per_run_and_resumes() {
+    let scratch = Scratch::new("sweep");
+    let dir = scratch.path().join("runs");
+    let files = [
+        "d0.015_v0.3.csv",
+        "d0.015_v1.5.csv",
+        "d0.03_v0.3.csv",
+        "d0.03_v1.5.csv",
+    ];
+
+    // First run: four files and a manifest with four rows.
+    let out = small_sweep(&dir);
+    assert!(out.status.success(), "stderr:\n{}", stderr(&out));
+    let report = json(&out);
+    assert_eq!(
+        (report["runs"].as_u64(), report["ran"].as_u64()),
+        (Some(4), Some(4))
+    );
+    let mut expected: Vec<String> = files.iter().map(|f| f.to_string()).collect();
+    expected.push("manifest.csv".to_string());
+    expected.sort();
+    assert_eq!(entries(&dir), expected);
+    let manifest = fs::read_to_string(dir.join("manifest.csv")).unwrap();
+    let lines: Vec<&str> = manifest.lines().collect();
+    assert_eq!(lines[0], "file,d,v,samples,steps,seconds,max_penetration");
+    assert_eq!(lines.len(), 5, "{manifest}");
+    for (line, file) in lines[1..].iter().zip(files) {
+        assert!(line.starts_with(&format!("{file},")), "{line}");
+        assert_eq!(line.split(',').nth(3), Some("151"), "{line}");
+    }
+    let (header, rows) = csv_rows(&dir.join(files[0]));
+    assert_eq!((header.as_str(), rows.len()), (CONTRACT_COLUMNS, 151));
+
+    // Again: everything is skipped, and the manifest keeps its rows.
+    let out = small_sweep(&dir);
+    assert!(out.status.success(), "stderr:\n{}", stderr(&out));
+    let report = json(&out);
+    assert_eq!(
+        (report["ran"].as_u64(), report["skipped"].as_u64()),
+        (Some(0), Some(4))
+    );
+    assert!(stderr(&out).contains("skipping 4"), "{}", stderr(&out));
+    assert_eq!(
+        fs::read_to_string(dir.join("manifest.csv")).unwrap(),
+        manifest
+    );
+
+    // A missing file is run again, alone.
+    fs::remove_file(dir.join(files[2])).unwrap();
+    let out = small_sweep(&dir);
+    assert!(out.status.success(), "stderr:\n{}", stderr(&out));
+    let report = json(&out);
+    assert_eq!(
+        (report["ran"].as_u64(), report["skipped"].as_u64()),
+        (Some(1), Some(3))
+    );
+    assert_eq!(entries(&dir), expected);
+    let manifest = fs::read_to_string(dir.join("manifest.csv")).unwrap();
+    assert_eq!(manifest.lines().count(), 5, "{manifest}");
+}
+
+#[test]
+fn sweep_reports_failed_runs_after_finishing_the_others() {
+    let scratch = Scratch::new("sweep-failure");
+    let dir = scratch.path().join("runs");
+    let out = vibrissa(&[
+        "sweep",
+        "e2",
+        "--out",
+        dir.to_str().unwrap(),
+        "--set",
+        "d=0.03",
+        "--grid",
+        "whisker.length=0.03,-1",
+    ]);
+    assert_refused(&out);
+    let err = stderr(&out);
+    assert!(err.contains("whisker.length=-1"), "{err}");
+    assert!(err.contains("1 of 2 runs failed"), "{err}");
+    assert_eq!(entries(&dir), ["manifest.csv", "whisker.length0.03.csv"]);
+    let manifest = fs::read_to_string(dir.join("manifest.csv")).unwrap();
+    assert_eq!(manifest.lines().count(), 2, "{manifest}");
+}
+
+#[test]
+fn sweep_refuses_a_misspelt_key_before_running() {
+    let scratch = Scratch::new("sweep-misspelt");
+    let dir = scratch.path().join("runs");
+    let out = vibrissa(&[
+        "sweep",
+        "e2",
+        "--out",
+        dir.to_str().unwrap(),
+        "--grid",
+        "whisker.lenght=0.03,0.04",
+    ]);
+    assert_refused(&out);
+    assert!(stderr(&out).contains("lenght"), "{}", stderr(&out));
+    assert!(!dir.exists(), "no folder for a sweep that cannot run");
+}
+
+#[test]
+fn sweep_refuses_a_malformed_grid() {
+    let out = vibrissa(&["sweep", "e2", "--out", "unused", "--grid", "d=0.01:0.02"]);
+    assert_refused(&out);
+    assert!(
+        stderr(&out).contains("start:stop:count"),
+        "{}",
+        stderr(&out)
+    );
 }

@@ -1,0 +1,404 @@
+//! `vibrissa simulate`: one run of a scenario, written as a time series (and a figure).
+//!
+//! The scenario is loaded and checked, run, and written in the contract's columns; `--plot`
+//! also draws the observed channels over time like the seed paper's Fig. 3, with the contact
+//! period shaded. Every output file appears whole or not at all: the figure is drawn first into
+//! a temporary file, the series is written (atomically), and only then is the figure renamed
+//! into place. On any error no output file is left behind.
+
+use crate::files;
+use crate::output::{sig, FormatArgs, Render};
+use crate::plot::{self, Axis, Curve, Panel};
+use crate::progress::Progress;
+use anyhow::{bail, Result};
+use serde::Serialize;
+use std::io::{self, Write};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+use vibrissa_core::sim::{self, Output, COLUMNS};
+use vibrissa_io::scenario::{self, Loaded};
+use vibrissa_io::series::{self, Series, EXTENSIONS};
+
+/// Arguments of `vibrissa simulate`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Scenario: a built-in experiment (e1, e2) or the path of a TOML scenario file.
+    #[arg(value_name = "SCENARIO")]
+    scenario: String,
+    /// Overrides a scenario key, e.g. `d=0.023`, `whisker.length=0.04`,
+    /// `objects.0.friction=0.3` (repeatable; applied in order).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    sets: Vec<String>,
+    /// Time-series file to write; its extension picks the format: .csv, .npy or .npz.
+    #[arg(long, value_name = "FILE")]
+    out: PathBuf,
+    /// Also draw the observed channels over time into this PNG file.
+    #[arg(long, value_name = "FILE.png")]
+    plot: Option<PathBuf>,
+    #[command(flatten)]
+    format: FormatArgs,
+}
+
+/// Runs shorter than this show no progress.
+const PROGRESS_DELAY: Duration = Duration::from_secs(1);
+
+/// Loads, runs and writes one scenario, then prints its summary.
+pub fn run(args: &Args) -> Result<()> {
+    // Refuse unusable output paths before computing anything.
+    check_series_path(&args.out)?;
+    files::check_folder(&args.out, "--out")?;
+    if let Some(plot) = &args.plot {
+        plot::check_png(plot)?;
+        files::check_folder(plot, "--plot")?;
+        if plot == &args.out {
+            bail!("--out and --plot name the same file `{}`", plot.display());
+        }
+    }
+
+    // Load and run, with progress on standard error for long runs.
+    let loaded = scenario::load_full(&args.scenario, &args.sets)?;
+    let start = Instant::now();
+    let mut progress = Progress::fraction(PROGRESS_DELAY);
+    let output = sim::run(&loaded.scenario, &mut |f| progress.set(f))?;
+    progress.finish();
+    let seconds = start.elapsed().as_secs_f64();
+
+    // Draw the figure (kept aside), write the series, then put the figure in place.
+    let series = to_series(&loaded, &output, &args.scenario, &args.sets);
+    let figure = match &args.plot {
+        Some(path) => Some(plot::render_series(
+            path,
+            &title(&loaded, &args.scenario, &args.sets),
+            &Axis {
+                quantity: "t",
+                unit: "s",
+                values: column(&series, "t"),
+            },
+            &panels(&series),
+            Some(&contact_mask(&series)),
+        )?),
+        None => None,
+    };
+    series::write(&series, &args.out)?;
+    if let Some(figure) = figure {
+        if let Err(e) = figure.commit() {
+            let _ = std::fs::remove_file(&args.out);
+            return Err(e);
+        }
+    }
+
+    let summary = Summary::new(&loaded, &output, seconds, args);
+    args.format.format().print(&summary)?;
+    Ok(())
+}
+
+/// Refuses a time-series path whose extension names no supported format.
+pub fn check_series_path(path: &Path) -> Result<()> {
+    match files::extension(path) {
+        Some(ext) if EXTENSIONS.contains(&ext.as_str()) => Ok(()),
+        _ => bail!(
+            "`{}`: unknown output format; the extension must be one of {}",
+            path.display(),
+            EXTENSIONS
+                .iter()
+                .map(|e| format!(".{e}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+    }
+}
+
+/// The run as a series in the contract's columns, with its metadata: the tool's version, the
+/// scenario as named and its overrides, the experiment and its d and v, segments, dt and seed.
+pub fn to_series(loaded: &Loaded, output: &Output, spec: &str, sets: &[String]) -> Series {
+    let mut series = Series::new(&COLUMNS);
+    for row in &output.rows {
+        series.push_row(row);
+    }
+    series.set_meta("vibrissa", env!("CARGO_PKG_VERSION"));
+    series.set_meta("scenario", spec);
+    if !sets.is_empty() {
+        series.set_meta("set", sets.join(" "));
+    }
+    if let Some(e) = &loaded.experiment {
+        series.set_meta("experiment", e.experiment.name());
+        series.set_meta("d", e.d);
+        series.set_meta("v", e.v);
+    }
+    series.set_meta("segments", output.segments);
+    series.set_meta("dt", output.dt);
+    series.set_meta("seed", loaded.scenario.seed);
+    series
+}
+
+/// A column of a series built by [`to_series`] (every contract column is there).
+fn column<'a>(series: &'a Series, name: &str) -> &'a [f64] {
+    series.column(name).unwrap_or(&[])
+}
+
+/// Position of a contract column in a row of [`Output::rows`].
+fn index(name: &str) -> usize {
+    COLUMNS
+        .iter()
+        .position(|c| *c == name)
+        .unwrap_or_else(|| panic!("`{name}` is a contract column"))
+}
+
+/// Where the whisker touches an object (`contact` = 1).
+fn contact_mask(series: &Series) -> Vec<bool> {
+    column(series, "contact").iter().map(|&c| c > 0.5).collect()
+}
+
+/// The figure's title: the experiment with d and v, or the scenario as named; other
+/// overrides follow in parentheses.
+fn title(loaded: &Loaded, spec: &str, sets: &[String]) -> String {
+    let mut title = match &loaded.experiment {
+        Some(e) => format!(
+            "{}: d = {} mm, v = {} m/s",
+            e.experiment.name(),
+            short(e.d * 1e3),
+            short(e.v)
+        ),
+        None => spec.to_string(),
+    };
+    let others: Vec<&str> = sets
+        .iter()
+        .map(String::as_str)
+        .filter(|s| {
+            let key = s.split('=').next().unwrap_or("").trim();
+            loaded.experiment.is_none() || !matches!(key, "d" | "v")
+        })
+        .collect();
+    if !others.is_empty() {
+        title.push_str(&format!(" ({})", others.join(", ")));
+    }
+    title
+}
+
+/// The panels of the seed paper's Fig. 3 and the base reactions: the two angles (θ01 solid,
+/// θ12 dashed), the base moment, and the base forces.
+fn panels(series: &Series) -> Vec<Panel<'_>> {
+    vec![
+        Panel {
+            quantity: "angle",
+            unit: "rad",
+            curves: vec![
+                Curve {
+                    name: "θ01 (base angle)",
+                    values: column(series, "theta01"),
+                    dashed: false,
+                },
+                Curve {
+                    name: "θ12 (curvature)",
+                    values: column(series, "theta12"),
+                    dashed: true,
+                },
+            ],
+        },
+        Panel {
+            quantity: "m0",
+            unit: "N·m",
+            curves: vec![Curve {
+                name: "",
+                values: column(series, "m0"),
+                dashed: false,
+            }],
+        },
+        Panel {
+            quantity: "force",
+            unit: "N",
+            curves: vec![
+                Curve {
+                    name: "fx",
+                    values: column(series, "fx"),
+                    dashed: false,
+                },
+                Curve {
+                    name: "fy",
+                    values: column(series, "fy"),
+                    dashed: false,
+                },
+            ],
+        },
+    ]
+}
+
+/// `x` in its shortest form after rounding to 10 significant digits (`23`, not
+/// `23.000000000000004`).
+pub fn short(x: f64) -> String {
+    if !x.is_finite() {
+        return format!("{x}");
+    }
+    let rounded: f64 = format!("{x:.9e}").parse().unwrap_or(x);
+    format!("{rounded}")
+}
+
+/// The experiment of a run, for the summary.
+#[derive(Debug, Serialize)]
+struct ExperimentSummary {
+    /// `e1` or `e2`.
+    name: &'static str,
+    /// Near-edge distance of the box, m.
+    d: f64,
+    /// Box speed, m/s.
+    v: f64,
+}
+
+/// When the whisker touched an object.
+#[derive(Debug, Serialize)]
+struct ContactSummary {
+    /// First sample time in contact, s.
+    start: f64,
+    /// Last sample time in contact, s.
+    end: f64,
+    /// Samples in contact.
+    samples: usize,
+}
+
+/// What `vibrissa simulate` prints.
+#[derive(Debug, Serialize)]
+struct Summary {
+    /// The scenario as named (a built-in's name or the file's path).
+    scenario: String,
+    /// Overrides, in order.
+    set: Vec<String>,
+    /// The experiment family and parameters, if any.
+    experiment: Option<ExperimentSummary>,
+    /// The time-series file written.
+    out: String,
+    /// The figure written, if any.
+    plot: Option<String>,
+    /// Samples (rows).
+    samples: usize,
+    /// Time of the last sample, s.
+    duration: f64,
+    /// Integrator steps.
+    steps: usize,
+    /// Time step used, s.
+    dt: f64,
+    /// Segment count.
+    segments: usize,
+    /// Contact period, if the whisker touched anything.
+    contact: Option<ContactSummary>,
+    /// Largest penetration into an object, m.
+    max_penetration: f64,
+    /// Wall time of the simulation, s.
+    seconds: f64,
+}
+
+impl Summary {
+    fn new(loaded: &Loaded, output: &Output, seconds: f64, args: &Args) -> Summary {
+        let (t, flag) = (index("t"), index("contact"));
+        let contact_rows: Vec<&[f64; 10]> = output.rows.iter().filter(|r| r[flag] > 0.5).collect();
+        let contact = match (contact_rows.first(), contact_rows.last()) {
+            (Some(first), Some(last)) => Some(ContactSummary {
+                start: first[t],
+                end: last[t],
+                samples: contact_rows.len(),
+            }),
+            _ => None,
+        };
+        Summary {
+            scenario: args.scenario.clone(),
+            set: args.sets.clone(),
+            experiment: loaded.experiment.map(|e| ExperimentSummary {
+                name: e.experiment.name(),
+                d: e.d,
+                v: e.v,
+            }),
+            out: args.out.display().to_string(),
+            plot: args.plot.as_ref().map(|p| p.display().to_string()),
+            samples: output.rows.len(),
+            duration: output.rows.last().map_or(0.0, |r| r[t]),
+            steps: output.steps,
+            dt: output.dt,
+            segments: output.segments,
+            contact,
+            max_penetration: output.max_penetration,
+            seconds,
+        }
+    }
+}
+
+impl Render for Summary {
+    fn render(&self, out: &mut dyn Write) -> io::Result<()> {
+        let mut heading = format!("simulated {}", self.scenario);
+        if let Some(e) = &self.experiment {
+            heading.push_str(&format!(
+                " ({}, d = {} mm, v = {} m/s)",
+                e.name,
+                short(e.d * 1e3),
+                short(e.v)
+            ));
+        }
+        writeln!(out, "{heading}")?;
+        if !self.set.is_empty() {
+            writeln!(out, "  {:<16} {}", "overrides", self.set.join(" "))?;
+        }
+        let line =
+            |out: &mut dyn Write, key: &str, value: String| writeln!(out, "  {key:<16} {value}");
+        line(
+            out,
+            "samples",
+            format!(
+                "{} (t = 0 … {} ms)",
+                self.samples,
+                short(self.duration * 1e3)
+            ),
+        )?;
+        line(
+            out,
+            "steps",
+            format!(
+                "{} of dt = {} µs, {} segments",
+                self.steps,
+                short(self.dt * 1e6),
+                self.segments
+            ),
+        )?;
+        let contact = match &self.contact {
+            Some(c) => format!(
+                "{} … {} ms ({} samples)",
+                short(c.start * 1e3),
+                short(c.end * 1e3),
+                c.samples
+            ),
+            None => "none".to_string(),
+        };
+        line(out, "contact", contact)?;
+        line(
+            out,
+            "max penetration",
+            format!("{} m", sig(self.max_penetration, 3)),
+        )?;
+        line(out, "wall time", format!("{} s", sig(self.seconds, 3)))?;
+        let mut wrote = self.out.clone();
+        if let Some(p) = &self.plot {
+            wrote.push_str(", ");
+            wrote.push_str(p);
+        }
+        line(out, "wrote", wrote)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn short_numbers_lose_rounding_noise() {
+        assert_eq!(short(0.023 * 1e3), "23");
+        assert_eq!(short(0.6), "0.6");
+        assert_eq!(short(0.15 * 1e3), "150");
+        assert_eq!(short(1e-4 * 1e6), "100");
+    }
+
+    #[test]
+    fn series_paths_need_a_known_extension() {
+        assert!(check_series_path(Path::new("run.CSV")).is_ok());
+        assert!(check_series_path(Path::new("run.npz")).is_ok());
+        let err = check_series_path(Path::new("run.txt")).unwrap_err();
+        assert!(err.to_string().contains(".csv, .npy, .npz"), "{err}");
+        assert!(check_series_path(Path::new("run")).is_err());
+    }
+}
