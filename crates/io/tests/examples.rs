@@ -70,3 +70,31 @@ fn examples_say_what_their_names_say() {
     let traj = example("whisk_trajectory.toml").scenario;
     assert!(matches!(traj.base, BaseDrive::Trajectory { ref t, .. } if t.len() == 21));
 }
+
+#[test]
+fn every_example_runs_and_touches_its_object() {
+    for entry in std::fs::read_dir(folder()).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_none_or(|e| e != "toml") {
+            continue;
+        }
+        let loaded = load_full(path.to_str().unwrap(), &[]).unwrap();
+        let out = vibrissa_core::sim::run(&loaded.scenario, &mut |_| {})
+            .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let name = path.display();
+        assert!(
+            out.rows
+                .iter()
+                .all(|r| r[..6].iter().all(|x| x.is_finite())),
+            "{name}"
+        );
+        if !loaded.scenario.objects.is_empty() {
+            assert!(out.rows.iter().any(|r| r[6] > 0.5), "{name}: no contact");
+            assert!(
+                out.max_penetration < 1e-6,
+                "{name}: {}",
+                out.max_penetration
+            );
+        }
+    }
+}
