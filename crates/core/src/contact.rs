@@ -86,7 +86,7 @@ struct Candidate {
 /// Preallocated contact scratch, part of a [`Workspace`].
 #[derive(Debug, Clone)]
 pub struct Scratch {
-    count: usize,
+    pub(crate) count: usize,
     cand: [Candidate; MAX_CONTACTS],
     /// Generalised forces of unit normal and tangential forces: `[2·MAX_CONTACTS][N]`.
     jac: Vec<f64>,

@@ -794,17 +794,24 @@ pub fn step_with<F: Forcing + ?Sized>(
             break;
         }
         // Stage: the intermediate state this solve implies; how far the segments moved. Contact
-        // impulses (`ac`) move with their own weights, everything else with the method's.
+        // impulses (`ac`) and the penetration correction (`fix`) move with their own weights,
+        // everything else with the method's.
         let (mut phi, mut moved) = (0.0f64, 0.0f64);
+        let contacts = ws.contacts.count > 0;
+        let (q_lin, v_lin, qdd) = (&ws.q_lin[..n], &ws.v_lin[..n], &ws.qdd[..n]);
+        let (acc, fixes) = (&ws.contacts.acc[..n], &ws.contacts.position_fix[..n]);
+        let (qe, ve) = (&mut ws.q[..n], &mut ws.v[..n]);
         for i in 0..n {
-            let (ac, fix) = (ws.contacts.acc[i], ws.contacts.position_fix[i]);
-            let b = ws.qdd[i] - ac;
-            let qf = ws.q_lin[i] + st.dq * b + c1 * (0.5 * h * h * ac + fix);
-            let vf = ws.v_lin[i] + st.dv * b + c1 * h * ac;
-            phi += qf - ws.q[i];
-            moved = moved.max(phi.abs()).max(h * (vf - ws.v[i]).abs());
-            ws.q[i] = qf;
-            ws.v[i] = vf;
+            let (mut qf, mut vf) = (q_lin[i] + st.dq * qdd[i], v_lin[i] + st.dv * qdd[i]);
+            if contacts {
+                let (ac, fix) = (acc[i], fixes[i]);
+                qf += c1 * (0.5 * h * h * ac + fix) - st.dq * ac;
+                vf += (c1 * h - st.dv) * ac;
+            }
+            phi += qf - qe[i];
+            moved = moved.max(phi.abs()).max(h * (vf - ve[i]).abs());
+            qe[i] = qf;
+            ve[i] = vf;
         }
         if moved <= st.tolerance {
             break;
@@ -815,15 +822,29 @@ pub fn step_with<F: Forcing + ?Sized>(
     // the angles by h²/2·ac and stay out of the acceleration history; `fix` removes penetration
     // (see the contact module).
     let inv_am = 1.0 / (1.0 - am);
+    let contacts = ws.contacts.count > 0;
+    let (qdd, acc, fixes) = (
+        &ws.qdd[..n],
+        &ws.contacts.acc[..n],
+        &ws.contacts.position_fix[..n],
+    );
+    let (q, v, a, v_prev) = (&mut q[..n], &mut v[..n], &mut a[..n], &mut v_prev[..n]);
     for i in 0..n {
-        let (ac, fix) = (ws.contacts.acc[i], ws.contacts.position_fix[i]);
-        let a_new = (ws.qdd[i] - ac - am * a[i]) * inv_am;
-        let q_new = q[i] + h * v[i] + h * h * ((0.5 - beta) * a[i] + beta * a_new + 0.5 * ac) + fix;
-        let v_new = v[i] + h * ((1.0 - gamma) * a[i] + gamma * a_new + ac);
+        let a_new = (qdd[i] - am * a[i]) * inv_am;
+        let mut q_new = q[i] + h * v[i] + h * h * ((0.5 - beta) * a[i] + beta * a_new);
+        let mut v_new = v[i] + h * ((1.0 - gamma) * a[i] + gamma * a_new);
+        let mut a_kept = a_new;
+        if contacts {
+            // The impulses' part of the acceleration, with its own weights and out of the history.
+            let (ac, fix) = (acc[i] * inv_am, fixes[i]);
+            a_kept -= ac;
+            q_new += h * h * (0.5 - beta) * ac + fix;
+            v_new += h * (1.0 - gamma) * ac;
+        }
         v_prev[i] = v[i];
         q[i] = q_new;
         v[i] = v_new;
-        a[i] = a_new;
+        a[i] = a_kept;
     }
     // Base reaction: solved at the intermediate time, extrapolated to the end of the step.
     let w = ws.base_wrench();
