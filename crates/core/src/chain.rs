@@ -55,7 +55,7 @@ impl Discretisation {
             "trapezoid" => Ok(Discretisation::Trapezoid),
             "seed" => Ok(Discretisation::Seed),
             _ => Err(Error::invalid(
-                "chain.discretisation",
+                "discretisation",
                 name,
                 format!("one of {}", DISCRETISATIONS.join(", ")),
             )),
@@ -160,7 +160,7 @@ impl Model {
     ) -> Result<Model> {
         if !(2..=MAX_SEGMENTS).contains(&segments) {
             return Err(Error::invalid(
-                "chain.segments",
+                "segments",
                 segments,
                 format!("an integer from 2 to {MAX_SEGMENTS}"),
             ));

@@ -432,7 +432,7 @@ fn bad_parameters_name_the_field_and_range() {
             .unwrap_err()
             .to_string();
         assert!(
-            e.contains("chain.segments") && e.contains("2 to 200"),
+            e.contains("segments") && e.contains("2 to 200"),
             "{e}"
         );
     }
