@@ -283,6 +283,14 @@ impl Scenario {
     /// Checks every field (objects included), naming the first bad one.
     pub fn check(&self) -> Result<()> {
         self.whisker.check()?;
+        if !(2..=crate::chain::MAX_SEGMENTS).contains(&self.segments) {
+            return Err(Error::invalid(
+                "segments",
+                self.segments,
+                format!("an integer from 2 to {}", crate::chain::MAX_SEGMENTS),
+            ));
+        }
+        self.integrator.check()?;
         check_positive("duration", self.duration)?;
         check_positive("sample_rate", self.sample_rate)?;
         check_non_negative("process_noise", self.process_noise)?;
