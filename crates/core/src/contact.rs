@@ -494,42 +494,58 @@ pub(crate) fn solve(
         }
     }
     // Post-stabilisation: the impulses stop the contact points (h²/2 on the angles), which can
-    // leave up to h·v/2 of penetration after a fast impact; move the angles (not the rates) along
-    // (M + A)⁻¹ Jᵀ just enough to close it.
+    // leave up to h·v/2 of penetration after a fast impact. Move the angles (not the rates) just
+    // enough to close it, along the whisker's static compliance K⁻¹Jᵀ: the shape a quasi-static
+    // contact force would give, so a slowly loaded contact stays consistent with statics.
     {
         let sc = &mut ws.contacts;
-        let mut mu = [0.0f64; MAX_CONTACTS];
-        for _ in 0..2000 {
-            let mut change = 0.0f64;
-            for k in 0..count {
-                let rn = 2 * k;
-                // End-of-step gap with the impulses and the corrections so far (every candidate:
-                // another contact's impulse may push this one in).
-                let mut g = sc.cand[k].g_pred;
-                for (j, (cj, muj)) in sc.cand[..count].iter().zip(&mu).enumerate() {
-                    let w = sc.w[rn * m + 2 * j] / h;
-                    g += w * (0.5 * h * h * cj.lambda_n + muj)
-                        + 0.5 * h * sc.w[rn * m + 2 * j + 1] * cj.lambda_t;
-                }
-                let diag = sc.w[rn * m + rn] / h;
-                if diag > 0.0 {
-                    let new = (mu[k] - g / diag).max(0.0);
-                    change = change.max((new - mu[k]).abs() * diag);
-                    mu[k] = new;
-                }
-            }
-            if change < 1e-12 {
-                break;
+        let k_inv = |i: usize| 1.0 / model.stiffness[i];
+        // End-of-step gaps after the impulses.
+        let mut gap = [0.0f64; MAX_CONTACTS];
+        for (k, g) in gap.iter_mut().enumerate().take(count) {
+            let rn = 2 * k;
+            *g = sc.cand[k].g_pred;
+            for (j, cj) in sc.cand[..count].iter().enumerate() {
+                *g += 0.5
+                    * h
+                    * (sc.w[rn * m + 2 * j] * cj.lambda_n + sc.w[rn * m + 2 * j + 1] * cj.lambda_t);
             }
         }
-        for (k, &muk) in mu.iter().enumerate().take(count) {
-            if muk > 0.0 {
-                for (f, x) in sc
-                    .position_fix
-                    .iter_mut()
-                    .zip(&sc.resp[2 * k * n..(2 * k + 1) * n])
-                {
-                    *f += muk * x;
+        if gap[..count].iter().any(|g| *g < 0.0) {
+            // Static compliance matrix of the contacts' normal directions, J K⁻¹ Jᵀ.
+            let mut stat = [[0.0f64; MAX_CONTACTS]; MAX_CONTACTS];
+            for k in 0..count {
+                for j in 0..=k {
+                    let (a, b) = (
+                        &sc.jac[2 * k * n..(2 * k + 1) * n],
+                        &sc.jac[2 * j * n..(2 * j + 1) * n],
+                    );
+                    let v: f64 = (0..n).map(|i| a[i] * b[i] * k_inv(i)).sum();
+                    stat[k][j] = v;
+                    stat[j][k] = v;
+                }
+            }
+            // Smallest non-negative multipliers that close every gap (projected Gauss–Seidel).
+            let mut mu = [0.0f64; MAX_CONTACTS];
+            for _ in 0..2000 {
+                let mut change = 0.0f64;
+                for k in 0..count {
+                    let g = gap[k] + (0..count).map(|j| stat[k][j] * mu[j]).sum::<f64>();
+                    if stat[k][k] > 0.0 {
+                        let new = (mu[k] - g / stat[k][k]).max(0.0);
+                        change = change.max((new - mu[k]).abs() * stat[k][k]);
+                        mu[k] = new;
+                    }
+                }
+                if change < 1e-13 {
+                    break;
+                }
+            }
+            for (k, &muk) in mu.iter().enumerate().take(count) {
+                if muk > 0.0 {
+                    for (i, f) in sc.position_fix.iter_mut().enumerate() {
+                        *f += muk * sc.jac[2 * k * n + i] * k_inv(i);
+                    }
                 }
             }
         }

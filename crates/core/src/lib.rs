@@ -15,6 +15,7 @@ pub mod chain;
 pub mod contact;
 pub mod dynamics;
 pub mod error;
+pub mod inverse;
 pub mod objects;
 pub mod rng;
 pub mod scenes;

@@ -431,10 +431,7 @@ fn bad_parameters_name_the_field_and_range() {
         let e = Model::new(&w, n, Discretisation::Gregory)
             .unwrap_err()
             .to_string();
-        assert!(
-            e.contains("segments") && e.contains("2 to 200"),
-            "{e}"
-        );
+        assert!(e.contains("segments") && e.contains("2 to 200"), "{e}");
     }
     for dt in [0.0, -1e-4, 2e-3, f64::NAN, f64::INFINITY] {
         let e = Integrator::with_dt(dt).check().unwrap_err().to_string();
