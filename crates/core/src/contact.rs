@@ -497,59 +497,7 @@ pub(crate) fn solve(
     // leave up to h·v/2 of penetration after a fast impact. Move the angles (not the rates) just
     // enough to close it, along the whisker's static compliance K⁻¹Jᵀ: the shape a quasi-static
     // contact force would give, so a slowly loaded contact stays consistent with statics.
-    {
-        let sc = &mut ws.contacts;
-        let k_inv = |i: usize| 1.0 / model.stiffness[i];
-        // End-of-step gaps after the impulses.
-        let mut gap = [0.0f64; MAX_CONTACTS];
-        for (k, g) in gap.iter_mut().enumerate().take(count) {
-            let rn = 2 * k;
-            *g = sc.cand[k].g_pred;
-            for (j, cj) in sc.cand[..count].iter().enumerate() {
-                *g += 0.5
-                    * h
-                    * (sc.w[rn * m + 2 * j] * cj.lambda_n + sc.w[rn * m + 2 * j + 1] * cj.lambda_t);
-            }
-        }
-        if gap[..count].iter().any(|g| *g < 0.0) {
-            // Static compliance matrix of the contacts' normal directions, J K⁻¹ Jᵀ.
-            let mut stat = [[0.0f64; MAX_CONTACTS]; MAX_CONTACTS];
-            for k in 0..count {
-                for j in 0..=k {
-                    let (a, b) = (
-                        &sc.jac[2 * k * n..(2 * k + 1) * n],
-                        &sc.jac[2 * j * n..(2 * j + 1) * n],
-                    );
-                    let v: f64 = (0..n).map(|i| a[i] * b[i] * k_inv(i)).sum();
-                    stat[k][j] = v;
-                    stat[j][k] = v;
-                }
-            }
-            // Smallest non-negative multipliers that close every gap (projected Gauss–Seidel).
-            let mut mu = [0.0f64; MAX_CONTACTS];
-            for _ in 0..2000 {
-                let mut change = 0.0f64;
-                for k in 0..count {
-                    let g = gap[k] + (0..count).map(|j| stat[k][j] * mu[j]).sum::<f64>();
-                    if stat[k][k] > 0.0 {
-                        let new = (mu[k] - g / stat[k][k]).max(0.0);
-                        change = change.max((new - mu[k]).abs() * stat[k][k]);
-                        mu[k] = new;
-                    }
-                }
-                if change < 1e-13 {
-                    break;
-                }
-            }
-            for (k, &muk) in mu.iter().enumerate().take(count) {
-                if muk > 0.0 {
-                    for (i, f) in sc.position_fix.iter_mut().enumerate() {
-                        *f += muk * sc.jac[2 * k * n + i] * k_inv(i);
-                    }
-                }
-            }
-        }
-    }
+    post_stabilise(&mut ws.contacts, &model.stiffness, count, n, h);
     for k in 0..count {
         let c = ws.contacts.cand[k];
         if c.lambda_n > 0.0 {
@@ -562,4 +510,62 @@ pub(crate) fn solve(
     }
     ws.solve(model, base);
     Ok(())
+}
+
+/// Moves the end-of-step angles along the static compliance `K⁻¹Jᵀ` just enough to close any gap
+/// the contact impulses left negative (see [`solve`]).
+#[allow(clippy::needless_range_loop)]
+fn post_stabilise(sc: &mut Scratch, stiffness: &[f64], count: usize, n: usize, h: f64) {
+    let m = 2 * count;
+
+    let k_inv = |i: usize| 1.0 / stiffness[i];
+    // End-of-step gaps after the impulses.
+    let mut gap = [0.0f64; MAX_CONTACTS];
+    for (k, g) in gap.iter_mut().enumerate().take(count) {
+        let rn = 2 * k;
+        *g = sc.cand[k].g_pred;
+        for (j, cj) in sc.cand[..count].iter().enumerate() {
+            *g += 0.5
+                * h
+                * (sc.w[rn * m + 2 * j] * cj.lambda_n + sc.w[rn * m + 2 * j + 1] * cj.lambda_t);
+        }
+    }
+    if gap[..count].iter().any(|g| *g < 0.0) {
+        // Static compliance matrix of the contacts' normal directions, J K⁻¹ Jᵀ.
+        let mut stat = [[0.0f64; MAX_CONTACTS]; MAX_CONTACTS];
+        for k in 0..count {
+            for j in 0..=k {
+                let (a, b) = (
+                    &sc.jac[2 * k * n..(2 * k + 1) * n],
+                    &sc.jac[2 * j * n..(2 * j + 1) * n],
+                );
+                let v: f64 = (0..n).map(|i| a[i] * b[i] * k_inv(i)).sum();
+                stat[k][j] = v;
+                stat[j][k] = v;
+            }
+        }
+        // Smallest non-negative multipliers that close every gap (projected Gauss–Seidel).
+        let mut mu = [0.0f64; MAX_CONTACTS];
+        for _ in 0..2000 {
+            let mut change = 0.0f64;
+            for k in 0..count {
+                let g = gap[k] + (0..count).map(|j| stat[k][j] * mu[j]).sum::<f64>();
+                if stat[k][k] > 0.0 {
+                    let new = (mu[k] - g / stat[k][k]).max(0.0);
+                    change = change.max((new - mu[k]).abs() * stat[k][k]);
+                    mu[k] = new;
+                }
+            }
+            if change < 1e-13 {
+                break;
+            }
+        }
+        for (k, &muk) in mu.iter().enumerate().take(count) {
+            if muk > 0.0 {
+                for (i, f) in sc.position_fix.iter_mut().enumerate() {
+                    *f += muk * sc.jac[2 * k * n + i] * k_inv(i);
+                }
+            }
+        }
+    }
 }
