@@ -4,6 +4,8 @@
 //! with its causes. Usage errors are clap's (exit status 2); any other failure exits with 1.
 
 mod bench;
+mod estimate;
+mod experiment;
 mod files;
 mod output;
 mod plot;
@@ -53,6 +55,19 @@ enum Command {
     /// same folder, skips the runs already done. A failed run is reported with its parameters
     /// and makes the sweep exit with status 1 after the others have run.
     Sweep(sweep::Args),
+    /// Run the seed's template experiment e1 or e2 and score every estimator.
+    ///
+    /// Simulates the grid, fits each method on the runs its budget allows (the templates, or
+    /// simulated training runs that avoid the evaluated ones), estimates every evaluated run and
+    /// prints the mean absolute errors and the coverage of the 90% intervals beside the paper's
+    /// figures. Writes results.json and figures (PNG) into --out.
+    Experiment(experiment::Args),
+    /// Estimate the object's distance (and speed) from recorded time series.
+    ///
+    /// Reads contract CSV files (t, theta01, theta12 required; 151 samples at 1 kHz), trains
+    /// the chosen method once and prints one estimate per file (JSON Lines with --json and
+    /// several files). `--list` names the methods.
+    Estimate(estimate::Args),
 }
 
 fn main() -> ExitCode {
@@ -78,6 +93,8 @@ fn run() -> Result<()> {
         Command::Bench(args) => bench::run(args),
         Command::Simulate(args) => simulate::run(args),
         Command::Sweep(args) => sweep::run(args),
+        Command::Experiment(args) => experiment::run(args),
+        Command::Estimate(args) => estimate::run(args),
     }
 }
 

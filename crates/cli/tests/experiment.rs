@@ -1,0 +1,142 @@
+//! `vibrissa estimate` and `vibrissa experiment` run as a user runs them.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+fn vibrissa() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_vibrissa"))
+}
+
+fn temp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("vibrissa-estimate-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+#[test]
+fn list_names_every_method() {
+    let out = vibrissa().args(["estimate", "--list"]).output().unwrap();
+    assert!(out.status.success());
+    let text = String::from_utf8(out.stdout).unwrap();
+    for m in [
+        "template",
+        "template-interp",
+        "emulator",
+        "knn",
+        "krr",
+        "shift",
+    ] {
+        assert!(text.contains(m), "{m} missing from {text}");
+    }
+}
+
+#[test]
+fn krr_recovers_distance_and_speed_of_a_simulated_run() {
+    let dir = temp("krr");
+    let csv = dir.join("run.csv");
+    let sim = vibrissa()
+        .args([
+            "simulate", "e2", "--set", "d=0.02", "--set", "v=0.6", "--out",
+        ])
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert!(
+        sim.status.success(),
+        "{}",
+        String::from_utf8_lossy(&sim.stderr)
+    );
+    let out = vibrissa()
+        .args([
+            "estimate",
+            "--experiment",
+            "e2",
+            "--method",
+            "krr",
+            "--json",
+            "--obs",
+        ])
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let d = v["d"]["mean"].as_f64().unwrap();
+    let s = v["v"]["mean"].as_f64().unwrap();
+    assert!((d - 0.02).abs() < 0.002, "d = {d}");
+    assert!((s - 0.6).abs() < 0.1, "v = {s}");
+    assert_eq!(v["method"], "krr");
+    assert!(v["d"]["ci90"][0].as_f64().unwrap() <= d && v["seconds"].as_f64().is_some());
+}
+
+#[test]
+fn bad_inputs_fail_with_a_clear_message() {
+    let dir = temp("bad");
+    let short = dir.join("short.csv");
+    std::fs::write(&short, "t,theta01,theta12\n0,0,0\n0.001,0,0\n").unwrap();
+    let text = dir.join("text.csv");
+    let mut body = String::from("t,theta01,theta12\n");
+    for k in 0..151 {
+        body += &format!(
+            "{},0,{}\n",
+            k as f64 * 1e-3,
+            if k == 5 { "abc" } else { "0" }
+        );
+    }
+    std::fs::write(&text, body).unwrap();
+    let nocol = dir.join("nocol.csv");
+    std::fs::write(&nocol, "t,theta01\n0,0\n").unwrap();
+    let cases: [(&[&str], &std::path::Path, &str); 5] = [
+        (
+            &["--experiment", "e2", "--method", "template"],
+            &short,
+            "151",
+        ),
+        (&["--experiment", "e2", "--method", "template"], &text, ""),
+        (
+            &["--experiment", "e2", "--method", "template"],
+            &nocol,
+            "theta12",
+        ),
+        (
+            &["--experiment", "e2", "--method", "nope"],
+            &short,
+            "unknown method",
+        ),
+        (
+            &["--experiment", "e9", "--method", "template"],
+            &short,
+            "unknown experiment",
+        ),
+    ];
+    for (args, file, says) in cases {
+        let out = vibrissa()
+            .arg("estimate")
+            .args(args)
+            .arg("--obs")
+            .arg(file)
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "{args:?} {file:?} succeeded");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(says), "{args:?}: {err}");
+    }
+    // A method that needs channels the file lacks says so.
+    let mut body = String::from("t,theta01,theta12\n");
+    for k in 0..151 {
+        body += &format!("{},0,0\n", k as f64 * 1e-3);
+    }
+    let thin = dir.join("thin.csv");
+    std::fs::write(&thin, body).unwrap();
+    let out = vibrissa()
+        .args(["estimate", "--experiment", "e1", "--method", "knn", "--obs"])
+        .arg(&thin)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("needs column m0"));
+}

@@ -1,0 +1,41 @@
+//! Errors of the inference library.
+
+/// What can go wrong while simulating, fitting or estimating.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// A simulation failed.
+    #[error("simulation of d = {d} m, v = {v} m/s failed")]
+    Simulation {
+        /// Distance, m.
+        d: f64,
+        /// Speed, m/s.
+        v: f64,
+        /// The simulator's error.
+        #[source]
+        source: vibrissa_core::Error,
+    },
+    /// An observation does not fit the experiment or the method.
+    #[error("unusable observation: {0}")]
+    Observation(String),
+    /// A method was used before it was fitted, or with unusable training data.
+    #[error("{method}: {detail}")]
+    Fit {
+        /// The method's name.
+        method: String,
+        /// What was wrong.
+        detail: String,
+    },
+    /// An unknown name (experiment, variant, method).
+    #[error("unknown {what} `{name}`: choose one of {choices}")]
+    Unknown {
+        /// What kind of name.
+        what: &'static str,
+        /// The name given.
+        name: String,
+        /// The names allowed.
+        choices: String,
+    },
+}
+
+/// Result with [`Error`].
+pub type Result<T> = std::result::Result<T, Error>;

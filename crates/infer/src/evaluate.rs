@@ -1,0 +1,346 @@
+//! A whole experiment: simulate the grid and the training runs, fit every method on the data its
+//! budget allows, estimate every evaluated run, and score.
+
+use crate::error::Result;
+use crate::experiment::{simulate_all, Experiment, Noise, Sample, Variant, THETA12};
+use crate::method::{Budget, Estimate, Method, Training};
+use crate::methods::{self, Interp, Template};
+use serde::Serialize;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::Instant;
+
+/// Random training runs of the free-budget methods, per experiment.
+pub fn random_runs(experiment: Experiment) -> usize {
+    match experiment {
+        Experiment::E1 => 150,
+        Experiment::E2 => 400,
+    }
+}
+
+/// One evaluated run: truth and estimate.
+#[derive(Debug, Clone, Serialize)]
+pub struct Prediction {
+    /// True unknowns, SI.
+    pub truth: Vec<f64>,
+    /// Estimates per unknown.
+    pub estimate: Vec<Estimate>,
+}
+
+/// One method's scores.
+#[derive(Debug, Clone, Serialize)]
+pub struct MethodResult {
+    /// Name.
+    pub name: String,
+    /// Budget.
+    pub budget: Budget,
+    /// Mean absolute error per unknown, SI.
+    pub mae: Vec<f64>,
+    /// Fraction of evaluated runs whose 90% interval holds the truth, per unknown.
+    pub coverage: Vec<f64>,
+    /// Runs it was fitted on (not counting calibration runs).
+    pub training_runs: usize,
+    /// Seconds to simulate its training runs (0 for the templates, which are grid runs).
+    pub simulate_seconds: f64,
+    /// Seconds to fit.
+    pub fit_seconds: f64,
+    /// Seconds to estimate one series (mean over the evaluated runs).
+    pub predict_seconds: f64,
+    /// Fitted settings.
+    pub settings: Vec<(String, f64)>,
+    /// Per evaluated run, in grid order.
+    pub predictions: Vec<Prediction>,
+}
+
+/// A whole experiment's results.
+#[derive(Debug, Clone, Serialize)]
+pub struct Evaluation {
+    /// The experiment.
+    pub experiment: Experiment,
+    /// The variant.
+    pub variant: Variant,
+    /// Seed of all randomness.
+    pub seed: u64,
+    /// Noise of the variant.
+    pub noise: Noise,
+    /// Unknowns' names.
+    pub unknowns: Vec<String>,
+    /// The paper's mean absolute errors, SI.
+    pub paper_mae: Vec<f64>,
+    /// Grid parameters `[runs][d, v]`.
+    pub grid: Vec<[f64; 2]>,
+    /// Which grid runs are templates.
+    pub is_template: Vec<bool>,
+    /// theta12 of every grid run, rad: `[runs][samples]`.
+    pub theta12: Vec<Vec<f64>>,
+    /// Template parameters `[templates][unknowns]`.
+    pub template_params: Vec<Vec<f64>>,
+    /// The template method's responsibilities for every grid run, `[runs][templates]`.
+    pub responsibilities: Vec<Vec<f64>>,
+    /// The template method's σ², rad².
+    pub sigma2: f64,
+    /// Seconds to compute the noise levels and simulate the grid.
+    pub grid_seconds: f64,
+    /// Wall time of the whole evaluation, s.
+    pub seconds: f64,
+    /// Per method.
+    pub methods: Vec<MethodResult>,
+}
+
+impl Evaluation {
+    /// The paper-budget and free-budget methods with the least mean absolute error (summed over
+    /// unknowns in fractions of their ranges).
+    pub fn best(&self, budget: Budget) -> Option<&MethodResult> {
+        let ranges = self.experiment.ranges();
+        let score = |m: &MethodResult| -> f64 {
+            m.mae
+                .iter()
+                .zip(&ranges)
+                .map(|(e, r)| e / (r[1] - r[0]))
+                .sum()
+        };
+        self.methods
+            .iter()
+            .filter(|m| m.budget == budget)
+            .min_by(|a, b| score(a).total_cmp(&score(b)))
+    }
+}
+
+/// Runs `experiment` in `variant`, seeded by `seed`; `progress(stage, done, total)` reports.
+pub fn evaluate(
+    experiment: Experiment,
+    variant: Variant,
+    seed: u64,
+    progress: &(dyn Fn(&str, usize, usize) + Sync),
+) -> Result<Evaluation> {
+    let start = Instant::now();
+    let stage = |name: &'static str, total: usize| {
+        let done = AtomicUsize::new(0);
+        progress(name, 0, total);
+        move || {
+            let k = done.fetch_add(1, Ordering::Relaxed) + 1;
+            progress(name, k, total);
+        }
+    };
+
+    // Noise levels (from the clean e2 runs) and the experiment's grid.
+    if variant == Variant::Noisy {
+        progress("noise levels", 0, 1);
+    }
+    let noise = Noise::of(variant)?;
+    let grid = experiment.grid();
+    let grid_runs = simulate_all(experiment, &grid, &noise, seed, &stage("grid", grid.len()))?;
+    let grid_seconds = start.elapsed().as_secs_f64();
+    let is_template: Vec<bool> = grid.iter().map(|p| experiment.is_template(*p)).collect();
+    let templates: Vec<Sample> = grid_runs
+        .iter()
+        .zip(&is_template)
+        .filter(|(_, t)| **t)
+        .map(|(s, _)| s.clone())
+        .collect();
+    let evaluated: Vec<&Sample> = grid_runs
+        .iter()
+        .zip(&is_template)
+        .filter(|(_, t)| !**t)
+        .map(|(s, _)| s)
+        .collect();
+
+    // Free-budget training runs: random draws, and the emulator's grid.
+    let t0 = Instant::now();
+    let random_p = experiment.random_params(random_runs(experiment), seed ^ 0x5eed);
+    let random = simulate_all(
+        experiment,
+        &random_p,
+        &noise,
+        seed.wrapping_add(1),
+        &stage("training runs", random_p.len()),
+    )?;
+    let random_seconds = t0.elapsed().as_secs_f64();
+    let t0 = Instant::now();
+    let design = Interp::design(experiment);
+    let dense = simulate_all(
+        experiment,
+        &design,
+        &noise,
+        seed.wrapping_add(2),
+        &stage("emulator grid", design.len()),
+    )?;
+    let dense_seconds = t0.elapsed().as_secs_f64();
+
+    let paper = Training {
+        experiment,
+        samples: templates,
+        calibration: Vec::new(),
+    };
+    let free_random = Training {
+        experiment,
+        samples: random.clone(),
+        calibration: Vec::new(),
+    };
+    let free_dense = Training {
+        experiment,
+        samples: dense,
+        calibration: random,
+    };
+
+    // The template method, kept concrete for its responsibilities.
+    let mut template = Template::new();
+    template.fit(&paper)?;
+    let responsibilities = grid_runs
+        .iter()
+        .map(|s| template.responsibilities(&s.series))
+        .collect::<Result<Vec<_>>>()?;
+
+    let mut results = Vec::new();
+    let all = methods::all();
+    let total = all.len();
+    for (n, mut m) in all.into_iter().enumerate() {
+        progress("methods", n, total);
+        let (training, sim_s) = match (m.budget(), m.name()) {
+            (Budget::Paper, _) => (&paper, 0.0),
+            (Budget::Free, "emulator") => (&free_dense, dense_seconds),
+            (Budget::Free, _) => (&free_random, random_seconds),
+        };
+        let t0 = Instant::now();
+        m.fit(training)?;
+        let fit_seconds = t0.elapsed().as_secs_f64();
+        let t0 = Instant::now();
+        let predictions = evaluated
+            .iter()
+            .map(|s| {
+                Ok(Prediction {
+                    truth: s.params.clone(),
+                    estimate: m.predict(&s.series)?,
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let predict_seconds = t0.elapsed().as_secs_f64() / evaluated.len() as f64;
+        results.push(score(
+            m.as_ref(),
+            training,
+            sim_s,
+            fit_seconds,
+            predict_seconds,
+            predictions,
+        ));
+    }
+    progress("methods", total, total);
+
+    Ok(Evaluation {
+        experiment,
+        variant,
+        seed,
+        noise,
+        unknowns: experiment
+            .unknowns()
+            .iter()
+            .map(|s| s.to_string())
+            .collect(),
+        paper_mae: experiment.paper_errors(),
+        theta12: grid_runs
+            .iter()
+            .map(|s| s.series[THETA12].clone())
+            .collect(),
+        grid,
+        is_template,
+        template_params: template.template_params().to_vec(),
+        responsibilities,
+        sigma2: template.sigma2(),
+        grid_seconds,
+        seconds: start.elapsed().as_secs_f64(),
+        methods: results,
+    })
+}
+
+/// Errors and coverage of one method's predictions.
+fn score(
+    m: &dyn Method,
+    training: &Training,
+    simulate_seconds: f64,
+    fit_seconds: f64,
+    predict_seconds: f64,
+    predictions: Vec<Prediction>,
+) -> MethodResult {
+    let unknowns = training.experiment.unknowns().len();
+    let n = predictions.len() as f64;
+    let mae = (0..unknowns)
+        .map(|u| {
+            predictions
+                .iter()
+                .map(|p| (p.estimate[u].mean - p.truth[u]).abs())
+                .sum::<f64>()
+                / n
+        })
+        .collect();
+    let coverage = (0..unknowns)
+        .map(|u| {
+            predictions
+                .iter()
+                .filter(|p| p.estimate[u].covers(p.truth[u]))
+                .count() as f64
+                / n
+        })
+        .collect();
+    MethodResult {
+        name: m.name().into(),
+        budget: m.budget(),
+        mae,
+        coverage,
+        training_runs: training.samples.len(),
+        simulate_seconds,
+        fit_seconds,
+        predict_seconds,
+        settings: m.settings(),
+        predictions,
+    }
+}
+
+/// The training data that `method` may use in `experiment` and `variant`, simulated afresh:
+/// the templates under the paper's budget, the emulator's grid (calibrated on random runs) or
+/// random runs under a free budget.
+pub fn training_for(
+    experiment: Experiment,
+    variant: Variant,
+    method: &dyn Method,
+    seed: u64,
+) -> Result<Training> {
+    let noise = Noise::of(variant)?;
+    let none = || {};
+    Ok(match (method.budget(), method.name()) {
+        (Budget::Paper, _) => {
+            let p: Vec<[f64; 2]> = experiment
+                .grid()
+                .into_iter()
+                .filter(|p| experiment.is_template(*p))
+                .collect();
+            Training {
+                experiment,
+                samples: simulate_all(experiment, &p, &noise, seed, &none)?,
+                calibration: Vec::new(),
+            }
+        }
+        (Budget::Free, name) => {
+            let random_p = experiment.random_params(random_runs(experiment), seed ^ 0x5eed);
+            let random = simulate_all(experiment, &random_p, &noise, seed.wrapping_add(1), &none)?;
+            if name == "emulator" {
+                let design = Interp::design(experiment);
+                Training {
+                    experiment,
+                    samples: simulate_all(
+                        experiment,
+                        &design,
+                        &noise,
+                        seed.wrapping_add(2),
+                        &none,
+                    )?,
+                    calibration: random,
+                }
+            } else {
+                Training {
+                    experiment,
+                    samples: random,
+                    calibration: Vec::new(),
+                }
+            }
+        }
+    })
+}

@@ -1,0 +1,21 @@
+//! Estimating the distance and speed of a moving object from whisker time series.
+//!
+//! The seed paper's two template experiments ([`experiment`]) are restated runs of the `w30`
+//! whisker struck by a moving box. [`method`] defines what an estimator is ([`Method`]) and what
+//! it returns ([`Estimate`]); [`methods`] holds the estimators: the paper's template method and
+//! better ones under the paper's budget (templates only) or a free budget (any simulated
+//! training runs except the evaluated ones). [`evaluate`] runs a whole experiment and scores
+//! every method.
+#![warn(missing_docs)]
+
+pub mod error;
+pub mod evaluate;
+pub mod experiment;
+pub mod features;
+pub mod method;
+pub mod methods;
+
+pub use error::{Error, Result};
+pub use evaluate::{evaluate, training_for, Evaluation, MethodResult};
+pub use experiment::{Experiment, Sample, Variant, CHANNELS};
+pub use method::{Budget, Estimate, Method, Training};

@@ -1,0 +1,70 @@
+//! The estimators.
+//!
+//! | name | budget | idea |
+//! |---|---|---|
+//! | `template` | paper | the seed's method: Gaussian responsibilities of the templates on `theta12` |
+//! | `template-interp` | paper | least-squares fit of a (bi)linear interpolation between the templates |
+//! | `emulator` | free | the same fit between runs on a dense grid off the evaluated points |
+//! | `knn` | free | nearest neighbours among random training runs |
+//! | `krr` | free | kernel ridge regression on principal components |
+//! | `shift` | free | nearest neighbours on series aligned at the contact's onset |
+
+mod interp;
+mod knn;
+mod krr;
+mod template;
+
+pub use interp::Interp;
+pub use knn::Knn;
+pub use krr::Krr;
+pub use template::Template;
+
+use crate::error::{Error, Result};
+use crate::method::Method;
+
+/// Names of all methods, in the order of [`all`].
+pub const NAMES: [&str; 6] = [
+    "template",
+    "template-interp",
+    "emulator",
+    "knn",
+    "krr",
+    "shift",
+];
+
+/// One unfitted method by name.
+pub fn by_name(name: &str) -> Result<Box<dyn Method>> {
+    Ok(match name {
+        "template" => Box::new(Template::new()),
+        "template-interp" => Box::new(Interp::paper()),
+        "emulator" => Box::new(Interp::free()),
+        "knn" => Box::new(Knn::plain()),
+        "krr" => Box::new(Krr::new()),
+        "shift" => Box::new(Knn::shifted()),
+        _ => {
+            return Err(Error::Unknown {
+                what: "method",
+                name: name.into(),
+                choices: NAMES.join(", "),
+            })
+        }
+    })
+}
+
+/// All methods, unfitted.
+pub fn all() -> Vec<Box<dyn Method>> {
+    NAMES.iter().map(|n| by_name(n).expect("listed")).collect()
+}
+
+/// One-line descriptions of the methods, by name.
+pub fn describe(name: &str) -> &'static str {
+    match name {
+        "template" => "the seed paper's method: theta12 only, Gaussian responsibilities of the templates (width by leave-one-out), responsibility-weighted mean",
+        "template-interp" => "all channels: least-squares fit of a linear (e1) or bilinear (e2) interpolation between the template series",
+        "emulator" => "all channels: the same fit between simulated runs on a dense grid that avoids the evaluated points",
+        "knn" => "all channels: inverse-distance-weighted nearest neighbours among random simulated runs",
+        "krr" => "all channels: kernel ridge regression (RBF) on principal components of random simulated runs",
+        "shift" => "all channels aligned at the contact's onset (first |theta12| above a threshold): nearest neighbours, invariant to when contact starts",
+        _ => "",
+    }
+}
