@@ -7,6 +7,7 @@ mod bench;
 mod estimate;
 mod experiment;
 mod files;
+mod inverse;
 mod output;
 mod plot;
 mod progress;
@@ -68,6 +69,12 @@ enum Command {
     /// the chosen method once and prints one estimate per file (JSON Lines with --json and
     /// several files). `--list` names the methods.
     Estimate(estimate::Args),
+    /// Measure the beam-theory estimators of contact distance (M/F, Birdwell's and the chain's
+    /// angle pairs, Kaneko's rotation and frequency methods) on whisks against stationary pegs.
+    ///
+    /// Pegs at d = 5…29 mm, read at tip deflections of 0.5…20% of the whisker's length; prints
+    /// the worst relative error over the pegs for each estimator and deflection.
+    Inverse(inverse::Args),
 }
 
 fn main() -> ExitCode {
@@ -95,6 +102,7 @@ fn run() -> Result<()> {
         Command::Sweep(args) => sweep::run(args),
         Command::Experiment(args) => experiment::run(args),
         Command::Estimate(args) => estimate::run(args),
+        Command::Inverse(args) => inverse::run(args),
     }
 }
 
