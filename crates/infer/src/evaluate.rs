@@ -176,6 +176,12 @@ pub fn evaluate(
         samples: random.clone(),
         calibration: Vec::new(),
     };
+    // Kernel ridge regression learns from both sets (the grid covers the range's edges).
+    let free_pooled = Training {
+        experiment,
+        samples: random.iter().chain(&dense).cloned().collect(),
+        calibration: Vec::new(),
+    };
     let free_dense = Training {
         experiment,
         samples: dense,
@@ -198,6 +204,7 @@ pub fn evaluate(
         let (training, sim_s) = match (m.budget(), m.name()) {
             (Budget::Paper, _) => (&paper, 0.0),
             (Budget::Free, "emulator") => (&free_dense, dense_seconds),
+            (Budget::Free, "krr") => (&free_pooled, random_seconds + dense_seconds),
             (Budget::Free, _) => (&free_random, random_seconds),
         };
         let t0 = Instant::now();
@@ -295,8 +302,8 @@ fn score(
 }
 
 /// The training data that `method` may use in `experiment` and `variant`, simulated afresh:
-/// the templates under the paper's budget, the emulator's grid (calibrated on random runs) or
-/// random runs under a free budget.
+/// the templates under the paper's budget, the emulator's grid (calibrated on random runs),
+/// random runs followed by the emulator's grid (`krr`) or random runs under a free budget.
 pub fn training_for(
     experiment: Experiment,
     variant: Variant,
@@ -320,8 +327,23 @@ pub fn training_for(
         }
         (Budget::Free, name) => {
             let random_p = experiment.random_params(random_runs(experiment), seed ^ 0x5eed);
-            let random = simulate_all(experiment, &random_p, &noise, seed.wrapping_add(1), &none)?;
-            if name == "emulator" {
+            let mut random =
+                simulate_all(experiment, &random_p, &noise, seed.wrapping_add(1), &none)?;
+            if name == "krr" {
+                let design = Interp::design(experiment);
+                random.extend(simulate_all(
+                    experiment,
+                    &design,
+                    &noise,
+                    seed.wrapping_add(2),
+                    &none,
+                )?);
+                Training {
+                    experiment,
+                    samples: random,
+                    calibration: Vec::new(),
+                }
+            } else if name == "emulator" {
                 let design = Interp::design(experiment);
                 Training {
                     experiment,

@@ -9,14 +9,30 @@ use nalgebra::{DMatrix, DVector};
 /// Principal components kept.
 const COMPONENTS: usize = 24;
 /// Length scales tried, as multiples of the median distance between training runs.
-const LENGTHS: [f64; 5] = [0.125, 0.25, 0.5, 1.0, 2.0];
+const LENGTHS: [f64; 5] = [0.25, 0.5, 1.0, 2.0, 4.0];
 /// Ridges tried (the kernel's diagonal is 1).
-const RIDGES: [f64; 4] = [1e-8, 1e-6, 1e-4, 1e-2];
+const RIDGES: [f64; 6] = [1e-6, 1e-4, 1e-3, 1e-2, 3e-2, 1e-1];
+/// Every `HOLD`-th training run is held out while the hyper-parameters are chosen.
+const HOLD: usize = 5;
 
-/// `f(z) = Σ α_i exp(−|z − z_i|²/(2ℓ²))` per unknown (scaled to [0, 1] over its range), with
-/// `z` the first principal components of the normalised series. ℓ and the ridge are chosen on
-/// the last fifth of the training runs (fitted on the rest); the std is constant per unknown,
-/// set so that 90% intervals cover 90% of those held-out runs.
+/// One unknown's regression: `f(z) = lo + (hi − lo)·Σ α_i exp(−|z − z_i|²/(2ℓ²))`.
+#[derive(Debug, Clone, Default)]
+struct Head {
+    /// Length scale in component space.
+    length: f64,
+    /// Ridge.
+    ridge: f64,
+    /// Dual weights `[runs]`.
+    alpha: Vec<f64>,
+    /// Std, SI.
+    std: f64,
+}
+
+/// Kernel ridge regression per unknown (scaled to [0, 1] over its range) on `z`, the first
+/// principal components of the normalised series, with the estimate clipped to the range. Each
+/// unknown has its own ℓ and ridge, chosen on every fifth training run (fitted on the rest); its
+/// std is constant, set so that 90% intervals cover 90% of the training runs' leave-one-out
+/// errors.
 #[derive(Debug, Clone, Default)]
 pub struct Krr {
     /// Channel scales, `[CHANNELS]`.
@@ -27,16 +43,45 @@ pub struct Krr {
     axes: Vec<Vec<f64>>,
     /// Training points in component space `[runs][COMPONENTS]`.
     z: Vec<Vec<f64>>,
-    /// Dual weights `[unknowns][runs]`.
-    alpha: Vec<Vec<f64>>,
     /// Unknowns' ranges `[unknowns][lo, hi]`.
     ranges: Vec<[f64; 2]>,
-    /// Length scale in component space.
-    length: f64,
-    /// Ridge.
-    ridge: f64,
-    /// Std per unknown, SI.
-    std: Vec<f64>,
+    /// Per unknown.
+    heads: Vec<Head>,
+}
+
+/// Kernel matrix of `z` with length scale `length`, without ridge.
+fn kernel(z: &[Vec<f64>], length: f64) -> DMatrix<f64> {
+    let n = z.len();
+    let g = 1.0 / (2.0 * length * length);
+    let mut k = DMatrix::<f64>::zeros(n, n);
+    for i in 0..n {
+        for j in 0..=i {
+            let v = (-dist2(&z[i], &z[j]) * g).exp();
+            k[(i, j)] = v;
+            k[(j, i)] = v;
+        }
+    }
+    k
+}
+
+/// `(K + ridge·I)⁻¹ y` for each target column of `y`, or `None` if not positive definite.
+fn solve(k: &DMatrix<f64>, ridge: f64, y: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
+    let n = k.nrows();
+    let mut a = k.clone();
+    for i in 0..n {
+        a[(i, i)] += ridge;
+    }
+    let chol = a.cholesky()?;
+    Some(
+        y.iter()
+            .map(|t| {
+                chol.solve(&DVector::from_column_slice(t))
+                    .iter()
+                    .copied()
+                    .collect()
+            })
+            .collect(),
+    )
 }
 
 impl Krr {
@@ -58,42 +103,20 @@ impl Krr {
             .collect()
     }
 
-    /// Fits the weights for training points `z` with targets `params`.
-    fn solve(&mut self, z: Vec<Vec<f64>>, params: &[Vec<f64>]) -> Result<()> {
-        let n = z.len();
-        let mut k = DMatrix::<f64>::zeros(n, n);
-        let g = 1.0 / (2.0 * self.length * self.length);
-        for i in 0..n {
-            for j in 0..=i {
-                let v = (-dist2(&z[i], &z[j]) * g).exp();
-                k[(i, j)] = v;
-                k[(j, i)] = v;
-            }
-            k[(i, i)] += self.ridge;
-        }
-        let chol = k.cholesky().ok_or_else(|| Error::Fit {
-            method: "krr".into(),
-            detail: "kernel matrix not positive definite".into(),
-        })?;
-        self.alpha = (0..self.ranges.len())
-            .map(|u| {
-                let [lo, hi] = self.ranges[u];
-                let y = DVector::from_iterator(n, params.iter().map(|p| (p[u] - lo) / (hi - lo)));
-                chol.solve(&y).iter().copied().collect()
-            })
-            .collect();
-        self.z = z;
-        Ok(())
-    }
-
+    /// Estimate of every unknown at `z`, clipped to its range.
     fn point(&self, z: &[f64]) -> Vec<f64> {
-        let g = 1.0 / (2.0 * self.length * self.length);
-        let kx: Vec<f64> = self.z.iter().map(|t| (-dist2(t, z) * g).exp()).collect();
-        self.alpha
+        self.heads
             .iter()
             .zip(&self.ranges)
-            .map(|(a, [lo, hi])| {
-                lo + (hi - lo) * a.iter().zip(&kx).map(|(a, k)| a * k).sum::<f64>()
+            .map(|(h, [lo, hi])| {
+                let g = 1.0 / (2.0 * h.length * h.length);
+                let s: f64 = self
+                    .z
+                    .iter()
+                    .zip(&h.alpha)
+                    .map(|(t, a)| a * (-dist2(t, z) * g).exp())
+                    .sum();
+                lo + (hi - lo) * s.clamp(0.0, 1.0)
             })
             .collect()
     }
@@ -164,12 +187,13 @@ impl Method for Krr {
     }
 
     fn fit(&mut self, training: &Training) -> Result<()> {
+        let fail = |detail: &str| Error::Fit {
+            method: "krr".into(),
+            detail: detail.into(),
+        };
         let s: &[Sample] = &training.samples;
         if s.len() < 10 {
-            return Err(Error::Fit {
-                method: "krr".into(),
-                detail: "needs at least 10 training runs".into(),
-            });
+            return Err(fail("needs at least 10 training runs"));
         }
         let channels: Vec<usize> = (0..CHANNELS.len()).collect();
         self.scales = channel_scales(s, &channels);
@@ -184,47 +208,89 @@ impl Method for Krr {
             .collect();
         self.axes = principal_axes(&x, &self.mean, COMPONENTS);
         let z: Vec<Vec<f64>> = x.iter().map(|r| self.project(r)).collect();
-        let params: Vec<Vec<f64>> = s.iter().map(|r| r.params.clone()).collect();
+        // Targets scaled to [0, 1], `[unknowns][runs]`.
+        let y: Vec<Vec<f64>> = self
+            .ranges
+            .iter()
+            .enumerate()
+            .map(|(u, [lo, hi])| s.iter().map(|r| (r.params[u] - lo) / (hi - lo)).collect())
+            .collect();
         let med = median_distance(&z);
-        // Choose ℓ and the ridge on the last fifth, fitted on the rest.
-        let cut = s.len() * 4 / 5;
-        let mut best = (f64::INFINITY, med, RIDGES[0]);
+        let unknowns = self.ranges.len();
+
+        // Choose ℓ and the ridge per unknown on every HOLD-th run, fitted on the rest.
+        let (fit_i, held_i): (Vec<usize>, Vec<usize>) = (0..s.len()).partition(|i| i % HOLD != 0);
+        let zf: Vec<Vec<f64>> = fit_i.iter().map(|&i| z[i].clone()).collect();
+        let yf: Vec<Vec<f64>> = y
+            .iter()
+            .map(|t| fit_i.iter().map(|&i| t[i]).collect())
+            .collect();
+        let mut best = vec![(f64::INFINITY, med, RIDGES[0]); unknowns];
         for l in LENGTHS {
+            let length = l * med;
+            let k = kernel(&zf, length);
+            let g = 1.0 / (2.0 * length * length);
+            let kx: Vec<Vec<f64>> = held_i
+                .iter()
+                .map(|&h| zf.iter().map(|t| (-dist2(t, &z[h]) * g).exp()).collect())
+                .collect();
             for r in RIDGES {
-                self.length = l * med;
-                self.ridge = r;
-                if self.solve(z[..cut].to_vec(), &params[..cut]).is_err() {
+                let Some(alpha) = solve(&k, r, &yf) else {
                     continue;
-                }
-                let mut err = 0.0;
-                for (zi, pi) in z[cut..].iter().zip(&params[cut..]) {
-                    let p = self.point(zi);
-                    for (u, [lo, hi]) in self.ranges.iter().enumerate() {
-                        err += (p[u] - pi[u]).abs() / (hi - lo);
+                };
+                for u in 0..unknowns {
+                    let err: f64 = held_i
+                        .iter()
+                        .zip(&kx)
+                        .map(|(&h, kh)| {
+                            let p: f64 = kh.iter().zip(&alpha[u]).map(|(a, b)| a * b).sum();
+                            (p.clamp(0.0, 1.0) - y[u][h]).abs()
+                        })
+                        .sum();
+                    if err < best[u].0 {
+                        best[u] = (err, length, r);
                     }
                 }
-                if err < best.0 {
-                    best = (err, self.length, r);
-                }
             }
         }
-        (self.length, self.ridge) = (best.1, best.2);
-        self.solve(z[..cut].to_vec(), &params[..cut])?;
-        let mut pairs = vec![Vec::new(); self.ranges.len()];
-        for (zi, pi) in z[cut..].iter().zip(&params[cut..]) {
-            let p = self.point(zi);
-            for u in 0..p.len() {
-                pairs[u].push((p[u] - pi[u], 1.0 / Z90));
+
+        // Final weights on every run; leave-one-out errors calibrate the std.
+        self.heads = Vec::with_capacity(unknowns);
+        for (u, &(_, length, ridge)) in best.iter().enumerate() {
+            let mut a = kernel(&z, length);
+            for i in 0..z.len() {
+                a[(i, i)] += ridge;
             }
+            let chol = a
+                .cholesky()
+                .ok_or_else(|| fail("kernel matrix not positive definite"))?;
+            let alpha: Vec<f64> = chol
+                .solve(&DVector::from_column_slice(&y[u]))
+                .iter()
+                .copied()
+                .collect();
+            let inv = chol.inverse();
+            let [lo, hi] = self.ranges[u];
+            let pairs: Vec<(f64, f64)> = (0..z.len())
+                .map(|i| {
+                    // f_{−i}(z_i) = y_i − α_i / (A⁻¹)_ii.
+                    let loo = (y[u][i] - alpha[i] / inv[(i, i)]).clamp(0.0, 1.0);
+                    ((loo - y[u][i]) * (hi - lo), 1.0 / Z90)
+                })
+                .collect();
+            self.heads.push(Head {
+                length,
+                ridge,
+                alpha,
+                std: coverage_factor(&pairs) / Z90,
+            });
         }
-        self.std = pairs.iter().map(|p| coverage_factor(p) / Z90).collect();
-        // The final model uses every training run.
-        self.solve(z, &params)?;
+        self.z = z;
         Ok(())
     }
 
     fn predict(&self, obs: &[Vec<f64>]) -> Result<Vec<Estimate>> {
-        if self.alpha.is_empty() {
+        if self.heads.is_empty() {
             return Err(Error::Fit {
                 method: "krr".into(),
                 detail: "not fitted".into(),
@@ -234,16 +300,17 @@ impl Method for Krr {
         let x = flatten(obs, &channels, &self.scales)?;
         let p = self.point(&self.project(&x));
         Ok(p.iter()
-            .zip(&self.std)
-            .map(|(m, s)| Estimate::normal(*m, *s))
+            .zip(&self.heads)
+            .map(|(m, h)| Estimate::normal(*m, h.std))
             .collect())
     }
 
     fn settings(&self) -> Vec<(String, f64)> {
-        vec![
-            ("components".into(), self.axes.len() as f64),
-            ("length".into(), self.length),
-            ("ridge".into(), self.ridge),
-        ]
+        let mut s = vec![("components".into(), self.axes.len() as f64)];
+        for (h, name) in self.heads.iter().zip(["d", "v"]) {
+            s.push((format!("length_{name}"), h.length));
+            s.push((format!("ridge_{name}"), h.ridge));
+        }
+        s
     }
 }

@@ -4,6 +4,7 @@
 //! |---|---|---|
 //! | `template` | paper | the seed's method: Gaussian responsibilities of the templates on `theta12` |
 //! | `template-interp` | paper | least-squares fit of a (bi)linear interpolation between the templates |
+//! | `template-warp` | paper | the same fit with the templates aligned at landmarks of the contact |
 //! | `emulator` | free | the same fit between runs on a dense grid off the evaluated points |
 //! | `knn` | free | nearest neighbours among random training runs |
 //! | `krr` | free | kernel ridge regression on principal components |
@@ -13,23 +14,26 @@ mod interp;
 mod knn;
 mod krr;
 mod template;
+mod warp;
 
 pub use interp::Interp;
 pub use knn::Knn;
 pub use krr::Krr;
 pub use template::Template;
+pub use warp::Warp;
 
 use crate::error::{Error, Result};
 use crate::method::Method;
 
 /// Names of all methods, in the order of [`all`].
-pub const NAMES: [&str; 6] = [
+pub const NAMES: [&str; 7] = [
     "template",
     "template-interp",
     "emulator",
     "knn",
     "krr",
     "shift",
+    "template-warp",
 ];
 
 /// One unfitted method by name.
@@ -41,6 +45,7 @@ pub fn by_name(name: &str) -> Result<Box<dyn Method>> {
         "knn" => Box::new(Knn::plain()),
         "krr" => Box::new(Krr::new()),
         "shift" => Box::new(Knn::shifted()),
+        "template-warp" => Box::new(Warp::new()),
         _ => {
             return Err(Error::Unknown {
                 what: "method",
@@ -65,6 +70,7 @@ pub fn describe(name: &str) -> &'static str {
         "knn" => "all channels: inverse-distance-weighted nearest neighbours among random simulated runs",
         "krr" => "all channels: kernel ridge regression (RBF) on principal components of random simulated runs",
         "shift" => "all channels aligned at the contact's onset (first |theta12| above a threshold): nearest neighbours, invariant to when contact starts",
+        "template-warp" => "all channels: least-squares fit of an interpolation between the templates registered at the contact's rise and first zero crossing (travel v·t interpolated), weights linear in sqrt(L - d) and v",
         _ => "",
     }
 }
