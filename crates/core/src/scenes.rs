@@ -67,17 +67,22 @@ pub struct PegWhisk {
 /// out, 0.02 mm clear of its surface. Checked once the impact's ringing has died (0.3 s, five
 /// time constants) while the tip deflection is between 0.1% and 2% of L.
 pub fn peg_whisk() -> Result<PegWhisk> {
+    peg_whisk_at(0.020, 1e-4)
+}
+
+/// [`peg_whisk`] with the peg at `d` (m) and time step `dt` (s).
+pub fn peg_whisk_at(d: f64, dt: f64) -> Result<PegWhisk> {
     let w = w30_with(Damping::ModalRatio { ratio: 0.05 })?;
     let (ei, l) = (w.ei(0.0), w.length());
     let m = Model::new(&w, 20, Discretisation::Gregory)?;
-    let objects = [peg(0.020, 0.5e-3 + 0.1e-3 + 0.02e-3, 0.5e-3, 0.0)];
+    let objects = [peg(d, 0.5e-3 + 0.1e-3 + 0.02e-3, 0.5e-3, 0.0)];
     let drive = BaseDrive::Ramp {
         rate: 0.05,
         start: 0.0,
         stop: f64::INFINITY,
         smoothing: 0.02,
     };
-    let st = Integrator::with_dt(1e-4).check()?;
+    let st = Integrator::with_dt(dt).check()?;
     let mut s = State::at_rest(&m, 0);
     let mut ws = Workspace::new(&m);
     let mut out = PegWhisk {
@@ -87,7 +92,7 @@ pub fn peg_whisk() -> Result<PegWhisk> {
         shape_error: 0.0,
     };
     let mut first = f64::INFINITY;
-    for k in 1..=12_000 {
+    for k in 1..=(1.2 / dt).round() as usize {
         let inputs = Inputs {
             base: drive.at(k as f64 * st.dt),
             objects: &objects,
