@@ -16,14 +16,19 @@
 //! the base reaction and everything downstream include them. No penalty stiffness is involved,
 //! so contact keeps the time step of the free whisker.
 //!
-//! Contact forces act as impulses within their step (Moreau's approach): a contact is active
-//! when the step would end in penetration without it, and its normal force makes the contact
-//! point's normal velocity relative to the object non-negative at the end of the step (a perfectly
-//! inelastic contact); friction holds the tangential velocity at zero up to μ·N. The impulses'
-//! accelerations change the rates by `h·a` and the angles by `h²/2·a` (which keeps static
-//! equilibria exact) and stay out of the method's acceleration history, so a force that ends
-//! with a step is not applied again in the next. What penetration remains (up to `h·v/2` after a
-//! fast impact) is removed by moving the angles, not the rates, along `(M + A)⁻¹Jᵀ`.
+//! A contact is active when the step would end in penetration without it, and its normal force
+//! makes the contact point's normal velocity relative to the object non-negative at the end of
+//! the step (a perfectly inelastic contact, as in Moreau's time stepping); friction holds the
+//! tangential velocity at zero up to μ·N.
+//!
+//! A new contact (an object that carried no force in the previous step) is an impulse: its
+//! acceleration changes the rates by `h·a` and the angles by `h²/2·a`, and stays out of the
+//! method's acceleration history, so an impact that ends with its step is not applied again in
+//! the next (which made the whisker rebound and gain energy). A lasting contact's force is
+//! integrated like any other force, with the method's own weights (second order, so slowly
+//! loaded contacts match statics); when it ends, the step is taken again without that force in
+//! the history. What penetration remains (up to `h·v/2` after a fast impact) is removed by moving
+//! the angles, not the rates, along the static compliance `K⁻¹Jᵀ`.
 
 use crate::chain::Model;
 use crate::dynamics::{fma, shift_force, BaseMotion, Inputs, Stepper, Workspace};
@@ -78,6 +83,8 @@ struct Candidate {
     /// End-of-step gap predicted without contact force, m, and whether it calls for contact.
     g_pred: f64,
     active: bool,
+    /// A new contact (the object carried no force in the previous step): an impulse.
+    impact: bool,
     /// Forces.
     lambda_n: f64,
     lambda_t: f64,
@@ -99,8 +106,10 @@ pub struct Scratch {
     /// End-of-step angles and rates at b = 0 (`q_end = q0 + cq·b`, `v_end = v0 + cv·b`).
     q0: Vec<f64>,
     v0: Vec<f64>,
-    /// Joint accelerations caused by the last solve's contact forces `[N]`.
+    /// Joint accelerations caused by the last solve's impacts `[N]` (integrated as impulses), and
+    /// by its lasting contacts (integrated like other forces; kept to drop them at release).
     pub(crate) acc: Vec<f64>,
+    pub(crate) acc_lasting: Vec<f64>,
     /// Correction of the end-of-step angles that removes any remaining penetration `[N]`.
     pub(crate) position_fix: Vec<f64>,
 }
@@ -118,6 +127,7 @@ impl Scratch {
             q0: vec![0.0; n],
             v0: vec![0.0; n],
             acc: vec![0.0; n],
+            acc_lasting: vec![0.0; n],
             position_fix: vec![0.0; n],
         }
     }
@@ -127,8 +137,17 @@ impl Scratch {
         if self.count > 0 {
             self.count = 0;
             self.acc.fill(0.0);
+            self.acc_lasting.fill(0.0);
             self.position_fix.fill(0.0);
         }
+    }
+
+    /// Bit k set when object k carried contact force in the last solve (objects 0..63).
+    pub(crate) fn touching(&self) -> u64 {
+        self.cand[..self.count]
+            .iter()
+            .filter(|c| c.lambda_n > 0.0)
+            .fold(0, |m, c| m | (1u64 << c.object.min(63)))
     }
 
     /// The report of the last solve (`None` without objects or contact force).
@@ -161,6 +180,8 @@ pub(crate) struct StepStart<'a> {
     pub q: &'a [f64],
     pub v: &'a [f64],
     pub a: &'a [f64],
+    /// Objects that carried contact force in the previous step (bit k for object k).
+    pub touching: u64,
 }
 
 /// Generalised force of a unit world force `f` at world point `p` of segment `seg`:
@@ -354,6 +375,7 @@ pub(crate) fn solve(
                     object: k,
                     g_pred: 0.0,
                     active: false,
+                    impact: start.touching & (1u64 << k.min(63)) == 0,
                     c_v: -(nrm[0] * v_obj[0] + nrm[1] * v_obj[1]),
                     lambda_n: 0.0,
                     lambda_t: 0.0,
@@ -363,6 +385,7 @@ pub(crate) fn solve(
     }
     ws.contacts.count = count;
     ws.contacts.acc.fill(0.0);
+    ws.contacts.acc_lasting.fill(0.0);
     ws.contacts.position_fix.fill(0.0);
     if count == 0 {
         return Ok(());
@@ -424,11 +447,14 @@ pub(crate) fn solve(
         c.g_pred = c.c_n;
         c.c_n = c.c_v;
     }
-    // Delassus matrix: every row is a velocity at the end of the step, and a contact force changes
-    // the rates by h times its acceleration.
+    // Delassus matrix: every row is a velocity at the end of the step. An impact's force changes
+    // the rates by h times its acceleration; a lasting contact's force is integrated like any
+    // other force (by the method's own weights).
     for r in 0..m {
         for col in 0..m {
-            sc.w[r * m + col] = h * dot(&jac[r * n..(r + 1) * n], &resp[col * n..(col + 1) * n]);
+            let scale = if sc.cand[col / 2].impact { h } else { cv };
+            sc.w[r * m + col] =
+                scale * dot(&jac[r * n..(r + 1) * n], &resp[col * n..(col + 1) * n]);
         }
     }
 
@@ -487,7 +513,12 @@ pub(crate) fn solve(
         for (r, lambda) in [(2 * k, c.lambda_n), (2 * k + 1, c.lambda_t)] {
             if lambda != 0.0 {
                 let sc = &mut ws.contacts;
-                for (a, x) in sc.acc.iter_mut().zip(&sc.resp[r * n..(r + 1) * n]) {
+                let acc = if c.impact {
+                    &mut sc.acc
+                } else {
+                    &mut sc.acc_lasting
+                };
+                for (a, x) in acc.iter_mut().zip(&sc.resp[r * n..(r + 1) * n]) {
                     *a += lambda * x;
                 }
             }
@@ -497,7 +528,13 @@ pub(crate) fn solve(
     // leave up to h·v/2 of penetration after a fast impact. Move the angles (not the rates) just
     // enough to close it, along the whisker's static compliance K⁻¹Jᵀ: the shape a quasi-static
     // contact force would give, so a slowly loaded contact stays consistent with statics.
-    post_stabilise(&mut ws.contacts, &model.stiffness, count, n, h);
+    post_stabilise(
+        &mut ws.contacts,
+        &model.stiffness,
+        count,
+        n,
+        [0.5 * h, cq / cv],
+    );
     for k in 0..count {
         let c = ws.contacts.cand[k];
         if c.lambda_n > 0.0 {
@@ -515,7 +552,13 @@ pub(crate) fn solve(
 /// Moves the end-of-step angles along the static compliance `K⁻¹Jᵀ` just enough to close any gap
 /// the contact impulses left negative (see [`solve`]).
 #[allow(clippy::needless_range_loop)]
-fn post_stabilise(sc: &mut Scratch, stiffness: &[f64], count: usize, n: usize, h: f64) {
+fn post_stabilise(
+    sc: &mut Scratch,
+    stiffness: &[f64],
+    count: usize,
+    n: usize,
+    to_position: [f64; 2],
+) {
     let m = 2 * count;
 
     let k_inv = |i: usize| 1.0 / stiffness[i];
@@ -525,9 +568,13 @@ fn post_stabilise(sc: &mut Scratch, stiffness: &[f64], count: usize, n: usize, h
         let rn = 2 * k;
         *g = sc.cand[k].g_pred;
         for (j, cj) in sc.cand[..count].iter().enumerate() {
-            *g += 0.5
-                * h
-                * (sc.w[rn * m + 2 * j] * cj.lambda_n + sc.w[rn * m + 2 * j + 1] * cj.lambda_t);
+            // From a column's rate change to its position change: h/2 (impact), β·h/γ (lasting).
+            let f = if cj.impact {
+                to_position[0]
+            } else {
+                to_position[1]
+            };
+            *g += f * (sc.w[rn * m + 2 * j] * cj.lambda_n + sc.w[rn * m + 2 * j + 1] * cj.lambda_t);
         }
     }
     if gap[..count].iter().any(|g| *g < 0.0) {

@@ -214,8 +214,9 @@ pub struct State {
     pub t: f64,
     /// Base rotation at time `t`.
     pub base: BaseMotion,
-    /// `[q | q̇ | q̈ | q̇_prev]`, each `[N]`: joint angles (rad), rates (rad/s), accelerations
-    /// (rad/s², without contact impulses) and the rates one step earlier.
+    /// `[q | q̇ | q̈ | q̇_prev | q̈_contact]`, each `[N]`: joint angles (rad), rates (rad/s),
+    /// accelerations (rad/s², without contact impulses), the rates one step earlier, and the part
+    /// of the accelerations due to lasting contact forces.
     x: Vec<f64>,
     /// Base wrench at the previous step's intermediate time (for extrapolation to `t`).
     wrench_alpha: [f64; 3],
@@ -223,6 +224,8 @@ pub struct State {
     pub base_wrench: [f64; 3],
     /// Contact during the last step, if any (the contact nearest the base).
     pub contact: Option<ContactReport>,
+    /// Objects that carried contact force in the last step (bit k for object k).
+    touching: u64,
     /// The state's own random stream (process noise).
     pub rng: Rng,
 }
@@ -236,6 +239,7 @@ impl Clone for State {
             wrench_alpha: self.wrench_alpha,
             base_wrench: self.base_wrench,
             contact: self.contact,
+            touching: self.touching,
             rng: self.rng.clone(),
         }
     }
@@ -248,6 +252,7 @@ impl Clone for State {
         self.wrench_alpha = source.wrench_alpha;
         self.base_wrench = source.base_wrench;
         self.contact = source.contact;
+        self.touching = source.touching;
         self.rng.clone_from(&source.rng);
     }
 }
@@ -256,7 +261,7 @@ impl State {
     /// The whisker at rest in its rest shape at t = 0, with a seeded random stream.
     pub fn at_rest(model: &Model, seed: u64) -> State {
         let n = model.n;
-        let mut x = vec![0.0; 4 * n];
+        let mut x = vec![0.0; 5 * n];
         x[..n].copy_from_slice(&model.rest);
         State {
             t: 0.0,
@@ -265,6 +270,7 @@ impl State {
             wrench_alpha: [0.0; 3],
             base_wrench: [0.0; 3],
             contact: None,
+            touching: 0,
             rng: Rng::new(seed),
         }
     }
@@ -275,7 +281,7 @@ impl State {
     }
     /// Segment count.
     pub fn n(&self) -> usize {
-        self.x.len() / 4
+        self.x.len() / 5
     }
     /// Joint angles, rad.
     pub fn q(&self) -> &[f64] {
@@ -749,73 +755,89 @@ pub fn step_with<F: Forcing + ?Sized>(
     };
     let (q, rest) = state.x.split_at_mut(n);
     let (v, rest) = rest.split_at_mut(n);
-    let (a, v_prev) = rest.split_at_mut(n);
+    let (a, rest) = rest.split_at_mut(n);
+    let (v_prev, a_contact) = rest.split_at_mut(n);
     ws.draw_noise(model, inputs.noise, &mut state.rng, h);
     if inputs.objects.is_empty() {
         ws.contacts.clear();
     }
+    let touching = state.touching;
 
-    // Stage: predict. The intermediate angles and rates are affine in the unknown
-    // b = a_{n+1-αm}: q_f = q0 + dq·b, v_f = v0 + dv·b. The geometry is first evaluated at
-    // q_n + (1-αf)·h·q̇_n and at rates extrapolated from the last two steps: both bounded for the
-    // stiff modes, and second-order accurate.
-    for i in 0..n {
-        ws.q_lin[i] = q[i] + c1 * h * v[i] + (c1 * h * h * (0.5 - beta) - st.dq * am) * a[i];
-        ws.v_lin[i] = v[i] + (c1 * h * (1.0 - gamma) - st.dv * am) * a[i];
-        ws.q[i] = q[i] + c1 * h * v[i];
-        ws.v[i] = v[i] + c1 * (v[i] - v_prev[i]);
-    }
-
-    // Stage: passive joint torques, implicit in the springs and dampers: with the armature
-    // A = K·dq + D·dv, (M + A) b = τ enforces the spring–damper law at the intermediate time.
-    for i in 0..n {
-        let (k, d) = (model.stiffness[i], model.damping[i]);
-        ws.arm[i] = k * st.dq + d * st.dv;
-        ws.tau[i] = -k * (ws.q_lin[i] - model.rest[i]) - d * ws.v_lin[i];
-    }
-
-    // Geometric iterations: kinematics, forces and solve at the latest estimate of the
-    // intermediate state, until that estimate stops moving.
-    ws.iterations = 0;
-    loop {
-        ws.iterations += 1;
-        // Stage: kinematics at the evaluation point, then external forces.
-        ws.kinematics(model, &base);
-        ws.forces(model, inputs);
-        forcing.apply(t_mid, model, ws);
-        // Stage: solve for b.
-        ws.solve(model, &base);
-        // Stage: contact forces that keep the whisker out of the objects at the end of the step.
-        if !inputs.objects.is_empty() {
-            let start = contact::StepStart { q, v, a };
-            contact::solve(model, st, ws, inputs, &start, state.t, &base)?;
-        }
-        if ws.iterations >= st.max_iterations {
-            break;
-        }
-        // Stage: the intermediate state this solve implies; how far the segments moved. Contact
-        // impulses (`ac`) and the penetration correction (`fix`) move with their own weights,
-        // everything else with the method's.
-        let (mut phi, mut moved) = (0.0f64, 0.0f64);
-        let contacts = ws.contacts.count > 0;
-        let (q_lin, v_lin, qdd) = (&ws.q_lin[..n], &ws.v_lin[..n], &ws.qdd[..n]);
-        let (acc, fixes) = (&ws.contacts.acc[..n], &ws.contacts.position_fix[..n]);
-        let (qe, ve) = (&mut ws.q[..n], &mut ws.v[..n]);
+    for attempt in 0..2 {
+        // Stage: predict. The intermediate angles and rates are affine in the unknown
+        // b = a_{n+1-αm}: q_f = q0 + dq·b, v_f = v0 + dv·b. The geometry is first evaluated at
+        // q_n + (1-αf)·h·q̇_n and at rates extrapolated from the last two steps: both bounded for the
+        // stiff modes, and second-order accurate.
         for i in 0..n {
-            let (mut qf, mut vf) = (q_lin[i] + st.dq * qdd[i], v_lin[i] + st.dv * qdd[i]);
-            if contacts {
-                let (ac, fix) = (acc[i], fixes[i]);
-                qf += c1 * (0.5 * h * h * ac + fix) - st.dq * ac;
-                vf += (c1 * h - st.dv) * ac;
+            ws.q_lin[i] = q[i] + c1 * h * v[i] + (c1 * h * h * (0.5 - beta) - st.dq * am) * a[i];
+            ws.v_lin[i] = v[i] + (c1 * h * (1.0 - gamma) - st.dv * am) * a[i];
+            ws.q[i] = q[i] + c1 * h * v[i];
+            ws.v[i] = v[i] + c1 * (v[i] - v_prev[i]);
+        }
+
+        // Stage: passive joint torques, implicit in the springs and dampers: with the armature
+        // A = K·dq + D·dv, (M + A) b = τ enforces the spring–damper law at the intermediate time.
+        for i in 0..n {
+            let (k, d) = (model.stiffness[i], model.damping[i]);
+            ws.arm[i] = k * st.dq + d * st.dv;
+            ws.tau[i] = -k * (ws.q_lin[i] - model.rest[i]) - d * ws.v_lin[i];
+        }
+
+        // Geometric iterations: kinematics, forces and solve at the latest estimate of the
+        // intermediate state, until that estimate stops moving.
+        ws.iterations = 0;
+        loop {
+            ws.iterations += 1;
+            // Stage: kinematics at the evaluation point, then external forces.
+            ws.kinematics(model, &base);
+            ws.forces(model, inputs);
+            forcing.apply(t_mid, model, ws);
+            // Stage: solve for b.
+            ws.solve(model, &base);
+            // Stage: contact forces that keep the whisker out of the objects at the end of the step.
+            if !inputs.objects.is_empty() {
+                let start = contact::StepStart { q, v, a, touching };
+                contact::solve(model, st, ws, inputs, &start, state.t, &base)?;
             }
-            phi += qf - qe[i];
-            moved = moved.max(phi.abs()).max(h * (vf - ve[i]).abs());
-            qe[i] = qf;
-            ve[i] = vf;
+            if ws.iterations >= st.max_iterations {
+                break;
+            }
+            // Stage: the intermediate state this solve implies; how far the segments moved. Contact
+            // impulses (`ac`) and the penetration correction (`fix`) move with their own weights,
+            // everything else with the method's.
+            let (mut phi, mut moved) = (0.0f64, 0.0f64);
+            let contacts = ws.contacts.count > 0;
+            let (q_lin, v_lin, qdd) = (&ws.q_lin[..n], &ws.v_lin[..n], &ws.qdd[..n]);
+            let (acc, fixes) = (&ws.contacts.acc[..n], &ws.contacts.position_fix[..n]);
+            let (qe, ve) = (&mut ws.q[..n], &mut ws.v[..n]);
+            for i in 0..n {
+                let (mut qf, mut vf) = (q_lin[i] + st.dq * qdd[i], v_lin[i] + st.dv * qdd[i]);
+                if contacts {
+                    let (ac, fix) = (acc[i], fixes[i]);
+                    qf += c1 * (0.5 * h * h * ac + fix) - st.dq * ac;
+                    vf += (c1 * h - st.dv) * ac;
+                }
+                phi += qf - qe[i];
+                moved = moved.max(phi.abs()).max(h * (vf - ve[i]).abs());
+                qe[i] = qf;
+                ve[i] = vf;
+            }
+            if moved <= st.tolerance {
+                break;
+            }
         }
-        if moved <= st.tolerance {
-            break;
+
+        // A lasting contact that ended: take the step again without its force in the history,
+        // so the whisker is not pushed by a force that no longer acts.
+        let released = touching & !ws.contacts.touching() != 0;
+        if attempt == 0 && released && a_contact.iter().any(|x| *x != 0.0) {
+            for (ai, ci) in a.iter_mut().zip(a_contact.iter_mut()) {
+                *ai -= *ci;
+                *ci = 0.0;
+            }
+            continue;
         }
+        break;
     }
 
     // Stage: integrate to the end of the step. Contact impulses (`ac`) move the rates by h·ac and
@@ -829,6 +851,7 @@ pub fn step_with<F: Forcing + ?Sized>(
         &ws.contacts.position_fix[..n],
     );
     let (q, v, a, v_prev) = (&mut q[..n], &mut v[..n], &mut a[..n], &mut v_prev[..n]);
+    a_contact.copy_from_slice(&ws.contacts.acc_lasting[..n]);
     for i in 0..n {
         let a_new = (qdd[i] - am * a[i]) * inv_am;
         let mut q_new = q[i] + h * v[i] + h * h * ((0.5 - beta) * a[i] + beta * a_new);
@@ -854,6 +877,11 @@ pub fn step_with<F: Forcing + ?Sized>(
     }
     state.wrench_alpha = w;
     state.contact = ws.contacts.report(model, inputs.objects.is_empty());
+    state.touching = if inputs.objects.is_empty() {
+        0
+    } else {
+        ws.contacts.touching()
+    };
     state.t = t_next;
     state.base = inputs.base;
     check_state(state, model)

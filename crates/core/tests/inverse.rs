@@ -212,7 +212,6 @@ fn inverse_peg_sweep_small_deflection_and_growth() {
 /// peg contact under a turning base leaves the near-base joint angles out of static balance
 /// with the base moment.
 #[test]
-#[ignore]
 fn inverse_joint_angles_on_every_peg() {
     let sweep = PegSweep {
         levels: vec![0.005],
