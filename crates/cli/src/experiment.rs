@@ -3,15 +3,15 @@
 //! Simulates the experiment's grid, the templates and the free-budget training runs, fits each
 //! method on the runs its budget allows, estimates every evaluated run, and prints the errors
 //! and the coverage of the 90% intervals beside the paper's figures. Writes `results.json` and
-//! the figures (PNG) into the output folder.
+//! the figures (each as PNG and SVG) into the output folder.
 
 use crate::output::{sig, Align, FormatArgs, Render, Table};
+use crate::plot::{self, Mark, XyFigure, XyPanel, XySet};
 use anyhow::{Context, Result};
-use plotters::prelude::*;
 use serde::Serialize;
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
-use std::sync::{Mutex, OnceLock};
+use std::sync::Mutex;
 use std::time::Instant;
 use vibrissa_infer::{evaluate, Budget, Evaluation, Experiment, Variant};
 
@@ -164,43 +164,18 @@ impl Render for Report {
     }
 }
 
-/// DejaVu Sans, embedded (licence: assets/DejaVuSans-LICENSE.txt).
-const FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
-/// Family name under which [`FONT`] is registered here.
-const FAMILY: &str = "sans-serif";
-/// Curve colours.
-const PALETTE: [RGBColor; 6] = [
-    RGBColor(31, 119, 180),
-    RGBColor(214, 39, 40),
-    RGBColor(44, 160, 44),
-    RGBColor(255, 127, 14),
-    RGBColor(148, 103, 189),
-    RGBColor(140, 86, 75),
-];
-
-/// One set of points of a figure, joined by lines or drawn as dots.
-struct Set {
-    label: String,
-    points: Vec<(f64, f64)>,
-    line: bool,
-}
-
-/// Draws the experiment's figures into `dir`; returns their paths.
+/// Draws the experiment's figures into `dir` (PNG and SVG, each appearing whole); returns their
+/// paths.
 fn figures(ev: &Evaluation, dir: &Path) -> Result<Vec<PathBuf>> {
-    static REGISTERED: OnceLock<bool> = OnceLock::new();
-    if !*REGISTERED
-        .get_or_init(|| plotters::style::register_font(FAMILY, FontStyle::Normal, FONT).is_ok())
-    {
-        anyhow::bail!("the embedded font could not be read");
-    }
-    let mut files = Vec::new();
     let two = ev.unknowns.len() == 2;
     let templates: Vec<usize> = (0..ev.grid.len()).filter(|&k| ev.is_template[k]).collect();
+    let mut figs = Vec::new();
 
     // Fig. 6: theta12 of the templates.
-    let sets: Vec<Set> = templates
+    let sets: Vec<XySet> = templates
         .iter()
-        .map(|&k| Set {
+        .enumerate()
+        .map(|(i, &k)| XySet {
             label: if two {
                 format!(
                     "d = {:.0} mm, v = {:.1} m/s",
@@ -215,50 +190,80 @@ fn figures(ev: &Evaluation, dir: &Path) -> Result<Vec<PathBuf>> {
                 .enumerate()
                 .map(|(i, y)| (i as f64, *y))
                 .collect(),
-            line: true,
+            mark: Mark::Line,
+            colour: Some(i),
         })
         .collect();
-    files.push(xy(
-        dir,
-        "templates",
-        "theta12 of the templates (cf. the paper's Fig. 6)",
-        "t (ms)",
-        "theta12 (rad)",
-        &sets,
-    )?);
+    figs.push((
+        "templates".to_string(),
+        XyFigure {
+            title: "theta12 of the templates (cf. the paper's Fig. 6)".into(),
+            x_desc: "t (ms)".into(),
+            y_desc: "theta12 (rad)".into(),
+            log_y: false,
+            columns: 1,
+            legend_lower_right: false,
+            panels: vec![XyPanel {
+                caption: String::new(),
+                sets,
+            }],
+        },
+    ));
 
-    // Fig. 7: responsibilities against distance (at the first speed of the grid for e2).
-    let v0 = ev.grid[0][1];
-    let sets: Vec<Set> = ev
-        .template_params
-        .iter()
-        .enumerate()
-        .map(|(i, p)| Set {
-            label: if two {
-                format!("template d = {:.0} mm, v = {:.1} m/s", p[0] * 1e3, p[1])
-            } else {
-                format!("template d = {:.0} mm", p[0] * 1e3)
-            },
-            points: (0..ev.grid.len())
-                .filter(|&k| (ev.grid[k][1] - v0).abs() < 1e-9)
-                .map(|k| (ev.grid[k][0] * 1e3, ev.responsibilities[k][i]))
-                .collect(),
-            line: true,
-        })
-        .collect();
-    let title = if two {
-        format!("template responsibilities at v = {v0} m/s (cf. Fig. 7)")
-    } else {
-        "template responsibilities (cf. Fig. 7)".into()
+    // Fig. 7: responsibilities against distance, one panel per speed of the grid for e2.
+    let mut speeds: Vec<f64> = Vec::new();
+    if two {
+        for g in &ev.grid {
+            if !speeds.iter().any(|v| (v - g[1]).abs() < 1e-9) {
+                speeds.push(g[1]);
+            }
+        }
+        speeds.sort_by(f64::total_cmp);
+    }
+    let panel = |speed: Option<f64>| XyPanel {
+        caption: speed.map_or(String::new(), |v| format!("runs at v = {v:.1} m/s")),
+        sets: ev
+            .template_params
+            .iter()
+            .enumerate()
+            .map(|(i, p)| XySet {
+                label: if two {
+                    format!("template d = {:.0} mm, v = {:.1} m/s", p[0] * 1e3, p[1])
+                } else {
+                    format!("template d = {:.0} mm", p[0] * 1e3)
+                },
+                points: (0..ev.grid.len())
+                    .filter(|&k| speed.map_or(true, |v| (ev.grid[k][1] - v).abs() < 1e-9))
+                    .map(|k| (ev.grid[k][0] * 1e3, ev.responsibilities[k][i]))
+                    .collect(),
+                mark: Mark::LineDots,
+                colour: Some(i),
+            })
+            .collect(),
     };
-    files.push(xy(
-        dir,
-        "responsibilities",
-        &title,
-        "d (mm)",
-        "responsibility",
-        &sets,
-    )?);
+    let (title, panels) = if two {
+        (
+            "template responsibilities against d, one panel per speed (cf. the paper's Fig. 7)",
+            speeds.iter().map(|&v| panel(Some(v))).collect(),
+        )
+    } else {
+        (
+            "template responsibilities against d (cf. the paper's Fig. 7)",
+            vec![panel(None)],
+        )
+    };
+    figs.push((
+        "responsibilities".to_string(),
+        XyFigure {
+            title: title.into(),
+            x_desc: "d (mm)".into(),
+            y_desc: "responsibility".into(),
+            log_y: false,
+            columns: 3,
+            legend_lower_right: false,
+            panels,
+        },
+    ));
 
     // Figs. 8–10: estimated against true values, the paper's method and the best ones.
     let mut chosen = vec!["template".to_string()];
@@ -271,100 +276,55 @@ fn figures(ev: &Evaluation, dir: &Path) -> Result<Vec<PathBuf>> {
     }
     let units = [("d", "mm", 1e3), ("v", "m/s", 1.0)];
     for (u, (name, unit, f)) in units.iter().enumerate().take(ev.unknowns.len()) {
-        let mut sets: Vec<Set> = chosen
+        let mut sets: Vec<XySet> = chosen
             .iter()
             .filter_map(|n| ev.methods.iter().find(|m| &m.name == n))
-            .map(|m| Set {
+            .enumerate()
+            .map(|(i, m)| XySet {
                 label: m.name.clone(),
                 points: m
                     .predictions
                     .iter()
                     .map(|p| (p.truth[u] * f, p.estimate[u].mean * f))
                     .collect(),
-                line: false,
+                mark: Mark::Dots,
+                colour: Some(i),
             })
             .collect();
         let r = ev.experiment.ranges()[u];
-        sets.push(Set {
+        sets.push(XySet {
             label: "truth".into(),
             points: vec![(r[0] * f, r[0] * f), (r[1] * f, r[1] * f)],
-            line: true,
+            mark: Mark::Dashed,
+            colour: None,
         });
         let fig = if u == 0 { "Figs. 8, 9" } else { "Fig. 10" };
-        files.push(xy(
-            dir,
-            &format!("estimated-{name}"),
-            &format!("estimated against true {name} (cf. the paper's {fig})"),
-            &format!("true {name} ({unit})"),
-            &format!("estimated {name} ({unit})"),
-            &sets,
-        )?);
+        figs.push((
+            format!("estimated-{name}"),
+            XyFigure {
+                title: format!("estimated against true {name} (cf. the paper's {fig})"),
+                x_desc: format!("true {name} ({unit})"),
+                y_desc: format!("estimated {name} ({unit})"),
+                log_y: false,
+                columns: 1,
+                legend_lower_right: false,
+                panels: vec![XyPanel {
+                    caption: String::new(),
+                    sets,
+                }],
+            },
+        ));
+    }
+
+    // Drawn first, then renamed into place together.
+    let mut pending = Vec::new();
+    for (name, fig) in &figs {
+        pending.extend(plot::render_xy(&dir.join(format!("{name}.png")), fig)?);
+    }
+    let mut files = Vec::new();
+    for (path, file) in pending {
+        file.commit()?;
+        files.push(path);
     }
     Ok(files)
-}
-
-/// One x-y figure as `dir/name.png`.
-fn xy(dir: &Path, name: &str, title: &str, xl: &str, yl: &str, sets: &[Set]) -> Result<PathBuf> {
-    let path = dir.join(format!("{name}.png"));
-    let err = |e: &dyn std::fmt::Display| anyhow::anyhow!("drawing {}: {e}", path.display());
-    let all = sets.iter().flat_map(|s| s.points.iter());
-    let (mut x0, mut x1, mut y0, mut y1) = (
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-    );
-    for &(x, y) in all.filter(|(x, y)| x.is_finite() && y.is_finite()) {
-        (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
-    }
-    if x0.partial_cmp(&x1) != Some(std::cmp::Ordering::Less) {
-        (x0, x1) = (x0 - 1.0, x0 + 1.0);
-    }
-    let pad = ((y1 - y0) * 0.05).max(1e-12);
-    let (y0, y1) = (y0 - pad, y1 + pad);
-    {
-        let root = BitMapBackend::new(&path, (900, 600)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| err(&e))?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(title, (FAMILY, 22))
-            .margin(12)
-            .x_label_area_size(45)
-            .y_label_area_size(70)
-            .build_cartesian_2d(x0..x1, y0..y1)
-            .map_err(|e| err(&e))?;
-        chart
-            .configure_mesh()
-            .x_desc(xl)
-            .y_desc(yl)
-            .label_style((FAMILY, 14))
-            .draw()
-            .map_err(|e| err(&e))?;
-        for (i, s) in sets.iter().enumerate() {
-            let c = PALETTE[i % PALETTE.len()];
-            if s.line {
-                chart
-                    .draw_series(LineSeries::new(s.points.clone(), c.stroke_width(2)))
-                    .map_err(|e| err(&e))?
-                    .label(s.label.clone())
-                    .legend(move |(x, y)| {
-                        PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2))
-                    });
-            } else {
-                chart
-                    .draw_series(s.points.iter().map(|&p| Circle::new(p, 3, c.filled())))
-                    .map_err(|e| err(&e))?
-                    .label(s.label.clone())
-                    .legend(move |(x, y)| Circle::new((x + 10, y), 3, c.filled()));
-            }
-        }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .label_font((FAMILY, 13))
-            .draw()
-            .map_err(|e| err(&e))?;
-        root.present().map_err(|e| err(&e))?;
-    }
-    Ok(path)
 }

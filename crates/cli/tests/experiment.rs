@@ -1,4 +1,4 @@
-//! `vibrissa estimate` and `vibrissa experiment` run as a user runs them.
+//! `vibrissa estimate`, `vibrissa experiment` and `vibrissa inverse` run as a user runs them.
 
 use std::path::PathBuf;
 use std::process::Command;
@@ -139,4 +139,90 @@ fn bad_inputs_fail_with_a_clear_message() {
         .unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("needs column m0"));
+}
+
+/// An SVG file that is whole: it opens with `<svg` and closes with `</svg>`.
+fn assert_svg(path: &std::path::Path) {
+    let text = std::fs::read_to_string(path).unwrap();
+    assert!(text.trim_start().starts_with("<svg"), "{}", path.display());
+    assert!(text.trim_end().ends_with("</svg>"), "{}", path.display());
+    assert!(text.contains("<text"), "{} has no text", path.display());
+}
+
+#[test]
+fn experiment_writes_every_figure_as_png_and_svg() {
+    let dir = temp("experiment-e1");
+    let out = vibrissa()
+        .args(["experiment", "e1", "--json", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let files: Vec<&str> = v["files"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f.as_str().unwrap())
+        .collect();
+    for name in ["templates", "responsibilities", "estimated-d"] {
+        let png = dir.join(format!("{name}.png"));
+        let svg = dir.join(format!("{name}.svg"));
+        assert!(files.contains(&png.to_str().unwrap()), "{files:?}");
+        assert!(files.contains(&svg.to_str().unwrap()), "{files:?}");
+        assert!(std::fs::read(&png).unwrap().starts_with(b"\x89PNG"));
+        assert_svg(&svg);
+    }
+    // Nothing is left under a temporary name.
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let name = entry.unwrap().file_name();
+        assert!(!name.to_string_lossy().starts_with('.'), "{name:?}");
+    }
+}
+
+#[test]
+fn inverse_writes_results_and_figure() {
+    let dir = temp("inverse");
+    let out = vibrissa()
+        .args(["inverse", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // The human table is printed as before.
+    let table = String::from_utf8(out.stdout).unwrap();
+    assert!(table.contains("worst error") && table.contains("kaneko frequency"));
+
+    let v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("results.json")).unwrap()).unwrap();
+    let rows = v["rows"].as_array().unwrap();
+    for e in [
+        "moment_over_force",
+        "moment_over_transverse_force",
+        "joint_angles",
+        "chord_angles",
+        "moment_and_angle",
+        "kaneko_torque_angle",
+        "kaneko_frequency",
+    ] {
+        assert!(rows.iter().any(|r| r["estimator"] == e), "no rows for {e}");
+        assert!(
+            v["worst"].as_array().unwrap().iter().any(|w| w["id"] == e),
+            "no worst error for {e}"
+        );
+    }
+    assert_eq!(v["levels"].as_array().unwrap().len(), 5);
+    assert!(v["settings"]["rate"].as_f64().unwrap() > 0.0);
+    assert!(std::fs::read(dir.join("inverse-error.png"))
+        .unwrap()
+        .starts_with(b"\x89PNG"));
+    assert_svg(&dir.join("inverse-error.svg"));
 }
