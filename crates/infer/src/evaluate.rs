@@ -205,6 +205,7 @@ pub fn evaluate(
             (Budget::Paper, _) => (&paper, 0.0),
             (Budget::Free, "emulator") => (&free_dense, dense_seconds),
             (Budget::Free, "krr") => (&free_pooled, random_seconds + dense_seconds),
+            (Budget::Free, "krr-local") => (&free_pooled, random_seconds + dense_seconds),
             (Budget::Free, _) => (&free_random, random_seconds),
         };
         let t0 = Instant::now();
@@ -329,7 +330,7 @@ pub fn training_for(
             let random_p = experiment.random_params(random_runs(experiment), seed ^ 0x5eed);
             let mut random =
                 simulate_all(experiment, &random_p, &noise, seed.wrapping_add(1), &none)?;
-            if name == "krr" {
+            if name == "krr" || name == "krr-local" {
                 let design = Interp::design(experiment);
                 random.extend(simulate_all(
                     experiment,

@@ -8,17 +8,20 @@
 //! | `emulator` | free | the same fit between runs on a dense grid off the evaluated points |
 //! | `knn` | free | nearest neighbours among random training runs |
 //! | `krr` | free | kernel ridge regression on principal components |
+//! | `krr-local` | free | `krr` refined by a ridge regression among the runs nearest its estimate |
 //! | `shift` | free | nearest neighbours on series aligned at the contact's onset |
 
 mod interp;
 mod knn;
 mod krr;
+mod local;
 mod template;
 mod warp;
 
 pub use interp::Interp;
 pub use knn::Knn;
 pub use krr::Krr;
+pub use local::LocalKrr;
 pub use template::Template;
 pub use warp::Warp;
 
@@ -26,7 +29,7 @@ use crate::error::{Error, Result};
 use crate::method::Method;
 
 /// Names of all methods, in the order of [`all`].
-pub const NAMES: [&str; 7] = [
+pub const NAMES: [&str; 8] = [
     "template",
     "template-interp",
     "emulator",
@@ -34,6 +37,7 @@ pub const NAMES: [&str; 7] = [
     "krr",
     "shift",
     "template-warp",
+    "krr-local",
 ];
 
 /// One unfitted method by name.
@@ -46,6 +50,7 @@ pub fn by_name(name: &str) -> Result<Box<dyn Method>> {
         "krr" => Box::new(Krr::new()),
         "shift" => Box::new(Knn::shifted()),
         "template-warp" => Box::new(Warp::new()),
+        "krr-local" => Box::new(LocalKrr::new()),
         _ => {
             return Err(Error::Unknown {
                 what: "method",
@@ -71,6 +76,7 @@ pub fn describe(name: &str) -> &'static str {
         "krr" => "all channels: kernel ridge regression (RBF) on principal components of random simulated runs",
         "shift" => "all channels aligned at the contact's onset (first |theta12| above a threshold): nearest neighbours, invariant to when contact starts",
         "template-warp" => "all channels: least-squares fit of an interpolation between the templates registered at the contact's rise and first zero crossing (travel v·t interpolated), weights linear in sqrt(L - d) and v",
+        "krr-local" => "all channels: krr's estimate refined by ridge regression on principal components of the nearest runs in parameter space (series optionally registered to the estimated travel), settings chosen on held-out training runs",
         _ => "",
     }
 }
