@@ -90,24 +90,7 @@ impl Interp {
             method: name.into(),
             detail,
         };
-        let mut ds: Vec<f64> = samples.iter().map(|s| s.params[0]).collect();
-        let mut vs: Vec<f64> = if unknowns == 2 {
-            samples.iter().map(|s| s.params[1]).collect()
-        } else {
-            vec![0.0]
-        };
-        for x in [&mut ds, &mut vs] {
-            x.sort_by(|a, b| a.total_cmp(b));
-            x.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
-        }
-        if ds.len() < 2 || ds.len() * vs.len() != samples.len() {
-            return Err(fail(format!(
-                "needs runs that fill a grid ({} runs for {} × {} values)",
-                samples.len(),
-                ds.len(),
-                vs.len()
-            )));
-        }
+        let (ds, vs) = grid_axes(samples, unknowns, 0.0, name)?;
         let channels: Vec<usize> = (0..CHANNELS.len()).collect();
         self.scales = channel_scales(samples, &channels);
         let mut nodes = vec![vec![Vec::new(); ds.len()]; vs.len()];
@@ -363,4 +346,37 @@ impl Method for Interp {
         }
         s
     }
+}
+
+/// The distinct distances and speeds of runs that fill a rectangle of parameters (`speed` stands
+/// for the single speed of a one-unknown experiment), ascending; an error naming `method` if they
+/// do not fill it.
+pub(crate) fn grid_axes(
+    samples: &[Sample],
+    unknowns: usize,
+    speed: f64,
+    method: &str,
+) -> Result<(Vec<f64>, Vec<f64>)> {
+    let mut ds: Vec<f64> = samples.iter().map(|s| s.params[0]).collect();
+    let mut vs: Vec<f64> = if unknowns == 2 {
+        samples.iter().map(|s| s.params[1]).collect()
+    } else {
+        vec![speed]
+    };
+    for x in [&mut ds, &mut vs] {
+        x.sort_by(|a, b| a.total_cmp(b));
+        x.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
+    }
+    if ds.len() < 2 || ds.len() * vs.len() != samples.len() {
+        return Err(Error::Fit {
+            method: method.into(),
+            detail: format!(
+                "needs runs that fill a grid ({} runs for {} × {} values)",
+                samples.len(),
+                ds.len(),
+                vs.len()
+            ),
+        });
+    }
+    Ok((ds, vs))
 }

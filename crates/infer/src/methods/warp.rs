@@ -168,24 +168,12 @@ impl Warp {
             method: "template-warp".into(),
             detail,
         };
-        let mut ds: Vec<f64> = samples.iter().map(|s| s.params[0]).collect();
-        let mut vs: Vec<f64> = if unknowns == 2 {
-            samples.iter().map(|s| s.params[1]).collect()
-        } else {
-            vec![crate::experiment::E1_SPEED]
-        };
-        for x in [&mut ds, &mut vs] {
-            x.sort_by(|a, b| a.total_cmp(b));
-            x.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
-        }
-        if ds.len() < 2 || ds.len() * vs.len() != samples.len() {
-            return Err(fail(format!(
-                "needs runs that fill a grid ({} runs for {} × {} values)",
-                samples.len(),
-                ds.len(),
-                vs.len()
-            )));
-        }
+        let (ds, vs) = super::interp::grid_axes(
+            samples,
+            unknowns,
+            crate::experiment::E1_SPEED,
+            "template-warp",
+        )?;
         let channels: Vec<usize> = (0..CHANNELS.len()).collect();
         self.scales = channel_scales(samples, &channels);
         let mut nodes = vec![vec![Vec::new(); ds.len()]; vs.len()];
