@@ -337,14 +337,7 @@ impl Method for Interp {
     }
 
     fn settings(&self) -> Vec<(String, f64)> {
-        let mut s = vec![(
-            "grid_runs".into(),
-            (self.d_nodes.len() * self.v_nodes.len()) as f64,
-        )];
-        for (u, f) in self.factors.iter().enumerate() {
-            s.push((format!("std_factor_{u}"), *f));
-        }
-        s
+        super::interp::grid_settings(&self.d_nodes, &self.v_nodes, &self.factors)
     }
 }
 
@@ -379,4 +372,17 @@ pub(crate) fn grid_axes(
         });
     }
     Ok((ds, vs))
+}
+
+/// Settings reported by the grid-interpolating methods: grid size and interval scale factors.
+pub(crate) fn grid_settings(
+    d_nodes: &[f64],
+    v_nodes: &[f64],
+    factors: &[f64],
+) -> Vec<(String, f64)> {
+    let mut s = vec![("grid_runs".into(), (d_nodes.len() * v_nodes.len()) as f64)];
+    for (u, f) in factors.iter().enumerate() {
+        s.push((format!("std_factor_{u}"), *f));
+    }
+    s
 }

@@ -410,14 +410,7 @@ impl Method for Warp {
     }
 
     fn settings(&self) -> Vec<(String, f64)> {
-        let mut s = vec![(
-            "grid_runs".into(),
-            (self.d_nodes.len() * self.v_nodes.len()) as f64,
-        )];
-        for (u, f) in self.factors.iter().enumerate() {
-            s.push((format!("std_factor_{u}"), *f));
-        }
-        s
+        super::interp::grid_settings(&self.d_nodes, &self.v_nodes, &self.factors)
     }
 }
 
