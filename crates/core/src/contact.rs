@@ -295,9 +295,14 @@ pub(crate) fn solve(
         let pose = obj.pose(t0);
         let pose_end = obj.pose(t_end);
         // Reach: how far the object and the whisker can close in a step, plus the radius.
-        let speed = pose.velocity[0].hypot(pose.velocity[1]) + pose.angular_velocity.abs() * 0.1;
+        let speed = (pose.velocity[0] * pose.velocity[0] + pose.velocity[1] * pose.velocity[1])
+            .sqrt()
+            + pose.angular_velocity.abs() * 0.1;
         let wmax = ws.seg[..n].iter().fold(0.0f64, |m, s| {
-            m.max(s.vel[1].hypot(s.vel[2]) + s.vel[0].abs() * model.whisker_length())
+            m.max(
+                (s.vel[1] * s.vel[1] + s.vel[2] * s.vel[2]).sqrt()
+                    + s.vel[0].abs() * model.whisker_length(),
+            )
         });
         let reach = rmax + 2.0 * h * (speed + wmax) + 1e-6;
         let ob = bounds(&obj.shape, &pose);
@@ -311,6 +316,15 @@ pub(crate) fn solve(
         let mut prev_tip: Option<[f64; 2]> = None;
         for i in 0..n {
             let (a, b) = (ws.node[i], ws.node[i + 1]);
+            // A segment whose bounding box is beyond reach of the object's cannot touch it.
+            if a[0].min(b[0]) > ob[2] + reach
+                || a[0].max(b[0]) < ob[0] - reach
+                || a[1].min(b[1]) > ob[3] + reach
+                || a[1].max(b[1]) < ob[1] - reach
+            {
+                prev_tip = None;
+                continue;
+            }
             // Candidates: the segment's nearest point, and its far node when that is near too (a
             // segment lying along a face touches it at both ends). A node shared with the previous
             // segment is taken once.
@@ -391,30 +405,18 @@ pub(crate) fn solve(
         return Ok(());
     }
 
-    // Generalised forces of unit normal/tangential forces and their responses (M + A)⁻¹ J.
+    // Generalised forces of unit normal/tangential forces, J.
     let mut jac = std::mem::take(&mut ws.contacts.jac);
     let mut resp = std::mem::take(&mut ws.contacts.resp);
     let mut u = std::mem::take(&mut ws.contacts.u);
     for k in 0..count {
         let c = ws.contacts.cand[k];
-        let rows: &[(usize, [f64; 2])] = if c.mu > 0.0 {
-            &[(2 * k, c.n), (2 * k + 1, c.t)]
+        generalised(ws, c.seg, c.point, c.n, &mut jac[2 * k * n..(2 * k + 1) * n]);
+        let jt = &mut jac[(2 * k + 1) * n..(2 * k + 2) * n];
+        if c.mu > 0.0 {
+            generalised(ws, c.seg, c.point, c.t, jt);
         } else {
-            &[(2 * k, c.n)]
-        };
-        if c.mu == 0.0 {
-            jac[(2 * k + 1) * n..(2 * k + 2) * n].fill(0.0);
-            resp[(2 * k + 1) * n..(2 * k + 2) * n].fill(0.0);
-        }
-        for &(r, dir) in rows {
-            let row = &mut jac[r * n..(r + 1) * n];
-            generalised(ws, c.seg, c.point, dir, row);
-            apply_inverse(
-                ws,
-                &jac[r * n..(r + 1) * n],
-                &mut u,
-                &mut resp[r * n..(r + 1) * n],
-            );
+            jt.fill(0.0);
         }
     }
 
@@ -447,32 +449,70 @@ pub(crate) fn solve(
         c.g_pred = c.c_n;
         c.c_n = c.c_v;
     }
+    // Only active candidates take force: their responses (M + A)⁻¹ Jᵀ, and the Delassus columns
+    // they own. Rows stay complete, for the gaps that post-stabilisation checks.
+    let mut act = [0usize; MAX_CONTACTS];
+    let mut na = 0;
+    for k in 0..count {
+        if sc.cand[k].active {
+            act[na] = k;
+            na += 1;
+        }
+    }
+    let act = &act[..na];
+    for &k in act {
+        let mu = ws.contacts.cand[k].mu;
+        let rows: &[usize] = if mu > 0.0 {
+            &[2 * k, 2 * k + 1]
+        } else {
+            &[2 * k]
+        };
+        for &r in rows {
+            apply_inverse(
+                ws,
+                &jac[r * n..(r + 1) * n],
+                &mut u,
+                &mut resp[r * n..(r + 1) * n],
+            );
+        }
+        if mu == 0.0 {
+            resp[(2 * k + 1) * n..(2 * k + 2) * n].fill(0.0);
+        }
+    }
+    let sc = &mut ws.contacts;
     // Delassus matrix: every row is a velocity at the end of the step. An impact's force changes
     // the rates by h times its acceleration; a lasting contact's force is integrated like any
     // other force (by the method's own weights).
     for r in 0..m {
-        for col in 0..m {
-            let scale = if sc.cand[col / 2].impact { h } else { cv };
-            sc.w[r * m + col] =
-                scale * dot(&jac[r * n..(r + 1) * n], &resp[col * n..(col + 1) * n]);
+        for &k in act {
+            let scale = if sc.cand[k].impact { h } else { cv };
+            for col in [2 * k, 2 * k + 1] {
+                sc.w[r * m + col] =
+                    scale * dot(&jac[r * n..(r + 1) * n], &resp[col * n..(col + 1) * n]);
+            }
         }
     }
 
-    // Projected Gauss–Seidel on the complementarity problem.
-    for _ in 0..2000 {
+    // Frictionless contacts: the complementarity problem solved exactly by pivoting on the active
+    // set; with friction (or if pivoting fails), projected Gauss–Seidel over the active candidates.
+    let frictionless = act.iter().all(|&k| sc.cand[k].mu == 0.0);
+    let pivoted = frictionless && pivot_normal(sc, act, m);
+    let sweeps = if pivoted { 0 } else { 2000 };
+    for _ in 0..sweeps {
+
         let mut change = 0.0f64;
-        for k in 0..count {
+        for &k in act {
             let (rn, rt) = (2 * k, 2 * k + 1);
             // Normal: gap at the end of the step >= 0, force >= 0.
             let mut g = sc.cand[k].c_n;
-            for j in 0..count {
+            for &j in act {
                 g += sc.w[rn * m + 2 * j] * sc.cand[j].lambda_n
                     + sc.w[rn * m + 2 * j + 1] * sc.cand[j].lambda_t;
             }
             let old = sc.cand[k].lambda_n;
             let diag = sc.w[rn * m + rn];
-            // Inactive contacts, and points the whisker cannot move (the clamped base), take none.
-            let new = if diag > 0.0 && sc.cand[k].active {
+            // Points the whisker cannot move (the clamped base) take none.
+            let new = if diag > 0.0 {
                 (old - g / diag).max(0.0)
             } else {
                 0.0
@@ -482,7 +522,7 @@ pub(crate) fn solve(
             // Tangential: no slip while |λt| < μ λn.
             if sc.cand[k].mu > 0.0 && sc.w[rt * m + rt] > 0.0 {
                 let mut s = sc.cand[k].c_t;
-                for j in 0..count {
+                for &j in act {
                     s += sc.w[rt * m + 2 * j] * sc.cand[j].lambda_n
                         + sc.w[rt * m + 2 * j + 1] * sc.cand[j].lambda_t;
                 }
@@ -495,9 +535,9 @@ pub(crate) fn solve(
                 sc.cand[k].lambda_t = 0.0;
             }
         }
-        let scale = sc.cand[..count]
+        let scale = act
             .iter()
-            .fold(1e-30f64, |a, c| a.max(c.lambda_n));
+            .fold(1e-30f64, |a, &k| a.max(sc.cand[k].lambda_n));
         if change <= 1e-12 * scale {
             break;
         }
@@ -549,6 +589,95 @@ pub(crate) fn solve(
     Ok(())
 }
 
+/// Solves the frictionless complementarity problem `g = c + W λ ≥ 0, λ ≥ 0, gᵀλ = 0` on the
+/// normal rows of the active candidates `act` by principal pivoting on the set of contacts that
+/// carry force: solve for that set with the others free, drop the most negative force or add the
+/// most penetrating free contact, repeat. Exact for the few contacts a whisker has at once; returns
+/// false (leaving λ = 0) if it does not settle within its pivot budget or meets a singular set.
+#[allow(clippy::needless_range_loop)]
+fn pivot_normal(sc: &mut Scratch, act: &[usize], m: usize) -> bool {
+    let na = act.len();
+    let wn = |sc: &Scratch, a: usize, b: usize| sc.w[2 * act[a] * m + 2 * act[b]];
+    let tol = 1e-12 * act.iter().fold(1e-300f64, |a, &k| a.max(sc.cand[k].c_n.abs()));
+    let mut set = [false; MAX_CONTACTS];
+    let mut lambda = [0.0f64; MAX_CONTACTS];
+    // Start from every contact that closes without force of the others.
+    for a in 0..na {
+        set[a] = sc.cand[act[a]].c_n < 0.0;
+    }
+    for _ in 0..4 * MAX_CONTACTS {
+        // Dense solve of W_SS λ_S = −c_S (Gaussian elimination, partial pivoting).
+        let mut map = [0usize; MAX_CONTACTS];
+        let mut ns = 0;
+        for a in 0..na {
+            if set[a] {
+                map[ns] = a;
+                ns += 1;
+            }
+        }
+        let mut mat = [[0.0f64; MAX_CONTACTS + 1]; MAX_CONTACTS];
+        for i in 0..ns {
+            for j in 0..ns {
+                mat[i][j] = wn(sc, map[i], map[j]);
+            }
+            mat[i][ns] = -sc.cand[act[map[i]]].c_n;
+        }
+        let scale = (0..ns).fold(f64::MIN_POSITIVE, |a, i| a.max(mat[i][i].abs()));
+        for col in 0..ns {
+            let piv = (col..ns)
+                .max_by(|&a, &b| mat[a][col].abs().total_cmp(&mat[b][col].abs()))
+                .unwrap_or(col);
+            let p = mat[piv][col].abs();
+            if p.is_nan() || p <= 1e-12 * scale {
+                return false;
+            }
+            mat.swap(col, piv);
+            for r in col + 1..ns {
+                let f = mat[r][col] / mat[col][col];
+                for c in col..=ns {
+                    mat[r][c] -= f * mat[col][c];
+                }
+            }
+        }
+        lambda[..na].fill(0.0);
+        for i in (0..ns).rev() {
+            let mut x = mat[i][ns];
+            for j in i + 1..ns {
+                x -= mat[i][j] * lambda[map[j]];
+            }
+            lambda[map[i]] = x / mat[i][i];
+        }
+        // A contact in the set pulling: drop the most negative.
+        let worst = (0..na)
+            .filter(|&a| set[a])
+            .min_by(|&a, &b| lambda[a].total_cmp(&lambda[b]));
+        if let Some(a) = worst.filter(|&a| lambda[a] < 0.0) {
+            set[a] = false;
+            continue;
+        }
+        // A free contact penetrating: add the deepest.
+        let gap = |a: usize| {
+            sc.cand[act[a]].c_n + (0..na).map(|b| wn(sc, a, b) * lambda[b]).sum::<f64>()
+        };
+        let deepest = (0..na)
+            .filter(|&a| !set[a])
+            .map(|a| (a, gap(a)))
+            .min_by(|x, y| x.1.total_cmp(&y.1));
+        match deepest {
+            Some((a, g)) if g < -tol => set[a] = true,
+            _ => {
+                for a in 0..na {
+                    let c = &mut sc.cand[act[a]];
+                    c.lambda_n = lambda[a].max(0.0);
+                    c.lambda_t = 0.0;
+                }
+                return true;
+            }
+        }
+    }
+    false
+}
+
 /// Moves the end-of-step angles along the static compliance `K⁻¹Jᵀ` just enough to close any gap
 /// the contact impulses left negative (see [`solve`]).
 #[allow(clippy::needless_range_loop)]
@@ -568,6 +697,10 @@ fn post_stabilise(
         let rn = 2 * k;
         *g = sc.cand[k].g_pred;
         for (j, cj) in sc.cand[..count].iter().enumerate() {
+            // Columns without force are not filled in.
+            if cj.lambda_n == 0.0 && cj.lambda_t == 0.0 {
+                continue;
+            }
             // From a column's rate change to its position change: h/2 (impact), β·h/γ (lasting).
             let f = if cj.impact {
                 to_position[0]

@@ -434,20 +434,26 @@ fn cross(p: [f64; 2], q: [f64; 2]) -> f64 {
     p[0] * q[1] - p[1] * q[0]
 }
 
+/// Euclidean length of `v` (plain square root: lengths here are far from overflow, and libm's
+/// `hypot` costs several times more in the narrow phase).
+fn norm(v: [f64; 2]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1]).sqrt()
+}
+
 fn along(a: [f64; 2], d: [f64; 2], u: f64) -> [f64; 2] {
     [a[0] + u * d[0], a[1] + u * d[1]]
 }
 
 /// Unit left normal of the segment `a → a + d`.
 fn left_normal(d: [f64; 2]) -> [f64; 2] {
-    let len = d[0].hypot(d[1]);
+    let len = norm(d);
     [-d[1] / len, d[0] / len]
 }
 
 /// Unit outward normal of the edge `v0 → v1` of a counter-clockwise polygon.
 fn outward_normal(v0: [f64; 2], v1: [f64; 2]) -> [f64; 2] {
     let e = sub(v1, v0);
-    let len = e[0].hypot(e[1]);
+    let len = norm(e);
     [e[1] / len, -e[0] / len]
 }
 
@@ -467,7 +473,7 @@ fn closest_circle(radius: f64, a: [f64; 2], b: [f64; 2]) -> Closest {
     let d = sub(b, a);
     let u = (-dot(a, d) / dot(d, d)).clamp(0.0, 1.0);
     let p = along(a, d, u);
-    let r = p[0].hypot(p[1]);
+    let r = norm(p);
     // Radial normal; the segment's left normal when the axis passes through the centre.
     let normal = if r > 0.0 {
         [p[0] / r, p[1] / r]
@@ -539,7 +545,7 @@ fn polygon_apart(v: &[[f64; 2]], a: [f64; 2], b: [f64; 2], tol: f64) -> Closest 
             let t = (dot(sub(p, v0), e) / dot(e, e)).clamp(0.0, 1.0);
             let q = along(v0, e, t);
             let gap = sub(p, q);
-            let dist = gap[0].hypot(gap[1]);
+            let dist = norm(gap);
             // Edge normal facing an edge's interior, else from the vertex to the endpoint.
             let normal = if (t > 0.0 && t < 1.0) || dist == 0.0 {
                 outward_normal(v0, v1)
