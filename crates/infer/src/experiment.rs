@@ -255,9 +255,24 @@ pub fn clean_ranges() -> Result<[f64; 5]> {
 
 /// Simulates one run of `experiment` at `(d, v)` with `noise`, seeded by `seed`.
 pub fn simulate(experiment: Experiment, p: [f64; 2], noise: &Noise, seed: u64) -> Result<Sample> {
+    simulate_delayed(experiment, p, 0.0, noise, seed)
+}
+
+/// [`simulate`] with the recording started `delay` seconds before the run's t = 0: the box
+/// starts `v·delay` farther away and the series is `delay` longer (151 + 1000·delay samples).
+pub fn simulate_delayed(
+    experiment: Experiment,
+    p: [f64; 2],
+    delay: f64,
+    noise: &Noise,
+    seed: u64,
+) -> Result<Sample> {
     let [d, v] = p;
+    let mut object = e2_box(d, v);
+    object.position[1] -= v * delay;
     let scenario = Scenario {
-        objects: vec![e2_box(d, v)],
+        objects: vec![object],
+        duration: 0.15 + delay,
         process_noise: noise.process,
         sensor_noise: SensorNoise {
             theta01: noise.sensor[0],

@@ -14,6 +14,7 @@ pub mod experiment;
 pub mod features;
 pub mod method;
 pub mod methods;
+pub mod pf;
 
 pub use error::{Error, Result};
 pub use evaluate::{evaluate, training_for, Evaluation, MethodResult};

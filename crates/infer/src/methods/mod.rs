@@ -10,6 +10,7 @@
 //! | `krr` | free | kernel ridge regression on principal components |
 //! | `krr-local` | free | `krr` refined by a ridge regression among the runs nearest its estimate |
 //! | `shift` | free | nearest neighbours on series aligned at the contact's onset |
+//! | `pf` | free | particle filter with the whisker physics as its transition model ([`crate::pf`]) |
 
 mod interp;
 mod knn;
@@ -28,8 +29,12 @@ pub use warp::Warp;
 use crate::error::{Error, Result};
 use crate::method::Method;
 
+/// Particles of `pf` when it is built by name (the experiments' tables); `vibrissa estimate
+/// --method pf --particles N` sets its own.
+pub const TABLE_PARTICLES: usize = 250;
+
 /// Names of all methods, in the order of [`all`].
-pub const NAMES: [&str; 8] = [
+pub const NAMES: [&str; 9] = [
     "template",
     "template-interp",
     "emulator",
@@ -38,6 +43,7 @@ pub const NAMES: [&str; 8] = [
     "shift",
     "template-warp",
     "krr-local",
+    "pf",
 ];
 
 /// One unfitted method by name.
@@ -51,6 +57,7 @@ pub fn by_name(name: &str) -> Result<Box<dyn Method>> {
         "shift" => Box::new(Knn::shifted()),
         "template-warp" => Box::new(Warp::new()),
         "krr-local" => Box::new(LocalKrr::new()),
+        "pf" => Box::new(crate::pf::Pf::new(TABLE_PARTICLES)),
         _ => {
             return Err(Error::Unknown {
                 what: "method",
@@ -77,6 +84,7 @@ pub fn describe(name: &str) -> &'static str {
         "shift" => "all channels aligned at the contact's onset (first |theta12| above a threshold): nearest neighbours, invariant to when contact starts",
         "template-warp" => "all channels: least-squares fit of an interpolation between the templates registered at the contact's rise and first zero crossing (travel v·t interpolated), weights linear in sqrt(L - d) and v",
         "krr-local" => "all channels: krr's estimate refined by ridge regression on principal components of the nearest runs in parameter space (series optionally registered to the estimated travel), settings chosen on held-out training runs",
+        "pf" => "all channels: particle filter whose transitions are the whisker physics; posterior over the object's state at the last sample",
         _ => "",
     }
 }

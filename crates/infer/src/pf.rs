@@ -1,0 +1,1005 @@
+//! Generative inference: a particle filter whose transition model is the whisker physics (the
+//! seed paper's dynamic Bayesian network, its Fig. 5).
+//!
+//! Hidden state of a particle: the whisker's joint angles, rates and accelerations (a core
+//! [`State`]) and the object's state: the box's near edge `d` (m), the height of its top face at
+//! the current time `y` (m), its speed `v` (m/s) and, when asked for, its size (m) and friction
+//! coefficient. Transition: physics steps of the core with seeded process noise on every
+//! segment; the object moves at constant speed between resamplings, where its state takes a
+//! small random step (see below). Observation: any set of the contract's channels `theta01`,
+//! `theta12`, `m0`, `fx`, `fy` with independent Gaussian noise of a stated standard deviation per
+//! channel.
+//!
+//! Static unknowns get a Liu–West kernel move at every resampling: each resampled particle's
+//! object parameters are shrunk toward the weighted mean by `a` and jittered with covariance
+//! `(1 − a²)` times the weighted covariance, so the cloud's mean and spread are kept while its
+//! points become distinct again. The object's position stays continuous through a move (the
+//! whisker state remains consistent with it); its start time is derived from position and
+//! speed. Resampling is systematic, when the effective sample size falls below a fraction of
+//! the particle count. Every random number comes from a stream indexed by particle and
+//! generation, so a run gives the same bits whatever the number of threads.
+
+use crate::error::{Error, Result};
+use crate::experiment::CHANNELS;
+use crate::method::{Estimate, Z90};
+use rayon::prelude::*;
+use serde::Serialize;
+use vibrissa_core::chain::{Discretisation, Model};
+use vibrissa_core::dynamics::{initialize, step, Inputs, Integrator, State, Workspace};
+use vibrissa_core::objects::{Motion, Object, Shape};
+use vibrissa_core::rng::Rng;
+use vibrissa_core::sensors::Sensors;
+use vibrissa_core::whisker::WhiskerParams;
+
+/// Names of the object's unknowns, in the order of [`Config::priors`]: near-edge distance `d`
+/// (m), speed `v` (m/s), start delay of the approach `t0` (s), box side `size` (m) and friction
+/// coefficient `mu`.
+pub const PARAMS: [&str; 5] = ["d", "v", "t0", "size", "mu"];
+
+/// A uniform prior on `[lo, hi]`; `lo == hi` fixes the parameter.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Prior {
+    /// Lower end.
+    pub lo: f64,
+    /// Upper end.
+    pub hi: f64,
+}
+
+impl Prior {
+    /// A fixed value.
+    pub fn fixed(x: f64) -> Prior {
+        Prior { lo: x, hi: x }
+    }
+    /// Uniform on `[lo, hi]`.
+    pub fn uniform(lo: f64, hi: f64) -> Prior {
+        Prior { lo, hi }
+    }
+    /// Whether the parameter is unknown.
+    pub fn is_free(&self) -> bool {
+        self.hi > self.lo
+    }
+}
+
+/// Proposals from a discriminative estimate mixed into the initial particles (hypothesis
+/// injection): a `fraction` of the particles is drawn from a normal around `mean` with `std`
+/// (per unknown `d`, `v`; truncated to the prior), and every particle is weighted by
+/// prior / mixture density, so the filter's posterior is unchanged in expectation.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Injection {
+    /// Share of the particles drawn from the proposal, in (0, 1).
+    pub fraction: f64,
+    /// Proposal means of `d` (m) and `v` (m/s).
+    pub mean: [f64; 2],
+    /// Proposal standard deviations of `d` and `v`.
+    pub std: [f64; 2],
+}
+
+/// Settings of a filter run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Config {
+    /// Number of particles (≥ 1).
+    pub particles: usize,
+    /// Seed of every random stream.
+    pub seed: u64,
+    /// The whisker.
+    pub whisker: WhiskerParams,
+    /// Segments of the chain (must match the one that produced the observations).
+    pub segments: usize,
+    /// Time step of the transition model, s (shortened to divide the sample period).
+    pub dt: f64,
+    /// Geometric iterations per step of the transition model.
+    pub max_iterations: usize,
+    /// Observed channels, indices into [`CHANNELS`].
+    pub channels: Vec<usize>,
+    /// Observation noise standard deviation per channel of [`CHANNELS`], SI.
+    pub sigma: [f64; 5],
+    /// Process-noise intensity on every segment, N·s^½·m^-½.
+    pub process_noise: f64,
+    /// Liu–West shrinkage `a` in (0, 1].
+    pub shrink: f64,
+    /// Resample when the effective sample size falls below this fraction of the particles.
+    pub ess_fraction: f64,
+    /// Priors of [`PARAMS`].
+    pub priors: [Prior; 5],
+    /// Gap between the box's top face and the whisker when the approach starts, m.
+    pub gap: f64,
+    /// Hypothesis injection, if any.
+    pub injection: Option<Injection>,
+}
+
+impl Config {
+    /// The `e2` family: d ∈ [15, 30] mm, v ∈ [0.3, 1.5] m/s, known start, 10 mm frictionless box,
+    /// the `w30` whisker with 20 segments, all five channels with noise `sigma`.
+    pub fn e2(sigma: [f64; 5], particles: usize, seed: u64) -> Config {
+        Config {
+            particles,
+            seed,
+            whisker: WhiskerParams::w30(),
+            segments: 20,
+            dt: 2.5e-4,
+            max_iterations: 1,
+            channels: (0..CHANNELS.len()).collect(),
+            sigma,
+            process_noise: crate::experiment::PROCESS_NOISE,
+            shrink: 0.98,
+            ess_fraction: 0.5,
+            priors: [
+                Prior::uniform(0.015, 0.030),
+                Prior::uniform(0.3, 1.5),
+                Prior::fixed(0.0),
+                Prior::fixed(0.010),
+                Prior::fixed(0.0),
+            ],
+            gap: 1e-3,
+            injection: None,
+        }
+    }
+
+    /// Checks every setting, naming the first bad one.
+    pub fn check(&self) -> Result<()> {
+        let bad = |field: &str, allowed: &str| {
+            Err(Error::Observation(format!(
+                "filter setting `{field}`: expected {allowed}"
+            )))
+        };
+        if self.particles == 0 {
+            return bad("particles", "at least 1 particle");
+        }
+        if !(self.dt > 0.0 && self.dt <= 1e-3) {
+            return bad("dt", "a model time step in (0, 1 ms]");
+        }
+        if self.max_iterations == 0 {
+            return bad("max_iterations", "at least 1");
+        }
+        if self.channels.is_empty() || self.channels.iter().any(|&c| c >= CHANNELS.len()) {
+            return bad("channels", "one or more of theta01, theta12, m0, fx, fy");
+        }
+        for &c in &self.channels {
+            let s = self.sigma[c];
+            if !(s.is_finite() && s > 0.0) {
+                return bad(
+                    CHANNELS[c],
+                    "a finite observation noise > 0 for every observed channel",
+                );
+            }
+        }
+        if !(self.shrink > 0.0 && self.shrink <= 1.0) {
+            return bad("shrink", "a Liu–West shrinkage in (0, 1]");
+        }
+        if !(0.0..=1.0).contains(&self.ess_fraction) {
+            return bad("ess_fraction", "a fraction in [0, 1]");
+        }
+        let ranges = [
+            (0.0, f64::INFINITY),
+            (1e-6, f64::INFINITY),
+            (0.0, f64::INFINITY),
+            (1e-6, f64::INFINITY),
+            (0.0, 10.0),
+        ];
+        for (k, p) in self.priors.iter().enumerate() {
+            let (lo, hi) = ranges[k];
+            if !(p.lo.is_finite() && p.hi.is_finite() && p.lo <= p.hi && p.lo >= lo && p.hi <= hi) {
+                return bad(
+                    PARAMS[k],
+                    "a prior range lo <= hi, finite, within the parameter's physical range",
+                );
+            }
+        }
+        if let Some(inj) = &self.injection {
+            if !(inj.fraction > 0.0 && inj.fraction < 1.0)
+                || inj.std.iter().any(|s| !(s.is_finite() && *s > 0.0))
+                || inj.mean.iter().any(|m| !m.is_finite())
+            {
+                return bad(
+                    "injection",
+                    "a fraction in (0, 1), finite means and stds > 0",
+                );
+            }
+        }
+        Ok(())
+    }
+
+    /// Names of the free unknowns.
+    pub fn unknowns(&self) -> Vec<&'static str> {
+        (0..PARAMS.len())
+            .filter(|&k| self.priors[k].is_free())
+            .map(|k| PARAMS[k])
+            .collect()
+    }
+}
+
+/// Observations: sample times and channel values (`NaN` where a sample is missing).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Observations {
+    /// Sample times, s, increasing, starting at 0.
+    pub t: Vec<f64>,
+    /// `[CHANNELS][samples]`; channels that are not observed may be empty.
+    pub values: Vec<Vec<f64>>,
+}
+
+impl Observations {
+    /// Observations at 1 kHz from channel-major series.
+    pub fn at_rate(values: Vec<Vec<f64>>, rate: f64) -> Observations {
+        let n = values.iter().map(Vec::len).max().unwrap_or(0);
+        Observations {
+            t: (0..n).map(|k| k as f64 / rate).collect(),
+            values,
+        }
+    }
+}
+
+/// The posterior of one sample.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TraceRow {
+    /// Sample time, s.
+    pub t: f64,
+    /// Effective sample size before any resampling at this sample.
+    pub ess: f64,
+    /// Per free unknown: the posterior summary.
+    pub estimates: Vec<Estimate>,
+}
+
+/// What a filter run returns.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Posterior {
+    /// Names of the free unknowns, in the order of every [`TraceRow::estimates`].
+    pub unknowns: Vec<&'static str>,
+    /// One row per sample.
+    pub trace: Vec<TraceRow>,
+    /// Samples whose channel values were missing (`NaN`) and skipped, counted per value.
+    pub skipped: usize,
+    /// Resampling events.
+    pub resamples: usize,
+    /// Particle steps that diverged (those particles got weight zero).
+    pub diverged: usize,
+    /// Physics steps taken over all particles.
+    pub steps: u64,
+}
+
+impl Posterior {
+    /// The posterior at the last sample.
+    pub fn last(&self) -> &[Estimate] {
+        self.trace.last().map(|r| &r.estimates[..]).unwrap_or(&[])
+    }
+}
+
+/// The object's state of one particle: `[d, v, y0, size, mu]` with `y0` the height of the top
+/// face at t = 0 (its trajectory is `y0 + v·t`).
+type ObjState = [f64; 5];
+
+const Y: usize = 2;
+
+/// The particle's box.
+fn object_of(o: &ObjState) -> Object {
+    let [d, v, y0, size, mu] = *o;
+    Object {
+        shape: Shape::Box {
+            width: size,
+            height: size,
+        },
+        position: [d + 0.5 * size, y0 - 0.5 * size],
+        angle: 0.0,
+        motion: Motion::Constant {
+            velocity: [0.0, v],
+            angular_velocity: 0.0,
+        },
+        friction: mu,
+    }
+}
+
+/// Start delay of the approach: the top face is `gap` below the whisker at `t0`.
+fn start_delay(o: &ObjState, gap: f64) -> f64 {
+    -(o[Y] + gap) / o[1]
+}
+
+/// The filter's reported value of unknown `k` for a particle.
+fn param(o: &ObjState, k: usize, gap: f64) -> f64 {
+    match k {
+        2 => start_delay(o, gap),
+        _ => o[k],
+    }
+}
+
+/// Stream indices: particles' process noise, their moves, the resampling draws, the prior.
+const STREAM_NOISE: u64 = 1 << 40;
+const STREAM_MOVE: u64 = 2 << 40;
+const STREAM_RESAMPLE: u64 = 3 << 40;
+const STREAM_PRIOR: u64 = 4 << 40;
+
+/// Runs the filter over `obs`, one sample at a time, calling `progress` with the fraction done.
+pub fn run(
+    config: &Config,
+    obs: &Observations,
+    progress: &mut dyn FnMut(f64),
+) -> Result<Posterior> {
+    config.check()?;
+    check_observations(config, obs)?;
+    let whisker = config
+        .whisker
+        .check()
+        .map_err(|e| Error::Observation(format!("filter whisker: {e}")))?;
+    let model = Model::new(&whisker, config.segments, Discretisation::default())
+        .map_err(|e| Error::Observation(format!("filter model: {e}")))?;
+    let np = config.particles;
+    let period = obs.t.get(1).map_or(1e-3, |t1| t1 - obs.t[0]);
+    let per_sample = ((period / config.dt) * (1.0 - 1e-9)).ceil().max(1.0) as usize;
+    let stepper = Integrator {
+        dt: period / per_sample as f64,
+        max_iterations: config.max_iterations,
+        ..Integrator::default()
+    }
+    .check()
+    .map_err(|e| Error::Observation(format!("filter integrator: {e}")))?;
+
+    // Initial particles: the whisker at rest, the object drawn from the prior (or the mixture
+    // with the injected proposal).
+    let mut template = State::at_rest(&model, config.seed);
+    let mut ws = Workspace::new(&model);
+    initialize(
+        &model,
+        &mut template,
+        &Inputs {
+            base: Default::default(),
+            loads: &[],
+            noise: 0.0,
+            objects: &[],
+        },
+        &mut ws,
+    )
+    .map_err(|e| Error::Observation(format!("filter initial state: {e}")))?;
+    let mut states: Vec<State> = (0..np)
+        .map(|i| {
+            let mut s = template.clone();
+            s.rng = Rng::stream(config.seed, STREAM_NOISE + i as u64);
+            s
+        })
+        .collect();
+    let mut objs: Vec<ObjState> = Vec::with_capacity(np);
+    let mut logw: Vec<f64> = Vec::with_capacity(np);
+    for i in 0..np {
+        let mut rng = Rng::stream(config.seed, STREAM_PRIOR + i as u64);
+        let (o, lw) = draw_initial(config, &mut rng);
+        objs.push(o);
+        logw.push(lw);
+    }
+
+    let free: Vec<usize> = (0..PARAMS.len())
+        .filter(|&k| config.priors[k].is_free())
+        .collect();
+    let mut post = Posterior {
+        unknowns: config.unknowns(),
+        trace: Vec::with_capacity(obs.t.len()),
+        skipped: 0,
+        resamples: 0,
+        diverged: 0,
+        steps: 0,
+    };
+    let mut spare = states.clone();
+    let mut generation = 0u64;
+    let samples = obs.t.len();
+    for k in 0..samples {
+        let t = obs.t[k];
+        let y: [f64; 5] = std::array::from_fn(|c| {
+            obs.values
+                .get(c)
+                .and_then(|v| v.get(k))
+                .copied()
+                .unwrap_or(f64::NAN)
+        });
+        let mut seen = [false; 5];
+        for &c in &config.channels {
+            if y[c].is_finite() {
+                seen[c] = true;
+            } else {
+                post.skipped += 1;
+            }
+        }
+        // Predict (k > 0) and weight every particle, in parallel.
+        let steps = if k == 0 {
+            0
+        } else {
+            let dt_obs = t - obs.t[k - 1];
+            ((dt_obs / stepper.dt) + 0.5).floor() as usize
+        };
+        let diverged: usize = states
+            .par_iter_mut()
+            .zip(objs.par_iter())
+            .zip(logw.par_iter_mut())
+            .with_min_len(8)
+            .map_init(
+                || Workspace::new(&model),
+                |ws, ((s, o), lw)| {
+                    if *lw == f64::NEG_INFINITY {
+                        return 0;
+                    }
+                    let object = [object_of(o)];
+                    let inputs = Inputs {
+                        base: Default::default(),
+                        loads: &[],
+                        noise: config.process_noise,
+                        objects: &object,
+                    };
+                    for _ in 0..steps {
+                        if step(&model, &stepper, s, &inputs, ws).is_err() {
+                            *lw = f64::NEG_INFINITY;
+                            return 1;
+                        }
+                    }
+                    let pred = Sensors::read(s).to_array();
+                    let mut ll = 0.0;
+                    for c in 0..5 {
+                        if seen[c] {
+                            let z = (y[c] - pred[c]) / config.sigma[c];
+                            ll -= 0.5 * z * z;
+                        }
+                    }
+                    *lw += ll;
+                    0
+                },
+            )
+            .sum();
+        post.diverged += diverged;
+        post.steps += (steps * np) as u64;
+
+        // Normalise.
+        let max = logw.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+        if max == f64::NEG_INFINITY {
+            return Err(Error::Observation(format!(
+                "every particle diverged or has zero likelihood by t = {t} s"
+            )));
+        }
+        let mut w: Vec<f64> = logw.iter().map(|l| (l - max).exp()).collect();
+        let total: f64 = w.iter().sum();
+        w.iter_mut().for_each(|x| *x /= total);
+        let ess = 1.0 / w.iter().map(|x| x * x).sum::<f64>();
+
+        // Posterior summary.
+        let estimates = free
+            .iter()
+            .map(|&p| {
+                let vals: Vec<f64> = objs.iter().map(|o| param(o, p, config.gap)).collect();
+                summarise(&vals, &w)
+            })
+            .collect();
+        post.trace.push(TraceRow { t, ess, estimates });
+
+        // Resample and move.
+        if ess < config.ess_fraction * np as f64 && k + 1 < samples {
+            generation += 1;
+            post.resamples += 1;
+            let mut rng = Rng::stream(config.seed, STREAM_RESAMPLE + generation);
+            let parents = systematic(&w, rng.uniform());
+            let moved = liu_west(config, &objs, &w, &parents, &free, generation, t);
+            for (i, &p) in parents.iter().enumerate() {
+                spare[i].clone_from(&states[p]);
+                spare[i].rng =
+                    Rng::stream(config.seed, STREAM_NOISE + (generation << 20) + i as u64);
+            }
+            std::mem::swap(&mut states, &mut spare);
+            objs = moved;
+            logw.iter_mut().for_each(|l| *l = 0.0);
+        } else {
+            logw.iter_mut()
+                .zip(&w)
+                .for_each(|(l, x)| *l = if *x > 0.0 { x.ln() } else { f64::NEG_INFINITY });
+        }
+        if k % 16 == 0 {
+            progress(k as f64 / samples as f64);
+        }
+    }
+    progress(1.0);
+    Ok(post)
+}
+
+/// Refuses observations the filter cannot use.
+fn check_observations(config: &Config, obs: &Observations) -> Result<()> {
+    let n = obs.t.len();
+    if n < 2 {
+        return Err(Error::Observation(format!(
+            "the filter needs at least 2 samples, got {n}"
+        )));
+    }
+    for &c in &config.channels {
+        match obs.values.get(c) {
+            Some(v) if v.len() == n => {}
+            _ => {
+                return Err(Error::Observation(format!(
+                    "channel `{}` is observed by the filter but missing or of the wrong length (expected {n} samples)",
+                    CHANNELS[c]
+                )))
+            }
+        }
+    }
+    if obs.t.iter().any(|t| !t.is_finite()) {
+        return Err(Error::Observation("a sample time `t` is not finite".into()));
+    }
+    let period = obs.t[1] - obs.t[0];
+    if period.is_nan() || period <= 0.0 {
+        return Err(Error::Observation("sample times `t` must increase".into()));
+    }
+    for k in 1..n {
+        let dt = obs.t[k] - obs.t[k - 1];
+        let m = dt / period;
+        // Gaps of whole sample periods are predicted across; anything else is refused.
+        if m.is_nan() || m < 0.5 || (m - m.round()).abs() > 1e-3 {
+            return Err(Error::Observation(format!(
+                "irregular sample times: t = {} s follows {} s, expected a whole number of periods of {period} s",
+                obs.t[k],
+                obs.t[k - 1]
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// One particle's initial object state and log importance weight (0 without injection).
+fn draw_initial(config: &Config, rng: &mut Rng) -> (ObjState, f64) {
+    let pr = &config.priors;
+    let uni = |rng: &mut Rng, p: &Prior| p.lo + (p.hi - p.lo) * rng.uniform();
+    let mut o: ObjState = [0.0; 5];
+    let mut lw = 0.0;
+    let injected = config.injection.filter(|_| true);
+    let from_proposal = match &injected {
+        Some(inj) => rng.uniform() < inj.fraction,
+        None => false,
+    };
+    for k in [0usize, 1] {
+        o[k] = if from_proposal {
+            let inj = injected.as_ref().expect("checked above");
+            truncated_normal(rng, inj.mean[k], inj.std[k], &pr[k])
+        } else {
+            uni(rng, &pr[k])
+        };
+    }
+    let t0 = uni(rng, &pr[2]);
+    o[3] = uni(rng, &pr[3]);
+    o[4] = uni(rng, &pr[4]);
+    o[Y] = -config.gap - o[1] * t0;
+    if let Some(inj) = &injected {
+        // prior / mixture density on (d, v).
+        let mut prior = 1.0;
+        let mut prop = 1.0;
+        for k in [0usize, 1] {
+            if pr[k].is_free() {
+                prior /= pr[k].hi - pr[k].lo;
+                prop *= truncated_density(o[k], inj.mean[k], inj.std[k], &pr[k]);
+            }
+        }
+        let mix = (1.0 - inj.fraction) * prior + inj.fraction * prop;
+        lw = (prior / mix).ln();
+    }
+    (o, lw)
+}
+
+fn normal_cdf(z: f64) -> f64 {
+    0.5 * erfc(-z / std::f64::consts::SQRT_2)
+}
+
+/// Complementary error function (Numerical Recipes' Chebyshev fit, relative error < 1.2e-7).
+fn erfc(x: f64) -> f64 {
+    let z = x.abs();
+    let t = 1.0 / (1.0 + 0.5 * z);
+    let r = t
+        * (-z * z - 1.265_512_23
+            + t * (1.000_023_68
+                + t * (0.374_091_96
+                    + t * (0.096_784_18
+                        + t * (-0.186_288_06
+                            + t * (0.278_868_07
+                                + t * (-1.135_203_98
+                                    + t * (1.488_515_87
+                                        + t * (-0.822_152_23 + t * 0.170_872_77)))))))))
+            .exp();
+    if x >= 0.0 {
+        r
+    } else {
+        2.0 - r
+    }
+}
+
+/// Density at `x` of a normal truncated to the prior's range.
+fn truncated_density(x: f64, mean: f64, std: f64, p: &Prior) -> f64 {
+    if !p.is_free() {
+        return 1.0;
+    }
+    let mass = normal_cdf((p.hi - mean) / std) - normal_cdf((p.lo - mean) / std);
+    let z = (x - mean) / std;
+    (-0.5 * z * z).exp() / (std * (2.0 * std::f64::consts::PI).sqrt()) / mass.max(1e-300)
+}
+
+/// A draw from a normal truncated to the prior's range (rejection, then uniform as a fallback).
+fn truncated_normal(rng: &mut Rng, mean: f64, std: f64, p: &Prior) -> f64 {
+    if !p.is_free() {
+        return p.lo;
+    }
+    for _ in 0..1000 {
+        let x = mean + std * rng.normal();
+        if x >= p.lo && x <= p.hi {
+            return x;
+        }
+    }
+    p.lo + (p.hi - p.lo) * rng.uniform()
+}
+
+/// Systematic resampling: parent index of every new particle.
+fn systematic(w: &[f64], u0: f64) -> Vec<usize> {
+    let n = w.len();
+    let mut parents = Vec::with_capacity(n);
+    let mut cum = w[0];
+    let mut i = 0;
+    for j in 0..n {
+        let u = (j as f64 + u0) / n as f64;
+        while u > cum && i + 1 < n {
+            i += 1;
+            cum += w[i];
+        }
+        parents.push(i);
+    }
+    parents
+}
+
+#[allow(clippy::needless_range_loop)]
+/// The Liu–West move of the resampled object states (see the module's documentation).
+fn liu_west(
+    config: &Config,
+    objs: &[ObjState],
+    w: &[f64],
+    parents: &[usize],
+    free: &[usize],
+    generation: u64,
+    t: f64,
+) -> Vec<ObjState> {
+    // Moved coordinates: the free unknowns, the start delay as the current height y0 + v·t (so
+    // the object does not jump); the height is kept when the start is known.
+    let coords: Vec<usize> = free.to_vec();
+    let m = coords.len();
+    let a = config.shrink;
+    let mut out: Vec<ObjState> = parents.iter().map(|&p| objs[p]).collect();
+    if m == 0 || a >= 1.0 {
+        return out;
+    }
+    let coord = |o: &ObjState, c: usize| if c == Y { o[Y] + o[1] * t } else { o[c] };
+    let mut mean = [0.0f64; 5];
+    for (o, &wi) in objs.iter().zip(w) {
+        for (j, &c) in coords.iter().enumerate() {
+            mean[j] += wi * coord(o, c);
+        }
+    }
+    let mut cov = [[0.0f64; 5]; 5];
+    for (o, &wi) in objs.iter().zip(w) {
+        for j in 0..m {
+            for l in 0..m {
+                cov[j][l] += wi * (coord(o, coords[j]) - mean[j]) * (coord(o, coords[l]) - mean[l]);
+            }
+        }
+    }
+    // Cholesky with a small floor on the diagonal (a collapsed cloud still moves a little).
+    let mut chol = [[0.0f64; 5]; 5];
+    for j in 0..m {
+        let span = if coords[j] == Y {
+            config.priors[1].hi * (config.priors[2].hi - config.priors[2].lo)
+        } else {
+            config.priors[coords[j]].hi - config.priors[coords[j]].lo
+        };
+        let floor = 1e-12 * span * span;
+        cov[j][j] = cov[j][j].max(floor);
+    }
+    for j in 0..m {
+        for l in 0..=j {
+            let mut s = cov[j][l];
+            for r in 0..l {
+                s -= chol[j][r] * chol[l][r];
+            }
+            chol[j][l] = if j == l {
+                s.max(0.0).sqrt()
+            } else if chol[l][l] > 0.0 {
+                s / chol[l][l]
+            } else {
+                0.0
+            };
+        }
+    }
+    let h = (1.0 - a * a).sqrt();
+    for (i, o) in out.iter_mut().enumerate() {
+        let mut rng = Rng::stream(config.seed, STREAM_MOVE + (generation << 20) + i as u64);
+        let z: Vec<f64> = (0..m).map(|_| rng.normal()).collect();
+        let y_now = o[Y] + o[1] * t;
+        let mut y_new = y_now;
+        for j in 0..m {
+            let c = coords[j];
+            let noise: f64 = (0..=j).map(|l| chol[j][l] * z[l]).sum();
+            let x = a * coord(o, c) + (1.0 - a) * mean[j] + h * noise;
+            if c == Y {
+                y_new = x;
+            } else {
+                o[c] = reflect(x, &config.priors[c]);
+            }
+        }
+        o[Y] = y_new - o[1] * t;
+        // A start delay outside its prior is reflected back into it.
+        let t0 = start_delay(o, config.gap);
+        let t0r = reflect(t0, &config.priors[2]);
+        if t0r != t0 {
+            o[Y] = -config.gap - o[1] * t0r;
+        }
+    }
+    out
+}
+
+/// `x` reflected into the prior's range.
+fn reflect(x: f64, p: &Prior) -> f64 {
+    let (lo, hi) = (p.lo, p.hi);
+    if hi <= lo {
+        return lo;
+    }
+    let span = hi - lo;
+    let mut y = (x - lo).rem_euclid(2.0 * span);
+    if y > span {
+        y = 2.0 * span - y;
+    }
+    lo + y
+}
+
+/// Weighted mean, std and central 90% interval.
+fn summarise(vals: &[f64], w: &[f64]) -> Estimate {
+    let mean: f64 = vals.iter().zip(w).map(|(x, w)| x * w).sum();
+    let var: f64 = vals
+        .iter()
+        .zip(w)
+        .map(|(x, w)| w * (x - mean) * (x - mean))
+        .sum();
+    let mut idx: Vec<usize> = (0..vals.len()).collect();
+    idx.sort_by(|&a, &b| vals[a].total_cmp(&vals[b]));
+    let quantile = |q: f64| {
+        let mut cum = 0.0;
+        for &i in &idx {
+            cum += w[i];
+            if cum >= q {
+                return vals[i];
+            }
+        }
+        vals[*idx.last().expect("at least one particle")]
+    };
+    let _ = Z90;
+    Estimate {
+        mean,
+        std: var.max(0.0).sqrt(),
+        ci90: [quantile(0.05), quantile(0.95)],
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn systematic_resampling_keeps_proportions() {
+        let w = [0.5, 0.25, 0.0, 0.25];
+        let p = systematic(&w, 0.5);
+        assert_eq!(p.len(), 4);
+        assert_eq!(p.iter().filter(|&&i| i == 0).count(), 2);
+        assert_eq!(p.iter().filter(|&&i| i == 2).count(), 0);
+    }
+
+    #[test]
+    fn reflection_stays_in_range() {
+        let p = Prior::uniform(1.0, 2.0);
+        for x in [-3.3, 0.5, 1.5, 2.5, 7.1] {
+            let y = reflect(x, &p);
+            assert!((1.0..=2.0).contains(&y), "{x} -> {y}");
+        }
+        assert!((reflect(2.25, &p) - 1.75).abs() < 1e-12);
+    }
+
+    #[test]
+    fn weighted_summary_matches_hand_values() {
+        let e = summarise(&[1.0, 2.0, 3.0], &[0.25, 0.5, 0.25]);
+        assert!((e.mean - 2.0).abs() < 1e-12);
+        assert!((e.std - 0.5f64.sqrt()).abs() < 1e-12);
+        assert_eq!(e.ci90, [1.0, 3.0]);
+    }
+
+    #[test]
+    fn truncated_density_integrates_to_one() {
+        let p = Prior::uniform(0.0, 1.0);
+        let n = 20000;
+        let s: f64 = (0..n)
+            .map(|i| truncated_density((i as f64 + 0.5) / n as f64, 0.9, 0.2, &p) / n as f64)
+            .sum();
+        assert!((s - 1.0).abs() < 1e-4, "{s}");
+    }
+}
+
+/// Model error of the transition model (dt = 0.25 ms, one geometric iteration) against the
+/// simulator that records the experiments (dt = 0.1 ms), as a fraction of each channel's noisy
+/// sensor noise: the root-mean-square difference over clean `e2` runs is about half of it.
+pub const MODEL_ERROR: f64 = 0.5;
+
+/// Default tempering of the likelihood: every observation noise is multiplied by it, which
+/// widens the posterior for the model error that a Gaussian, independent noise does not capture
+/// (its bias is correlated in time). Chosen on simulated training runs for 90% coverage.
+pub const TEMPER: f64 = 2.5;
+
+/// Observation noise from the sensor noise `sensor`, the model error `model` and tempering.
+pub fn observation_sigma(sensor: [f64; 5], model: [f64; 5], temper: f64) -> [f64; 5] {
+    std::array::from_fn(|c| temper * sensor[c].hypot(model[c]))
+}
+
+/// Sensor noise of each channel estimated from series alone: the median absolute second
+/// difference, scaled to a standard deviation (1.4826 / √6). Robust to contact events; for clean
+/// series it measures only the signal's own curvature.
+pub fn noise_from_series(samples: &[&[Vec<f64>]]) -> [f64; 5] {
+    std::array::from_fn(|c| {
+        let mut d2: Vec<f64> = samples
+            .iter()
+            .filter_map(|s| s.get(c))
+            .flat_map(|x| x.windows(3).map(|w| (w[2] - 2.0 * w[1] + w[0]).abs()))
+            .filter(|x| x.is_finite())
+            .collect();
+        if d2.is_empty() {
+            return 0.0;
+        }
+        let mid = d2.len() / 2;
+        let (_, m, _) = d2.select_nth_unstable_by(mid, f64::total_cmp);
+        1.482_6 * *m / 6f64.sqrt()
+    })
+}
+
+/// The particle filter as an estimator of the experiments' unknowns ([`crate::Method`]): `pf`.
+///
+/// Fitting estimates the sensor noise of each channel from the training runs
+/// ([`noise_from_series`]); no training run enters the filter otherwise. Estimates are the
+/// posterior at the last sample.
+#[derive(Debug, Clone)]
+pub struct Pf {
+    /// Particles per run.
+    pub particles: usize,
+    /// Seed of the filter's streams.
+    pub seed: u64,
+    /// Likelihood tempering ([`TEMPER`]).
+    pub temper: f64,
+    /// Largest start delay of the approach (0: the start is known).
+    pub max_delay: f64,
+    /// Time step of the transition model, s.
+    pub dt: f64,
+    /// Geometric iterations per step of the transition model.
+    pub max_iterations: usize,
+    /// Hypothesis injection from another method's estimates (fraction of particles).
+    pub inject: Option<(f64, std::sync::Arc<dyn crate::Method>)>,
+    sigma: Option<[f64; 5]>,
+    experiment: Option<crate::Experiment>,
+}
+
+impl std::fmt::Debug for dyn crate::Method {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}", self.name())
+    }
+}
+
+impl Default for Pf {
+    fn default() -> Self {
+        Pf::new(1000)
+    }
+}
+
+impl Pf {
+    /// A filter with `particles` particles and the default settings.
+    pub fn new(particles: usize) -> Pf {
+        Pf {
+            particles,
+            seed: 1,
+            temper: TEMPER,
+            max_delay: 0.0,
+            dt: 2.5e-4,
+            max_iterations: 1,
+            inject: None,
+            sigma: None,
+            experiment: None,
+        }
+    }
+
+    /// The observation noise found by [`crate::Method::fit`], if fitted.
+    pub fn sigma(&self) -> Option<[f64; 5]> {
+        self.sigma
+    }
+
+    /// The filter's settings for one run of `experiment` with observation noise `sigma`.
+    pub fn config(&self, experiment: crate::Experiment, sigma: [f64; 5]) -> Config {
+        let mut c = Config::e2(sigma, self.particles, self.seed);
+        c.dt = self.dt;
+        c.max_iterations = self.max_iterations;
+        if experiment == crate::Experiment::E1 {
+            c.priors[1] = Prior::fixed(crate::experiment::E1_SPEED);
+        }
+        if self.max_delay > 0.0 {
+            c.priors[2] = Prior::uniform(0.0, self.max_delay);
+        }
+        c
+    }
+
+    /// Runs the filter on one run's channel-major series at 1 kHz.
+    pub fn posterior(&self, obs: &[Vec<f64>]) -> Result<Posterior> {
+        let (Some(sigma), Some(experiment)) = (self.sigma, self.experiment) else {
+            return Err(Error::Fit {
+                method: "pf".into(),
+                detail: "used before fit".into(),
+            });
+        };
+        let mut config = self.config(experiment, sigma);
+        if let Some((fraction, method)) = &self.inject {
+            let e = method.predict(obs)?;
+            let v = e
+                .get(1)
+                .copied()
+                .unwrap_or(crate::Estimate::normal(crate::experiment::E1_SPEED, 1.0));
+            config.injection = Some(Injection {
+                fraction: *fraction,
+                mean: [e[0].mean, v.mean],
+                std: [e[0].std.max(1e-5), v.std.max(1e-3)],
+            });
+        }
+        run(
+            &config,
+            &Observations::at_rate(obs.to_vec(), crate::experiment::SAMPLE_RATE),
+            &mut |_| {},
+        )
+    }
+}
+
+impl crate::Method for Pf {
+    fn name(&self) -> &'static str {
+        "pf"
+    }
+    fn budget(&self) -> crate::Budget {
+        crate::Budget::Free
+    }
+    fn channels(&self) -> Vec<usize> {
+        (0..CHANNELS.len()).collect()
+    }
+    fn fit(&mut self, training: &crate::Training) -> Result<()> {
+        let series: Vec<&[Vec<f64>]> = training
+            .samples
+            .iter()
+            .chain(&training.calibration)
+            .map(|s| &s.series[..])
+            .collect();
+        if series.is_empty() {
+            return Err(Error::Fit {
+                method: "pf".into(),
+                detail: "no training runs to estimate the sensor noise from".into(),
+            });
+        }
+        let sensor = noise_from_series(&series);
+        let noisy = crate::experiment::Noise::of(crate::Variant::Noisy)?.sensor;
+        let model = noisy.map(|s| MODEL_ERROR * s);
+        self.sigma = Some(observation_sigma(sensor, model, self.temper));
+        self.experiment = Some(training.experiment);
+        if let Some((_, m)) = &mut self.inject {
+            let m = std::sync::Arc::get_mut(m).ok_or_else(|| Error::Fit {
+                method: "pf".into(),
+                detail: "the injected method is shared and cannot be fitted".into(),
+            })?;
+            m.fit(training)?;
+        }
+        Ok(())
+    }
+    fn predict(&self, obs: &[Vec<f64>]) -> Result<Vec<crate::Estimate>> {
+        let post = self.posterior(obs)?;
+        let last = post.last();
+        // Unknowns of the experiment only (d, or d and v).
+        let n = self.experiment.map_or(2, |e| e.unknowns().len());
+        Ok(last.iter().take(n).copied().collect())
+    }
+    fn settings(&self) -> Vec<(String, f64)> {
+        let mut s = vec![
+            ("particles".to_string(), self.particles as f64),
+            ("temper".to_string(), self.temper),
+        ];
+        if let Some(sig) = self.sigma {
+            for (c, x) in sig.iter().enumerate() {
+                s.push((format!("sigma_{}", CHANNELS[c]), *x));
+            }
+        }
+        s
+    }
+}
