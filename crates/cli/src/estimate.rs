@@ -17,26 +17,45 @@ use vibrissa_infer::{methods, training_for, Estimate, Experiment, Variant, CHANN
 /// Arguments of `vibrissa estimate`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
+    // Fields are read by the pf path too (crate::estimate_pf).
     /// The experiment the series come from: e1 or e2.
     #[arg(long, value_name = "EXPERIMENT", required_unless_present = "list")]
-    experiment: Option<String>,
+    pub(crate) experiment: Option<String>,
     /// The estimator (see --list).
     #[arg(long, value_name = "NAME", required_unless_present = "list")]
-    method: Option<String>,
+    pub(crate) method: Option<String>,
     /// Time-series CSV files in the contract's columns (t, theta01, theta12 required).
     #[arg(long, value_name = "FILE.csv", num_args = 1.., required_unless_present = "list")]
-    obs: Vec<PathBuf>,
+    pub(crate) obs: Vec<PathBuf>,
     /// Which runs to train on: clean or noisy.
     #[arg(long, default_value = "clean")]
-    variant: String,
+    pub(crate) variant: String,
     /// Seed of the training runs.
     #[arg(long, default_value_t = 1)]
-    seed: u64,
+    pub(crate) seed: u64,
     /// List the methods and exit.
     #[arg(long)]
     list: bool,
+    /// pf: number of particles.
+    #[arg(long, default_value_t = 1000, value_name = "N")]
+    pub(crate) particles: usize,
+    /// pf: write the posterior (mean, std, 90% interval of every unknown, and the effective sample
+    /// size) at every sample to this CSV, and its plot beside it (same name, .png). One file only.
+    #[arg(long, value_name = "FILE.csv")]
+    pub(crate) trace: Option<PathBuf>,
+    /// pf: the recording may start up to this many seconds before the approach (the start delay
+    /// `t0` becomes an unknown, uniform on [0, MAX]).
+    #[arg(long, value_name = "SECONDS", default_value_t = 0.0)]
+    pub(crate) max_delay: f64,
+    /// pf: observed channels, comma-separated (theta01, theta12, m0, fx, fy).
+    #[arg(long, value_name = "LIST", value_delimiter = ',')]
+    pub(crate) channels: Vec<String>,
+    /// pf: mix proposals from this method's estimates into the initial particles (hypothesis
+    /// injection; a fraction of 0.5 of the particles).
+    #[arg(long, value_name = "METHOD")]
+    pub(crate) inject: Option<String>,
     #[command(flatten)]
-    format: FormatArgs,
+    pub(crate) format: FormatArgs,
 }
 
 /// One file's estimate.
@@ -48,7 +67,7 @@ struct Row {
 }
 
 /// One file's path, its named estimates and the seconds the estimate took.
-type FileEstimate = (PathBuf, Vec<(String, Estimate)>, f64);
+pub(crate) type FileEstimate = (PathBuf, Vec<(String, Estimate)>, f64);
 
 /// Estimates for one or more files.
 #[derive(Debug, Serialize)]
@@ -138,6 +157,12 @@ pub fn run(args: &Args) -> Result<()> {
     }
     let experiment = Experiment::parse(args.experiment.as_deref().unwrap_or_default())?;
     let variant = Variant::parse(&args.variant)?;
+    if args.method.as_deref() == Some("pf") {
+        return crate::estimate_pf::run(args, experiment, variant);
+    }
+    if args.trace.is_some() || args.inject.is_some() || !args.channels.is_empty() {
+        bail!("--trace, --inject and --channels apply to --method pf only");
+    }
     let mut method = methods::by_name(args.method.as_deref().unwrap_or_default())?;
 
     // Read and check every file before training.
@@ -193,6 +218,19 @@ pub fn run(args: &Args) -> Result<()> {
 }
 
 /// The contract's estimate objects: one, or JSON Lines with `"file"` for several files.
+pub(crate) fn print_json_rows(rows: &[FileEstimate], method: &str, lines: bool) -> Result<()> {
+    print_json(
+        &Report {
+            rows: rows.to_vec(),
+            method: method.into(),
+            train_seconds: 0.0,
+            train_runs: 0,
+        },
+        lines,
+    )
+}
+
+/// The contract's objects of a report.
 fn print_json(report: &Report, lines: bool) -> Result<()> {
     let stdout = io::stdout();
     let mut out = stdout.lock();

@@ -5,6 +5,7 @@
 
 mod bench;
 mod estimate;
+mod estimate_pf;
 mod experiment;
 mod files;
 mod inverse;
