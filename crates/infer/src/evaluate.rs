@@ -105,11 +105,23 @@ impl Evaluation {
     }
 }
 
-/// Runs `experiment` in `variant`, seeded by `seed`; `progress(stage, done, total)` reports.
+/// Runs `experiment` in `variant`, seeded by `seed`, without the particle filter;
+/// `progress(stage, done, total)` reports.
 pub fn evaluate(
     experiment: Experiment,
     variant: Variant,
     seed: u64,
+    progress: &(dyn Fn(&str, usize, usize) + Sync),
+) -> Result<Evaluation> {
+    evaluate_with(experiment, variant, seed, 0, progress)
+}
+
+/// [`evaluate`], with the particle filter `pf` in the table when `pf_particles > 0`.
+pub fn evaluate_with(
+    experiment: Experiment,
+    variant: Variant,
+    seed: u64,
+    pf_particles: usize,
     progress: &(dyn Fn(&str, usize, usize) + Sync),
 ) -> Result<Evaluation> {
     let start = Instant::now();
@@ -197,7 +209,18 @@ pub fn evaluate(
         .collect::<Result<Vec<_>>>()?;
 
     let mut results = Vec::new();
-    let all = methods::all();
+    let all: Vec<Box<dyn Method>> = methods::all()
+        .into_iter()
+        .filter_map(|m| match m.name() {
+            "pf" if pf_particles == 0 => None,
+            "pf" => {
+                let mut pf = crate::pf::Pf::new(pf_particles);
+                pf.seed = seed;
+                Some(Box::new(pf) as Box<dyn Method>)
+            }
+            _ => Some(m),
+        })
+        .collect();
     let total = all.len();
     for (n, mut m) in all.into_iter().enumerate() {
         progress("methods", n, total);
@@ -257,6 +280,84 @@ pub fn evaluate(
         seconds: start.elapsed().as_secs_f64(),
         methods: results,
     })
+}
+
+/// Nominal levels of [`calibration`].
+pub const CALIBRATION_LEVELS: [f64; 9] = [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9];
+
+/// Observed coverage of the central normal intervals `mean ± z·std` at every level of
+/// [`CALIBRATION_LEVELS`], per unknown: `[unknowns][levels]`. A calibrated method lies on the
+/// diagonal.
+pub fn calibration(result: &MethodResult) -> Vec<Vec<f64>> {
+    let unknowns = result.mae.len();
+    let n = result.predictions.len().max(1) as f64;
+    (0..unknowns)
+        .map(|u| {
+            CALIBRATION_LEVELS
+                .iter()
+                .map(|&p| {
+                    let z = normal_quantile(0.5 + 0.5 * p);
+                    result
+                        .predictions
+                        .iter()
+                        .filter(|r| {
+                            let e = r.estimate[u];
+                            (r.truth[u] - e.mean).abs() <= z * e.std
+                        })
+                        .count() as f64
+                        / n
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// Quantile of the standard normal distribution (Acklam's rational approximation, relative
+/// error below 1.2e-9), for `p` in (0, 1).
+fn normal_quantile(p: f64) -> f64 {
+    const A: [f64; 6] = [
+        -3.969_683_028_665_376e1,
+        2.209_460_984_245_205e2,
+        -2.759_285_104_469_687e2,
+        1.383_577_518_672_69e2,
+        -3.066_479_806_614_716e1,
+        2.506_628_277_459_239,
+    ];
+    const B: [f64; 5] = [
+        -5.447_609_879_822_406e1,
+        1.615_858_368_580_409e2,
+        -1.556_989_798_598_866e2,
+        6.680_131_188_771_972e1,
+        -1.328_068_155_288_572e1,
+    ];
+    const C: [f64; 6] = [
+        -7.784_894_002_430_293e-3,
+        -3.223_964_580_411_365e-1,
+        -2.400_758_277_161_838,
+        -2.549_732_539_343_734,
+        4.374_664_141_464_968,
+        2.938_163_982_698_783,
+    ];
+    const D: [f64; 4] = [
+        7.784_695_709_041_462e-3,
+        3.224_671_290_700_398e-1,
+        2.445_134_137_142_996,
+        3.754_408_661_907_416,
+    ];
+    let tail = |q: f64| {
+        (((((C[0] * q + C[1]) * q + C[2]) * q + C[3]) * q + C[4]) * q + C[5])
+            / ((((D[0] * q + D[1]) * q + D[2]) * q + D[3]) * q + 1.0)
+    };
+    if p < 0.02425 {
+        tail((-2.0 * p.ln()).sqrt())
+    } else if p > 1.0 - 0.02425 {
+        -tail((-2.0 * (1.0 - p).ln()).sqrt())
+    } else {
+        let q = p - 0.5;
+        let r = q * q;
+        (((((A[0] * r + A[1]) * r + A[2]) * r + A[3]) * r + A[4]) * r + A[5]) * q
+            / (((((B[0] * r + B[1]) * r + B[2]) * r + B[3]) * r + B[4]) * r + 1.0)
+    }
 }
 
 /// Errors and coverage of one method's predictions.
@@ -366,4 +467,17 @@ pub fn training_for(
             }
         }
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn normal_quantiles_match_tables() {
+        assert!((normal_quantile(0.95) - 1.644_853_627).abs() < 1e-8);
+        assert!((normal_quantile(0.975) - 1.959_963_985).abs() < 1e-8);
+        assert!(normal_quantile(0.5).abs() < 1e-12);
+        assert!((normal_quantile(0.001) + 3.090_232_306).abs() < 1e-7);
+    }
 }

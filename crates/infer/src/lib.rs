@@ -17,6 +17,6 @@ pub mod methods;
 pub mod pf;
 
 pub use error::{Error, Result};
-pub use evaluate::{evaluate, training_for, Evaluation, MethodResult};
+pub use evaluate::{calibration, evaluate, evaluate_with, training_for, Evaluation, MethodResult};
 pub use experiment::{Experiment, Sample, Variant, CHANNELS};
 pub use method::{Budget, Estimate, Method, Training};
