@@ -411,7 +411,13 @@ pub(crate) fn solve(
     let mut u = std::mem::take(&mut ws.contacts.u);
     for k in 0..count {
         let c = ws.contacts.cand[k];
-        generalised(ws, c.seg, c.point, c.n, &mut jac[2 * k * n..(2 * k + 1) * n]);
+        generalised(
+            ws,
+            c.seg,
+            c.point,
+            c.n,
+            &mut jac[2 * k * n..(2 * k + 1) * n],
+        );
         let jt = &mut jac[(2 * k + 1) * n..(2 * k + 2) * n];
         if c.mu > 0.0 {
             generalised(ws, c.seg, c.point, c.t, jt);
@@ -499,7 +505,6 @@ pub(crate) fn solve(
     let pivoted = frictionless && pivot_normal(sc, act, m);
     let sweeps = if pivoted { 0 } else { 2000 };
     for _ in 0..sweeps {
-
         let mut change = 0.0f64;
         for &k in act {
             let (rn, rt) = (2 * k, 2 * k + 1);
@@ -598,7 +603,10 @@ pub(crate) fn solve(
 fn pivot_normal(sc: &mut Scratch, act: &[usize], m: usize) -> bool {
     let na = act.len();
     let wn = |sc: &Scratch, a: usize, b: usize| sc.w[2 * act[a] * m + 2 * act[b]];
-    let tol = 1e-12 * act.iter().fold(1e-300f64, |a, &k| a.max(sc.cand[k].c_n.abs()));
+    let tol = 1e-12
+        * act
+            .iter()
+            .fold(1e-300f64, |a, &k| a.max(sc.cand[k].c_n.abs()));
     let mut set = [false; MAX_CONTACTS];
     let mut lambda = [0.0f64; MAX_CONTACTS];
     // Start from every contact that closes without force of the others.
@@ -656,9 +664,8 @@ fn pivot_normal(sc: &mut Scratch, act: &[usize], m: usize) -> bool {
             continue;
         }
         // A free contact penetrating: add the deepest.
-        let gap = |a: usize| {
-            sc.cand[act[a]].c_n + (0..na).map(|b| wn(sc, a, b) * lambda[b]).sum::<f64>()
-        };
+        let gap =
+            |a: usize| sc.cand[act[a]].c_n + (0..na).map(|b| wn(sc, a, b) * lambda[b]).sum::<f64>();
         let deepest = (0..na)
             .filter(|&a| !set[a])
             .map(|a| (a, gap(a)))
