@@ -226,3 +226,76 @@ fn inverse_writes_results_and_figure() {
         .starts_with(b"\x89PNG"));
     assert_svg(&dir.join("inverse-error.svg"));
 }
+
+#[test]
+fn pf_estimates_writes_a_trace_and_refuses_bad_settings() {
+    let dir = temp("pf");
+    let csv = dir.join("run.csv");
+    let sim = vibrissa()
+        .args(["simulate", "e1", "--set", "d=0.024", "--out"])
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert!(
+        sim.status.success(),
+        "{}",
+        String::from_utf8_lossy(&sim.stderr)
+    );
+    // A missing value: skipped with a warning.
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let mut cells: Vec<String> = lines[40].split(',').map(String::from).collect();
+    cells[2] = "NaN".into();
+    lines[40] = cells.join(",");
+    std::fs::write(&csv, lines.join("\n") + "\n").unwrap();
+    let trace = dir.join("trace.csv");
+    let out = vibrissa()
+        .args([
+            "estimate",
+            "--experiment",
+            "e1",
+            "--method",
+            "pf",
+            "--particles",
+            "150",
+        ])
+        .args(["--json", "--obs"])
+        .arg(&csv)
+        .arg("--trace")
+        .arg(&trace)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("1 missing (NaN) values skipped"), "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let d = v["d"]["mean"].as_f64().unwrap();
+    assert!((d - 0.024).abs() < 1e-3, "d = {d}");
+    assert_eq!(v["method"], "pf");
+    let ci = v["d"]["ci90"].as_array().unwrap();
+    assert!(ci[0].as_f64().unwrap() < ci[1].as_f64().unwrap());
+    let rows = std::fs::read_to_string(&trace).unwrap();
+    assert!(rows.starts_with("t,ess,d_mean,d_std,d_lo90,d_hi90\n"));
+    assert_eq!(rows.lines().count(), 152);
+    assert!(dir.join("trace.png").exists());
+
+    for (args, says) in [
+        (vec!["--particles", "0"], "--particles must be at least 1"),
+        (
+            vec!["--channels", "theta01,contact"],
+            "cannot produce `contact`",
+        ),
+        (vec!["--channels", "bogus"], "unknown channel `bogus`"),
+        (vec!["--max-delay=2"], "--max-delay must be between 0 and 1 s"),
+    ] {
+        let out = vibrissa()
+            .args(["estimate", "--experiment", "e1", "--method", "pf", "--obs"])
+            .arg(&csv)
+            .args(&args)
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(says), "{args:?}: {err}");
+    }
+}

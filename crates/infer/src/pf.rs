@@ -800,6 +800,32 @@ mod tests {
     }
 
     #[test]
+    fn injected_particles_are_weighted_back_to_the_prior() {
+        // With importance weights prior / mixture, the weighted cloud has the prior's mean even
+        // though half of it sits near the injected estimate.
+        let mut c = Config::e2([1.0; 5], 1, 3);
+        c.injection = Some(Injection {
+            fraction: 0.5,
+            mean: [0.016, 1.4],
+            std: [0.001, 0.05],
+        });
+        let mut rng = Rng::stream(11, 0);
+        let (mut sw, mut sd, mut sv, mut near) = (0.0, 0.0, 0.0, 0usize);
+        let n = 40000;
+        for _ in 0..n {
+            let (o, lw) = draw_initial(&c, &mut rng);
+            let w = lw.exp();
+            sw += w;
+            sd += w * o[0];
+            sv += w * o[1];
+            near += usize::from((o[0] - 0.016).abs() < 0.002);
+        }
+        assert!(near > n / 2, "{near}");
+        assert!((sd / sw - 0.0225).abs() < 2e-4, "{}", sd / sw);
+        assert!((sv / sw - 0.9).abs() < 0.015, "{}", sv / sw);
+    }
+
+    #[test]
     fn truncated_density_integrates_to_one() {
         let p = Prior::uniform(0.0, 1.0);
         let n = 20000;

@@ -1,0 +1,119 @@
+//! The particle filter against runs of the simulator: recovery, tightening, determinism and
+//! bad input.
+
+use vibrissa_infer::experiment::{simulate, simulate_delayed, Experiment, Noise};
+use vibrissa_infer::pf::{self, Config, Observations, Prior};
+
+/// The noisy variant's sensor noise (5% of the clean e2 ranges), tempered as `pf` does.
+const SIGMA: [f64; 5] = [
+    2.5 * 6.04e-3,
+    2.5 * 1.49e-2,
+    2.5 * 2.31e-6,
+    2.5 * 1.41e-4,
+    2.5 * 1.20e-4,
+];
+
+fn run_of(d: f64, v: f64) -> Observations {
+    let s = simulate(Experiment::E2, [d, v], &Noise::NONE, 3).unwrap();
+    Observations::at_rate(s.series, 1000.0)
+}
+
+#[test]
+fn recovers_distance_and_speed_and_the_posterior_tightens() {
+    let obs = run_of(0.022, 0.9);
+    let config = Config::e2(SIGMA, 200, 5);
+    let post = pf::run(&config, &obs, &mut |_| {}).unwrap();
+    assert_eq!(post.unknowns, ["d", "v"]);
+    assert_eq!(post.trace.len(), 151);
+    let first = &post.trace[0].estimates;
+    let last = post.last();
+    assert!((last[0].mean - 0.022).abs() < 1e-3, "d = {}", last[0].mean);
+    assert!((last[1].mean - 0.9).abs() < 0.05, "v = {}", last[1].mean);
+    // Uniform prior at the start, a posterior many times narrower at the end.
+    assert!(first[0].std > 0.004 && first[1].std > 0.3);
+    assert!(last[0].std < 0.2 * first[0].std && last[1].std < 0.2 * first[1].std);
+    assert!(post.resamples > 0);
+    assert!(post
+        .trace
+        .iter()
+        .all(|r| r.ess >= 1.0 && r.ess <= 200.0 + 1e-9));
+}
+
+#[test]
+fn same_bits_on_one_and_two_threads() {
+    let mut obs = run_of(0.018, 1.2);
+    for v in obs.values.iter_mut() {
+        v.truncate(30);
+    }
+    obs.t.truncate(30);
+    let config = Config::e2(SIGMA, 64, 9);
+    let on = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| pf::run(&config, &obs, &mut |_| {}).unwrap())
+    };
+    assert_eq!(on(1), on(2));
+}
+
+#[test]
+fn unknown_start_is_estimated() {
+    let s = simulate_delayed(Experiment::E2, [0.025, 0.6], 0.02, &Noise::NONE, 4).unwrap();
+    assert_eq!(s.series[0].len(), 171);
+    let obs = Observations::at_rate(s.series, 1000.0);
+    let mut config = Config::e2(SIGMA, 300, 6);
+    config.priors[2] = Prior::uniform(0.0, 0.05);
+    let post = pf::run(&config, &obs, &mut |_| {}).unwrap();
+    assert_eq!(post.unknowns, ["d", "v", "t0"]);
+    let last = post.last();
+    assert!((last[2].mean - 0.02).abs() < 0.004, "t0 = {}", last[2].mean);
+    assert!(
+        (last[0].mean - 0.025).abs() < 1.5e-3,
+        "d = {}",
+        last[0].mean
+    );
+}
+
+#[test]
+fn missing_values_are_skipped_and_gaps_predicted_across() {
+    let mut obs = run_of(0.02, 0.6);
+    for v in obs.values.iter_mut() {
+        v.truncate(40);
+    }
+    obs.t.truncate(40);
+    obs.values[1][10] = f64::NAN;
+    obs.values[3][11] = f64::NAN;
+    // Samples 20..25 missing altogether: a gap of six periods.
+    for v in obs.values.iter_mut() {
+        v.drain(20..25);
+    }
+    obs.t.drain(20..25);
+    let post = pf::run(&Config::e2(SIGMA, 32, 1), &obs, &mut |_| {}).unwrap();
+    assert_eq!(post.skipped, 2);
+    assert_eq!(post.trace.len(), 35);
+    assert!((post.trace[20].t - 0.025).abs() < 1e-12);
+}
+
+#[test]
+fn bad_input_is_refused_with_the_field_named() {
+    let obs = run_of(0.02, 0.6);
+    let err = |config: &Config, obs: &Observations| {
+        pf::run(config, obs, &mut |_| {}).unwrap_err().to_string()
+    };
+    let mut c = Config::e2(SIGMA, 0, 1);
+    assert!(err(&c, &obs).contains("particles"));
+    c.particles = 8;
+    c.channels = vec![7];
+    assert!(err(&c, &obs).contains("channels"));
+    c.channels = vec![0, 1];
+    c.sigma[1] = f64::NAN;
+    assert!(err(&c, &obs).contains("theta12"));
+    let c = Config::e2(SIGMA, 8, 1);
+    let mut irregular = obs.clone();
+    irregular.t[5] += 3e-4;
+    assert!(err(&c, &irregular).contains("irregular"));
+    let mut short = obs.clone();
+    short.values[4].truncate(10);
+    assert!(err(&c, &short).contains("fy"));
+}
