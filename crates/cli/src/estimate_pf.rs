@@ -150,12 +150,14 @@ pub fn run(args: &Args, experiment: Experiment, variant: Variant) -> Result<()> 
                         )
                     })
                     .collect();
+                let data = post.trace.last().map_or(0.0, |r| r.t) - post.trace[0].t;
                 println!(
-                    "{}: {} [{:.2} s for {:.3} s of data, {} resamplings]",
+                    "{}: {} [{:.3} s for {:.3} s of data: real-time factor {:.2}; {} resamplings]",
                     file.display(),
                     parts.join(", "),
                     secs,
-                    post.trace.last().map_or(0.0, |r| r.t),
+                    data,
+                    data / secs,
                     post.resamples
                 );
             }
@@ -190,8 +192,8 @@ fn parse_channels(names: &[String]) -> Result<Vec<usize>> {
 /// Reads one file's sample times and the observed channels.
 fn read_series(file: &Path, channels: &[usize]) -> Result<Observations> {
     let name = file.display();
-    let series = vibrissa_io::series::read_csv(file)
-        .with_context(|| format!("cannot read `{name}`"))?;
+    let series =
+        vibrissa_io::series::read_csv(file).with_context(|| format!("cannot read `{name}`"))?;
     let t = series
         .require(&["t"])
         .with_context(|| format!("`{name}` lacks the column t"))?[0]
@@ -207,7 +209,10 @@ fn read_series(file: &Path, channels: &[usize]) -> Result<Observations> {
         }
     }
     if t.len() < 2 {
-        bail!("`{name}` has {} samples; the filter needs at least 2", t.len());
+        bail!(
+            "`{name}` has {} samples; the filter needs at least 2",
+            t.len()
+        );
     }
     if let Some(k) = t.iter().position(|x| !x.is_finite()) {
         bail!("`{name}`: t is not finite in row {}", k + 1);

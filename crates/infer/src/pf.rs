@@ -108,7 +108,8 @@ pub struct Config {
 }
 
 impl Config {
-    /// The `e2` family: d ∈ [15, 30] mm, v ∈ [0.3, 1.5] m/s, known start, 10 mm frictionless box,
+    /// The `e2` family: d ∈ [14, 31] mm, v ∈ [0.2, 1.6] m/s (the experiment's ranges, widened by
+    /// 1 mm and 0.1 m/s), known start, 10 mm frictionless box,
     /// the `w30` whisker with 20 segments, all five channels with noise `sigma`.
     pub fn e2(sigma: [f64; 5], particles: usize, seed: u64) -> Config {
         Config {
@@ -123,9 +124,11 @@ impl Config {
             process_noise: crate::experiment::PROCESS_NOISE,
             shrink: 0.98,
             ess_fraction: 0.5,
+            // A little wider than the family's range, so that a value at its edge lies inside
+            // the prior's support (a central interval can never hold an edge of the support).
             priors: [
-                Prior::uniform(0.015, 0.030),
-                Prior::uniform(0.3, 1.5),
+                Prior::uniform(0.014, 0.031),
+                Prior::uniform(0.2, 1.6),
                 Prior::fixed(0.0),
                 Prior::fixed(0.010),
                 Prior::fixed(0.0),
