@@ -32,7 +32,8 @@ struct Head {
 /// principal components of the normalised series, with the estimate clipped to the range. Each
 /// unknown has its own ℓ and ridge, chosen on every fifth training run (fitted on the rest); its
 /// std is constant, set so that 90% intervals cover 90% of the training runs' leave-one-out
-/// errors.
+/// errors. Training runs outside the range are fitted on but neither choose the settings nor
+/// calibrate the std.
 #[derive(Debug, Clone, Default)]
 pub struct Krr {
     /// Channel scales, `[CHANNELS]`.
@@ -217,9 +218,19 @@ impl Method for Krr {
             .collect();
         let med = median_distance(&z);
         let unknowns = self.ranges.len();
+        // Runs outside the range (beyond its edges, to keep estimates there unbiased) are fitted
+        // on but neither score the settings nor calibrate the std: their clipped estimates miss
+        // by their distance to the range.
+        let inside: Vec<bool> = (0..s.len())
+            .map(|i| y.iter().all(|t| (0.0..=1.0).contains(&t[i])))
+            .collect();
 
         // Choose ℓ and the ridge per unknown on every HOLD-th run, fitted on the rest.
         let (fit_i, held_i): (Vec<usize>, Vec<usize>) = (0..s.len()).partition(|i| i % HOLD != 0);
+        let held_i: Vec<usize> = held_i.into_iter().filter(|&i| inside[i]).collect();
+        if held_i.is_empty() {
+            return Err(fail("no held-out run inside the range"));
+        }
         let zf: Vec<Vec<f64>> = fit_i.iter().map(|&i| z[i].clone()).collect();
         let yf: Vec<Vec<f64>> = y
             .iter()
@@ -272,6 +283,7 @@ impl Method for Krr {
             let inv = chol.inverse();
             let [lo, hi] = self.ranges[u];
             let pairs: Vec<(f64, f64)> = (0..z.len())
+                .filter(|&i| inside[i])
                 .map(|i| {
                     // f_{−i}(z_i) = y_i − α_i / (A⁻¹)_ii.
                     let loo = (y[u][i] - alpha[i] / inv[(i, i)]).clamp(0.0, 1.0);

@@ -315,6 +315,11 @@ impl Method for LocalKrr {
 
         // Both stages fitted on the rest, scored on every HOLD-th run.
         let (fit_i, held_i): (Vec<usize>, Vec<usize>) = (0..s.len()).partition(|i| i % HOLD != 0);
+        // Only held-out runs inside the range score (those beyond its edges are fitted on).
+        let held_i: Vec<usize> = held_i
+            .into_iter()
+            .filter(|&i| self.y[i].iter().all(|y| (0.0..=1.0).contains(y)))
+            .collect();
         let mut first = Krr::new();
         first.fit(&Training {
             experiment: training.experiment,
