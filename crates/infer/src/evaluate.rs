@@ -2,12 +2,13 @@
 //! budget allows, estimate every evaluated run, and score.
 
 use crate::error::Result;
-use crate::experiment::{simulate_all, Experiment, Noise, Sample, Variant, THETA12};
+use crate::experiment::{simulate_all, Experiment, Noise, Sample, Variant, E1_SPEED, THETA12};
 use crate::method::{Budget, Estimate, Method, Training};
 use crate::methods::{self, Interp, Template};
 use serde::Serialize;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
+use vibrissa_core::rng::Rng;
 
 /// Random training runs of the free-budget methods, per experiment.
 pub fn random_runs(experiment: Experiment) -> usize {
@@ -15,6 +16,51 @@ pub fn random_runs(experiment: Experiment) -> usize {
         Experiment::E1 => 150,
         Experiment::E2 => 400,
     }
+}
+
+/// How far the kernel regressions' training runs reach beyond the experiment's range, per side:
+/// `[d below, d above]` in m and `[v below, v above]` in m/s. Runs just outside the range keep a
+/// regression's estimates at the range's edges from being pulled inward (they are clipped back
+/// to the range). Above d = 30 mm the box misses the whisker, so the distance is not widened
+/// upward.
+pub const EDGE_MARGINS: [[f64; 2]; 2] = [[1.0e-3, 0.0], [0.1, 0.1]];
+
+/// `n` draws uniform in the experiment's range widened by [`EDGE_MARGINS`] but outside the range
+/// itself (the band around it), so never on the evaluated grid.
+pub fn edge_params(experiment: Experiment, n: usize, seed: u64) -> Vec<[f64; 2]> {
+    let ranges = experiment.ranges();
+    let wide: Vec<[f64; 2]> = ranges
+        .iter()
+        .zip(EDGE_MARGINS)
+        .map(|([lo, hi], [below, above])| [lo - below, hi + above])
+        .collect();
+    let mut rng = Rng::stream(seed, 0x6564_6765);
+    let mut out = Vec::with_capacity(n);
+    while out.len() < n {
+        let p: Vec<f64> = wide
+            .iter()
+            .map(|[lo, hi]| lo + (hi - lo) * rng.uniform())
+            .collect();
+        let inside = p
+            .iter()
+            .zip(&ranges)
+            .all(|(x, [lo, hi])| (*lo..=*hi).contains(x));
+        if !inside {
+            out.push([p[0], p.get(1).copied().unwrap_or(E1_SPEED)]);
+        }
+    }
+    out
+}
+
+/// Edge runs of the kernel regressions: as many as give the band around the range the density
+/// of the [`random_runs`] inside it.
+pub fn edge_runs(experiment: Experiment) -> usize {
+    let (mut inner, mut outer) = (1.0, 1.0);
+    for ([lo, hi], [below, above]) in experiment.ranges().iter().zip(EDGE_MARGINS) {
+        inner *= hi - lo;
+        outer *= hi - lo + below + above;
+    }
+    (random_runs(experiment) as f64 * (outer - inner) / inner).round() as usize
 }
 
 /// One evaluated run: truth and estimate.
@@ -177,6 +223,16 @@ pub fn evaluate_with(
         &stage("emulator grid", design.len()),
     )?;
     let dense_seconds = t0.elapsed().as_secs_f64();
+    let t0 = Instant::now();
+    let edge_p = edge_params(experiment, edge_runs(experiment), seed ^ 0xed9e);
+    let edge = simulate_all(
+        experiment,
+        &edge_p,
+        &noise,
+        seed.wrapping_add(3),
+        &stage("edge runs", edge_p.len()),
+    )?;
+    let edge_seconds = t0.elapsed().as_secs_f64();
 
     let paper = Training {
         experiment,
@@ -188,10 +244,11 @@ pub fn evaluate_with(
         samples: random.clone(),
         calibration: Vec::new(),
     };
-    // Kernel ridge regression learns from both sets (the grid covers the range's edges).
+    // Kernel ridge regression learns from all three sets (the grid covers the range's edges,
+    // the edge runs the band just outside it).
     let free_pooled = Training {
         experiment,
-        samples: random.iter().chain(&dense).cloned().collect(),
+        samples: random.iter().chain(&dense).chain(&edge).cloned().collect(),
         calibration: Vec::new(),
     };
     let free_dense = Training {
@@ -227,8 +284,9 @@ pub fn evaluate_with(
         let (training, sim_s) = match (m.budget(), m.name()) {
             (Budget::Paper, _) => (&paper, 0.0),
             (Budget::Free, "emulator") => (&free_dense, dense_seconds),
-            (Budget::Free, "krr") => (&free_pooled, random_seconds + dense_seconds),
-            (Budget::Free, "krr-local") => (&free_pooled, random_seconds + dense_seconds),
+            (Budget::Free, "krr" | "krr-local") => {
+                (&free_pooled, random_seconds + dense_seconds + edge_seconds)
+            }
             (Budget::Free, _) => (&free_random, random_seconds),
         };
         let t0 = Instant::now();
@@ -405,7 +463,8 @@ fn score(
 
 /// The training data that `method` may use in `experiment` and `variant`, simulated afresh:
 /// the templates under the paper's budget, the emulator's grid (calibrated on random runs),
-/// random runs followed by the emulator's grid (`krr`) or random runs under a free budget.
+/// random runs followed by the emulator's grid and the edge runs (`krr`, `krr-local`) or random
+/// runs under a free budget.
 pub fn training_for(
     experiment: Experiment,
     variant: Variant,
@@ -438,6 +497,14 @@ pub fn training_for(
                     &design,
                     &noise,
                     seed.wrapping_add(2),
+                    &none,
+                )?);
+                let edge_p = edge_params(experiment, edge_runs(experiment), seed ^ 0xed9e);
+                random.extend(simulate_all(
+                    experiment,
+                    &edge_p,
+                    &noise,
+                    seed.wrapping_add(3),
                     &none,
                 )?);
                 Training {
@@ -479,5 +546,29 @@ mod tests {
         assert!((normal_quantile(0.975) - 1.959_963_985).abs() < 1e-8);
         assert!(normal_quantile(0.5).abs() < 1e-12);
         assert!((normal_quantile(0.001) + 3.090_232_306).abs() < 1e-7);
+    }
+
+    #[test]
+    fn edge_runs_lie_in_the_band_around_the_range() {
+        for experiment in [Experiment::E1, Experiment::E2] {
+            let n = edge_runs(experiment);
+            assert!(n > 0 && n < random_runs(experiment));
+            let ranges = experiment.ranges();
+            for p in edge_params(experiment, 300, 7) {
+                let x = &p[..ranges.len()];
+                let inside = x
+                    .iter()
+                    .zip(&ranges)
+                    .all(|(x, [lo, hi])| (*lo..=*hi).contains(x));
+                assert!(!inside, "{p:?} is inside the range");
+                for ((x, [lo, hi]), [below, above]) in x.iter().zip(&ranges).zip(EDGE_MARGINS) {
+                    assert!(*x >= lo - below && *x <= hi + above, "{p:?}");
+                }
+            }
+        }
+        assert_eq!(
+            edge_params(Experiment::E2, 5, 3),
+            edge_params(Experiment::E2, 5, 3)
+        );
     }
 }

@@ -5,6 +5,7 @@ use crate::experiment::{Sample, CHANNELS};
 use crate::features::{channel_scales, coverage_factor, dist2, flatten};
 use crate::method::{Budget, Estimate, Method, Training, Z90};
 use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
 
 /// Principal components kept.
 const COMPONENTS: usize = 24;
@@ -32,7 +33,8 @@ struct Head {
 /// principal components of the normalised series, with the estimate clipped to the range. Each
 /// unknown has its own ℓ and ridge, chosen on every fifth training run (fitted on the rest); its
 /// std is constant, set so that 90% intervals cover 90% of the training runs' leave-one-out
-/// errors.
+/// errors. Training runs outside the range are fitted on but neither choose the settings nor
+/// calibrate the std.
 #[derive(Debug, Clone, Default)]
 pub struct Krr {
     /// Channel scales, `[CHANNELS]`.
@@ -217,74 +219,110 @@ impl Method for Krr {
             .collect();
         let med = median_distance(&z);
         let unknowns = self.ranges.len();
+        // Runs outside the range (beyond its edges, to keep estimates there unbiased) are fitted
+        // on but neither score the settings nor calibrate the std: their clipped estimates miss
+        // by their distance to the range.
+        let inside: Vec<bool> = (0..s.len())
+            .map(|i| y.iter().all(|t| (0.0..=1.0).contains(&t[i])))
+            .collect();
 
         // Choose ℓ and the ridge per unknown on every HOLD-th run, fitted on the rest.
         let (fit_i, held_i): (Vec<usize>, Vec<usize>) = (0..s.len()).partition(|i| i % HOLD != 0);
+        let held_i: Vec<usize> = held_i.into_iter().filter(|&i| inside[i]).collect();
+        if held_i.is_empty() {
+            return Err(fail("no held-out run inside the range"));
+        }
         let zf: Vec<Vec<f64>> = fit_i.iter().map(|&i| z[i].clone()).collect();
         let yf: Vec<Vec<f64>> = y
             .iter()
             .map(|t| fit_i.iter().map(|&i| t[i]).collect())
             .collect();
+        // Held-out errors `[lengths][ridges]` → per unknown (None where not positive definite),
+        // the length scales in parallel.
+        let errors: Vec<Vec<Option<Vec<f64>>>> = LENGTHS
+            .par_iter()
+            .map(|l| {
+                let length = l * med;
+                let k = kernel(&zf, length);
+                let g = 1.0 / (2.0 * length * length);
+                let kx: Vec<Vec<f64>> = held_i
+                    .iter()
+                    .map(|&h| zf.iter().map(|t| (-dist2(t, &z[h]) * g).exp()).collect())
+                    .collect();
+                RIDGES
+                    .iter()
+                    .map(|&r| {
+                        let alpha = solve(&k, r, &yf)?;
+                        Some(
+                            (0..unknowns)
+                                .map(|u| {
+                                    held_i
+                                        .iter()
+                                        .zip(&kx)
+                                        .map(|(&h, kh)| {
+                                            let p: f64 =
+                                                kh.iter().zip(&alpha[u]).map(|(a, b)| a * b).sum();
+                                            (p.clamp(0.0, 1.0) - y[u][h]).abs()
+                                        })
+                                        .sum()
+                                })
+                                .collect(),
+                        )
+                    })
+                    .collect()
+            })
+            .collect();
         let mut best = vec![(f64::INFINITY, med, RIDGES[0]); unknowns];
-        for l in LENGTHS {
-            let length = l * med;
-            let k = kernel(&zf, length);
-            let g = 1.0 / (2.0 * length * length);
-            let kx: Vec<Vec<f64>> = held_i
-                .iter()
-                .map(|&h| zf.iter().map(|t| (-dist2(t, &z[h]) * g).exp()).collect())
-                .collect();
-            for r in RIDGES {
-                let Some(alpha) = solve(&k, r, &yf) else {
+        for (l, per_ridge) in LENGTHS.iter().zip(&errors) {
+            for (r, err) in RIDGES.iter().zip(per_ridge) {
+                let Some(err) = err else {
                     continue;
                 };
                 for u in 0..unknowns {
-                    let err: f64 = held_i
-                        .iter()
-                        .zip(&kx)
-                        .map(|(&h, kh)| {
-                            let p: f64 = kh.iter().zip(&alpha[u]).map(|(a, b)| a * b).sum();
-                            (p.clamp(0.0, 1.0) - y[u][h]).abs()
-                        })
-                        .sum();
-                    if err < best[u].0 {
-                        best[u] = (err, length, r);
+                    if err[u] < best[u].0 {
+                        best[u] = (err[u], l * med, *r);
                     }
                 }
             }
         }
 
-        // Final weights on every run; leave-one-out errors calibrate the std.
-        self.heads = Vec::with_capacity(unknowns);
-        for (u, &(_, length, ridge)) in best.iter().enumerate() {
-            let mut a = kernel(&z, length);
-            for i in 0..z.len() {
-                a[(i, i)] += ridge;
-            }
-            let chol = a
-                .cholesky()
-                .ok_or_else(|| fail("kernel matrix not positive definite"))?;
-            let alpha: Vec<f64> = chol
-                .solve(&DVector::from_column_slice(&y[u]))
-                .iter()
-                .copied()
-                .collect();
-            let inv = chol.inverse();
-            let [lo, hi] = self.ranges[u];
-            let pairs: Vec<(f64, f64)> = (0..z.len())
-                .map(|i| {
-                    // f_{−i}(z_i) = y_i − α_i / (A⁻¹)_ii.
-                    let loo = (y[u][i] - alpha[i] / inv[(i, i)]).clamp(0.0, 1.0);
-                    ((loo - y[u][i]) * (hi - lo), 1.0 / Z90)
+        // Final weights on every run (the unknowns in parallel); leave-one-out errors calibrate
+        // the std.
+        let heads: Vec<Result<Head>> = best
+            .par_iter()
+            .enumerate()
+            .map(|(u, &(_, length, ridge))| {
+                let mut a = kernel(&z, length);
+                for i in 0..z.len() {
+                    a[(i, i)] += ridge;
+                }
+                let chol = a
+                    .cholesky()
+                    .ok_or_else(|| fail("kernel matrix not positive definite"))?;
+                let alpha: Vec<f64> = chol
+                    .solve(&DVector::from_column_slice(&y[u]))
+                    .iter()
+                    .copied()
+                    .collect();
+                let inv = chol.inverse();
+                let [lo, hi] = self.ranges[u];
+                let pairs: Vec<(f64, f64)> = (0..z.len())
+                    .filter(|&i| inside[i])
+                    .map(|i| {
+                        // f_{−i}(z_i) = y_i − α_i / (A⁻¹)_ii.
+                        let loo = (y[u][i] - alpha[i] / inv[(i, i)]).clamp(0.0, 1.0);
+                        ((loo - y[u][i]) * (hi - lo), 1.0 / Z90)
+                    })
+                    .collect();
+                Ok(Head {
+                    length,
+                    ridge,
+                    alpha,
+                    std: coverage_factor(&pairs) / Z90,
                 })
-                .collect();
-            self.heads.push(Head {
-                length,
-                ridge,
-                alpha,
-                std: coverage_factor(&pairs) / Z90,
-            });
-        }
+            })
+            .collect();
+        self.heads = heads.into_iter().collect::<Result<_>>()?;
         self.z = z;
         Ok(())
     }

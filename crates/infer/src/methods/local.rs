@@ -1,6 +1,7 @@
 //! Two-stage estimate: a global kernel ridge regression, refined by a ridge regression on the
 //! principal components of the training runs whose parameters lie nearest the first estimate,
-//! with their series optionally registered to the first estimate's box travel.
+//! with their series optionally registered to the first estimate's box travel, repeated about
+//! the refined estimate where that helps.
 
 use super::krr::Krr;
 use crate::error::{Error, Result};
@@ -19,6 +20,11 @@ const RIDGES: [f64; 5] = [1e-6, 1e-5, 1e-4, 1e-3, 1e-2];
 /// Share of held-out errors that the 90% intervals are widened to hold (above 0.9: the
 /// held-out runs lie inside the range more often than the grid's edge runs do).
 const QUANTILE: f64 = 0.93;
+/// Neighbourhood shapes tried: whether the series are registered in travel, and the speed's
+/// weight in the distance to the first estimate (`e1` uses the first only).
+const SHAPES: [(bool, f64); 4] = [(false, 1.0), (true, 1.0), (false, 0.3), (true, 0.3)];
+/// Most passes of the local regression tried.
+const MAX_PASSES: usize = 3;
 /// Every `HOLD`-th training run is held out while the hyper-parameters are chosen.
 const HOLD: usize = 5;
 
@@ -33,19 +39,26 @@ struct Head {
     ridge: f64,
     /// Whether the neighbours' series are registered in travel.
     registered: bool,
+    /// Weight of the speed in the distance that picks the neighbours (below 1: runs at the
+    /// estimated distance, over a wider span of speeds).
+    speed_weight: f64,
     /// Factor from the neighbourhood's leave-one-out spread to the std.
     factor: f64,
     /// Whether the first stage's estimate is kept (it did better on the held-out runs).
     first: bool,
+    /// Local regressions in turn, each about the previous one's estimate of this unknown.
+    passes: usize,
 }
 
 /// A global kernel ridge regression (first estimate) refined locally: the training runs nearest
-/// the first estimate in normalised parameter space, their series resampled so that the box's
-/// travel matches the observation's under the first estimate's speed, reduced to their leading
-/// principal components and regressed linearly (ridge) on each unknown. Neighbourhood size,
-/// components, ridge and registration are chosen per unknown on every fifth training run (both
-/// stages fitted on the rest); the std is the neighbourhood's leave-one-out spread, scaled so
-/// that 90% intervals cover 93% of the held-out errors.
+/// the first estimate in normalised parameter space (the speed's distance optionally weighted
+/// down, so that the neighbours share the estimated distance over a wider span of speeds), their
+/// series optionally resampled so that the box's travel matches the observation's under the
+/// first estimate's speed, reduced to their leading principal components and regressed linearly
+/// (ridge) on each unknown; optionally repeated about the refined estimate. Neighbourhood size
+/// and shape, components, ridge, registration and passes are chosen per unknown on every fifth
+/// training run (both stages fitted on the rest); the std is the neighbourhood's leave-one-out
+/// spread, scaled so that 90% intervals cover 93% of the held-out errors.
 #[derive(Debug, Clone, Default)]
 pub struct LocalKrr {
     /// First stage.
@@ -221,20 +234,62 @@ impl LocalKrr {
     }
 
     /// Indices of `pool`'s runs nearest `p0` (scaled unknowns), nearest first.
-    fn nearest(&self, pool: &[usize], p0: &[f64], k: usize) -> Vec<usize> {
+    fn nearest(&self, pool: &[usize], p0: &[f64], k: usize, speed_weight: f64) -> Vec<usize> {
         let mut d: Vec<(f64, usize)> = pool
             .iter()
             .map(|&i| {
                 let s: f64 = self.y[i]
                     .iter()
                     .zip(p0)
-                    .map(|(a, b)| (a - b) * (a - b))
+                    .enumerate()
+                    .map(|(q, (a, b))| {
+                        let w = if q == 1 { speed_weight } else { 1.0 };
+                        (w * (a - b)).powi(2)
+                    })
                     .sum();
                 (s, i)
             })
             .collect();
         d.sort_by(|a, b| a.0.total_cmp(&b.0));
         d.into_iter().take(k).map(|(_, i)| i).collect()
+    }
+
+    /// Unknown `q`'s local regression under `h` at `obs` (normalised, flattened) among `pool`,
+    /// starting from the first estimate `p0` (scaled) with speed `v0`: (estimate, leave-one-out
+    /// spread), scaled units, after `h.passes` passes.
+    fn refined(
+        &self,
+        pool: &[usize],
+        p0: &[f64],
+        v0: f64,
+        obs: &[f64],
+        q: usize,
+        h: &Head,
+    ) -> (f64, f64) {
+        let c = COMPONENTS
+            .iter()
+            .position(|&p| p == h.components)
+            .unwrap_or(0);
+        let d = RIDGES.iter().position(|&r| r == h.ridge).unwrap_or(0);
+        let (mut p, mut v) = (p0.to_vec(), v0);
+        let mut out = (p0[q], 0.0);
+        for _ in 0..h.passes.max(1) {
+            let l = self.locals(
+                pool,
+                &p,
+                v,
+                obs,
+                h.neighbours,
+                (h.registered, h.speed_weight),
+            );
+            out = l.out[c][d][q];
+            p[q] = out.0.clamp(0.0, 1.0);
+            if q == 1 {
+                let [lo, hi] = self.ranges[1];
+                v = lo + (hi - lo) * p[1];
+            }
+        }
+        out
     }
 
     /// Local fits at `obs` (normalised, flattened) around the first estimate `p0` (scaled) with
@@ -246,9 +301,9 @@ impl LocalKrr {
         v0: f64,
         obs: &[f64],
         k: usize,
-        reg: bool,
+        (reg, speed_weight): (bool, f64),
     ) -> Local {
-        let idx = self.nearest(pool, p0, k);
+        let idx = self.nearest(pool, p0, k, speed_weight);
         let x: Vec<Vec<f64>> = idx
             .iter()
             .map(|&i| {
@@ -315,17 +370,18 @@ impl Method for LocalKrr {
 
         // Both stages fitted on the rest, scored on every HOLD-th run.
         let (fit_i, held_i): (Vec<usize>, Vec<usize>) = (0..s.len()).partition(|i| i % HOLD != 0);
+        // Only held-out runs inside the range score (those beyond its edges are fitted on).
+        let held_i: Vec<usize> = held_i
+            .into_iter()
+            .filter(|&i| self.y[i].iter().all(|y| (0.0..=1.0).contains(y)))
+            .collect();
         let mut first = Krr::new();
         first.fit(&Training {
             experiment: training.experiment,
             samples: fit_i.iter().map(|&i| s[i].clone()).collect(),
             calibration: Vec::new(),
         })?;
-        let regs: &[bool] = if unknowns > 1 {
-            &[false, true]
-        } else {
-            &[false]
-        };
+        let regs: &[(bool, f64)] = if unknowns > 1 { &SHAPES } else { &SHAPES[..1] };
         // `[held][neighbours][registration]` → Local.
         let scored: Vec<(Vec<Estimate>, Vec<Vec<Local>>)> = held_i
             .par_iter()
@@ -361,7 +417,7 @@ impl Method for LocalKrr {
                     },
                 );
                 for (a, &k) in NEIGHBOURS.iter().enumerate() {
-                    for (b, &reg) in regs.iter().enumerate() {
+                    for (b, &(reg, speed_weight)) in regs.iter().enumerate() {
                         for (c, &p) in COMPONENTS.iter().enumerate() {
                             for (d, &r) in RIDGES.iter().enumerate() {
                                 let err: f64 = held_i
@@ -388,8 +444,10 @@ impl Method for LocalKrr {
                                             components: p,
                                             ridge: r,
                                             registered: reg,
+                                            speed_weight,
                                             factor: widening(&pairs),
                                             first: false,
+                                            passes: 1,
                                         },
                                     );
                                 }
@@ -400,6 +458,40 @@ impl Method for LocalKrr {
                 best.1
             })
             .collect();
+        // Further passes, each about the previous estimate, where they help on the held-out runs.
+        let obs: Vec<Vec<f64>> = held_i
+            .iter()
+            .map(|&h| flatten(&s[h].series, &channels, &self.scales))
+            .collect::<Result<_>>()?;
+        for q in 0..unknowns {
+            let head = self.heads[q];
+            if head.first {
+                continue;
+            }
+            let mut best_err = f64::INFINITY;
+            for passes in 1..=MAX_PASSES {
+                let h = Head { passes, ..head };
+                let pairs: Vec<(f64, f64)> = held_i
+                    .par_iter()
+                    .zip(&scored)
+                    .zip(&obs)
+                    .map(|((&i, (e, _)), x)| {
+                        let p0 = self.scaled(e);
+                        let v0 = e.get(1).map_or(E1_SPEED, |e| e.mean);
+                        let (m, sd) = self.refined(&fit_i, &p0, v0, x, q, &h);
+                        (m.clamp(0.0, 1.0) - self.y[i][q], sd)
+                    })
+                    .collect();
+                let err: f64 = pairs.iter().map(|(e, _)| e.abs()).sum();
+                if err < best_err {
+                    best_err = err;
+                    self.heads[q] = Head {
+                        factor: widening(&pairs),
+                        ..h
+                    };
+                }
+            }
+        }
         self.global.fit(training)
     }
 
@@ -424,13 +516,7 @@ impl Method for LocalKrr {
                 if h.first {
                     return est[q];
                 }
-                let l = self.locals(&pool, &p0, v0, &x, h.neighbours, h.registered);
-                let c = COMPONENTS
-                    .iter()
-                    .position(|&p| p == h.components)
-                    .unwrap_or(0);
-                let d = RIDGES.iter().position(|&r| r == h.ridge).unwrap_or(0);
-                let (m, sd) = l.out[c][d][q];
+                let (m, sd) = self.refined(&pool, &p0, v0, &x, q, h);
                 let [lo, hi] = self.ranges[q];
                 Estimate::normal(
                     lo + (hi - lo) * m.clamp(0.0, 1.0),
@@ -450,9 +536,37 @@ impl Method for LocalKrr {
                 format!("registered_{name}"),
                 f64::from(u8::from(h.registered)),
             ));
+            s.push((format!("speed_weight_{name}"), h.speed_weight));
+            s.push((format!("passes_{name}"), h.passes as f64));
             s.push((format!("std_factor_{name}"), h.factor));
             s.push((format!("first_stage_{name}"), f64::from(u8::from(h.first))));
         }
         s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_small_speed_weight_picks_runs_at_the_estimated_distance_over_more_speeds() {
+        // Runs on a 5 × 5 lattice of scaled (d, v).
+        let y: Vec<Vec<f64>> = (0..25)
+            .map(|k| vec![(k / 5) as f64 * 0.25, (k % 5) as f64 * 0.25])
+            .collect();
+        let m = LocalKrr {
+            y,
+            ..LocalKrr::default()
+        };
+        let pool: Vec<usize> = (0..25).collect();
+        let p0 = [0.5, 0.5];
+        // Equal weights: the centre and its four lattice neighbours, two of them at other d.
+        let even = m.nearest(&pool, &p0, 5, 1.0);
+        assert_eq!(even[0], 12);
+        assert_eq!(even.iter().filter(|&&i| m.y[i][0] != 0.5).count(), 2);
+        // Speed weighted by 0.3: all five speeds at d = 0.5 come first.
+        let wide = m.nearest(&pool, &p0, 5, 0.3);
+        assert!(wide.iter().all(|&i| m.y[i][0] == 0.5), "{wide:?}");
     }
 }
