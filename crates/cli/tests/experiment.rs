@@ -286,7 +286,10 @@ fn pf_estimates_writes_a_trace_and_refuses_bad_settings() {
             "cannot produce `contact`",
         ),
         (vec!["--channels", "bogus"], "unknown channel `bogus`"),
-        (vec!["--max-delay=2"], "--max-delay must be between 0 and 1 s"),
+        (
+            vec!["--max-delay=2"],
+            "--max-delay must be between 0 and 1 s",
+        ),
     ] {
         let out = vibrissa()
             .args(["estimate", "--experiment", "e1", "--method", "pf", "--obs"])
