@@ -30,6 +30,9 @@ fn main() {
     };
     let mut pf = Pf::new(np);
     pf.temper = temper;
+    if let Ok(x) = std::env::var("PF_SEED") {
+        pf.seed = x.parse().unwrap();
+    }
     if let Ok(x) = std::env::var("PF_DT") {
         pf.dt = x.parse().unwrap();
     }

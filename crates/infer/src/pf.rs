@@ -303,6 +303,75 @@ fn param(o: &ObjState, k: usize, gap: f64) -> f64 {
     }
 }
 
+/// The whisker's model once a particle's box has gone for good: the same chain stepped once per
+/// sample period, its stiffness raised so that the first mode keeps its frequency at that step
+/// (the implicit method's period elongation, `Ω_num = 2·atan(Ω/2)` with `Ω = ω·h`, is undone by
+/// `ω_model = (2/h)·tan(ω·h/2)`). Higher modes, whose frequencies it gets wrong, are damped away
+/// within a few milliseconds of the slip-off.
+struct FreeModel {
+    model: Model,
+    stepper: vibrissa_core::dynamics::Stepper,
+    /// Tip deflection per √energy, m/√J: √(2L³/(3·EI_min)), the cantilever's least stiffness.
+    reach_per_root_energy: f64,
+    /// Highest rest point of the whisker plus its thickest radius and a margin, m.
+    clearance: f64,
+}
+
+impl FreeModel {
+    fn new(config: &Config, model: &Model, period: f64) -> Result<FreeModel> {
+        let f1 = model
+            .modes()
+            .map_err(|e| Error::Observation(format!("filter free model: {e}")))?
+            .frequencies[0];
+        let omega_h = 2.0 * std::f64::consts::PI * f1 * period;
+        let warp = ((0.5 * omega_h).tan() / (0.5 * omega_h)).powi(2);
+        let mut params = config.whisker.clone();
+        params.youngs_modulus *= warp;
+        let stiffer = params
+            .check()
+            .map_err(|e| Error::Observation(format!("filter free model: {e}")))?;
+        let free = Model::new(&stiffer, config.segments, Discretisation::default())
+            .map_err(|e| Error::Observation(format!("filter free model: {e}")))?;
+        let stepper = Integrator {
+            dt: period,
+            max_iterations: config.max_iterations,
+            ..Integrator::default()
+        }
+        .check()
+        .map_err(|e| Error::Observation(format!("filter integrator: {e}")))?;
+        let p = &config.whisker;
+        let r_min = p.base_radius.min(p.tip_radius);
+        let ei_min = p.youngs_modulus * std::f64::consts::PI * r_min.powi(4) / 4.0;
+        let mut y_rest = 0.0f64;
+        let (mut y, mut ang) = (0.0f64, 0.0f64);
+        for i in 0..model.n {
+            ang += model.rest[i];
+            y += model.arc * ang.sin();
+            y_rest = y_rest.max(y.abs());
+        }
+        let rmax = model.radius.iter().cloned().fold(0.0, f64::max);
+        Ok(FreeModel {
+            model: free,
+            stepper,
+            reach_per_root_energy: (2.0 * p.length.powi(3) / (3.0 * ei_min)).sqrt(),
+            clearance: y_rest + rmax + 2e-4,
+        })
+    }
+
+    /// Whether the box has left the whisker for good at time `t`: it moves away (upward) and its
+    /// bottom is beyond anything the whisker can reach with its energy (by 10%).
+    fn cleared(&self, s: &State, o: &ObjState, t: f64, ws: &mut Workspace) -> bool {
+        let [_, v, y0, size, _] = *o;
+        let bottom = y0 + v * t - size;
+        if v <= 0.0 || bottom <= self.clearance {
+            return false;
+        }
+        let energy = vibrissa_core::dynamics::kinetic_energy(&self.model, s, ws)
+            + vibrissa_core::dynamics::potential_energy(&self.model, s);
+        bottom > self.clearance + 1.1 * self.reach_per_root_energy * energy.max(0.0).sqrt()
+    }
+}
+
 /// Stream indices: particles' process noise, their moves, the resampling draws, the prior.
 const STREAM_NOISE: u64 = 1 << 40;
 const STREAM_MOVE: u64 = 2 << 40;
@@ -377,6 +446,10 @@ pub fn run(
         diverged: 0,
         steps: 0,
     };
+    let ringing = FreeModel::new(config, &model, period)?;
+    // Whether each particle's box has left for good (its whisker then rings free).
+    let mut cleared = vec![false; np];
+    let mut spare_cleared = cleared.clone();
     let mut spare = states.clone();
     let mut generation = 0u64;
     let samples = obs.t.len();
@@ -404,28 +477,71 @@ pub fn run(
             let dt_obs = t - obs.t[k - 1];
             ((dt_obs / stepper.dt) + 0.5).floor() as usize
         };
+        let periods = if k == 0 {
+            0
+        } else {
+            (((t - obs.t[k - 1]) / period) + 0.5).floor() as usize
+        };
+        let per_period = steps / periods.max(1);
         let diverged: usize = states
             .par_iter_mut()
             .zip(objs.par_iter())
             .zip(logw.par_iter_mut())
+            .zip(cleared.par_iter_mut())
             .with_min_len(8)
             .map_init(
                 || Workspace::new(&model),
-                |ws, ((s, o), lw)| {
+                |ws, (((s, o), lw), gone)| {
                     if *lw == f64::NEG_INFINITY {
                         return 0;
                     }
-                    let object = [object_of(o)];
-                    let inputs = Inputs {
-                        base: Default::default(),
-                        loads: &[],
-                        noise: config.process_noise,
-                        objects: &object,
-                    };
-                    for _ in 0..steps {
-                        if step(&model, &stepper, s, &inputs, ws).is_err() {
-                            *lw = f64::NEG_INFINITY;
-                            return 1;
+                    if *gone {
+                        // Free ringing: one step per period of the free model.
+                        let inputs = Inputs {
+                            base: Default::default(),
+                            loads: &[],
+                            noise: config.process_noise,
+                            objects: &[],
+                        };
+                        for _ in 0..periods {
+                            if step(&ringing.model, &ringing.stepper, s, &inputs, ws).is_err() {
+                                *lw = f64::NEG_INFINITY;
+                                return 1;
+                            }
+                        }
+                    } else {
+                        let object = [object_of(o)];
+                        // Process noise drawn once per period (on its first step, with the
+                        // intensity that gives the period's impulse its full variance).
+                        let lumped = config.process_noise * (per_period as f64).sqrt();
+                        for j in 0..steps {
+                            let inputs = Inputs {
+                                base: Default::default(),
+                                loads: &[],
+                                noise: if j % per_period.max(1) == 0 {
+                                    lumped
+                                } else {
+                                    0.0
+                                },
+                                objects: &object,
+                            };
+                            if step(&model, &stepper, s, &inputs, ws).is_err() {
+                                *lw = f64::NEG_INFINITY;
+                                return 1;
+                            }
+                        }
+                        if s.contact.is_none() && ringing.cleared(s, o, t, ws) {
+                            let none = Inputs {
+                                base: Default::default(),
+                                loads: &[],
+                                noise: 0.0,
+                                objects: &[],
+                            };
+                            if initialize(&ringing.model, s, &none, ws).is_err() {
+                                *lw = f64::NEG_INFINITY;
+                                return 1;
+                            }
+                            *gone = true;
                         }
                     }
                     let pred = Sensors::read(s).to_array();
@@ -472,13 +588,15 @@ pub fn run(
             post.resamples += 1;
             let mut rng = Rng::stream(config.seed, STREAM_RESAMPLE + generation);
             let parents = systematic(&w, rng.uniform());
-            let moved = liu_west(config, &objs, &w, &parents, &free, generation, t);
+            let moved = liu_west(config, &objs, &w, &parents, &free, &cleared, generation, t);
             for (i, &p) in parents.iter().enumerate() {
                 spare[i].clone_from(&states[p]);
+                spare_cleared[i] = cleared[p];
                 spare[i].rng =
                     Rng::stream(config.seed, STREAM_NOISE + (generation << 20) + i as u64);
             }
             std::mem::swap(&mut states, &mut spare);
+            std::mem::swap(&mut cleared, &mut spare_cleared);
             objs = moved;
             logw.iter_mut().for_each(|l| *l = 0.0);
         } else {
@@ -641,7 +759,7 @@ fn systematic(w: &[f64], u0: f64) -> Vec<usize> {
     parents
 }
 
-#[allow(clippy::needless_range_loop)]
+#[allow(clippy::needless_range_loop, clippy::too_many_arguments)]
 /// The Liu–West move of the resampled object states (see the module's documentation).
 fn liu_west(
     config: &Config,
@@ -649,43 +767,41 @@ fn liu_west(
     w: &[f64],
     parents: &[usize],
     free: &[usize],
+    cleared: &[bool],
     generation: u64,
     t: f64,
 ) -> Vec<ObjState> {
-    // Moved coordinates: the free unknowns, the start delay as the current height y0 + v·t (so
-    // the object does not jump); the height is kept when the start is known.
-    let coords: Vec<usize> = free.to_vec();
-    let m = coords.len();
+    // Moved coordinates: the free unknowns (d, v, t0, size, mu), summarised over the weighted
+    // cloud. A particle whose box has gone takes the move as it is. One whose box may still touch
+    // its whisker keeps the box where it is when its speed moves (the whisker state stays
+    // consistent with it); a move of its start delay shifts the box along its path.
+    let m = free.len();
     let a = config.shrink;
     let mut out: Vec<ObjState> = parents.iter().map(|&p| objs[p]).collect();
     if m == 0 || a >= 1.0 {
         return out;
     }
-    let coord = |o: &ObjState, c: usize| if c == Y { o[Y] + o[1] * t } else { o[c] };
+    let gap = config.gap;
     let mut mean = [0.0f64; 5];
     for (o, &wi) in objs.iter().zip(w) {
-        for (j, &c) in coords.iter().enumerate() {
-            mean[j] += wi * coord(o, c);
+        for (j, &c) in free.iter().enumerate() {
+            mean[j] += wi * param(o, c, gap);
         }
     }
     let mut cov = [[0.0f64; 5]; 5];
     for (o, &wi) in objs.iter().zip(w) {
         for j in 0..m {
             for l in 0..m {
-                cov[j][l] += wi * (coord(o, coords[j]) - mean[j]) * (coord(o, coords[l]) - mean[l]);
+                cov[j][l] +=
+                    wi * (param(o, free[j], gap) - mean[j]) * (param(o, free[l], gap) - mean[l]);
             }
         }
     }
     // Cholesky with a small floor on the diagonal (a collapsed cloud still moves a little).
     let mut chol = [[0.0f64; 5]; 5];
     for j in 0..m {
-        let span = if coords[j] == Y {
-            config.priors[1].hi * (config.priors[2].hi - config.priors[2].lo)
-        } else {
-            config.priors[coords[j]].hi - config.priors[coords[j]].lo
-        };
-        let floor = 1e-12 * span * span;
-        cov[j][j] = cov[j][j].max(floor);
+        let span = config.priors[free[j]].hi - config.priors[free[j]].lo;
+        cov[j][j] = cov[j][j].max(1e-12 * span * span);
     }
     for j in 0..m {
         for l in 0..=j {
@@ -706,25 +822,26 @@ fn liu_west(
     for (i, o) in out.iter_mut().enumerate() {
         let mut rng = Rng::stream(config.seed, STREAM_MOVE + (generation << 20) + i as u64);
         let z: Vec<f64> = (0..m).map(|_| rng.normal()).collect();
-        let y_now = o[Y] + o[1] * t;
-        let mut y_new = y_now;
+        let (t0_old, y_now) = (start_delay(o, gap), o[Y] + o[1] * t);
+        let mut t0_new = t0_old;
         for j in 0..m {
-            let c = coords[j];
+            let c = free[j];
             let noise: f64 = (0..=j).map(|l| chol[j][l] * z[l]).sum();
-            let x = a * coord(o, c) + (1.0 - a) * mean[j] + h * noise;
+            let x = reflect(
+                a * param(o, c, gap) + (1.0 - a) * mean[j] + h * noise,
+                &config.priors[c],
+            );
             if c == Y {
-                y_new = x;
+                t0_new = x;
             } else {
-                o[c] = reflect(x, &config.priors[c]);
+                o[c] = x;
             }
         }
-        o[Y] = y_new - o[1] * t;
-        // A start delay outside its prior is reflected back into it.
-        let t0 = start_delay(o, config.gap);
-        let t0r = reflect(t0, &config.priors[2]);
-        if t0r != t0 {
-            o[Y] = -config.gap - o[1] * t0r;
-        }
+        o[Y] = if cleared[parents[i]] {
+            -gap - o[1] * t0_new
+        } else {
+            y_now - o[1] * (t0_new - t0_old) - o[1] * t
+        };
     }
     out
 }

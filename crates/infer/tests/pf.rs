@@ -67,7 +67,13 @@ fn unknown_start_is_estimated() {
     let post = pf::run(&config, &obs, &mut |_| {}).unwrap();
     assert_eq!(post.unknowns, ["d", "v", "t0"]);
     let last = post.last();
-    assert!((last[2].mean - 0.02).abs() < 0.004, "t0 = {}", last[2].mean);
+    assert!(
+        (last[2].mean - 0.02).abs() < 0.004,
+        "t0 = {} (d {}, v {})",
+        last[2].mean,
+        last[0].mean,
+        last[1].mean
+    );
     assert!(
         (last[0].mean - 0.025).abs() < 1.5e-3,
         "d = {}",
