@@ -112,6 +112,10 @@ pub struct Scratch {
     pub(crate) acc_lasting: Vec<f64>,
     /// Correction of the end-of-step angles that removes any remaining penetration `[N]`.
     pub(crate) position_fix: Vec<f64>,
+    /// Dense scratch of the pivoting solve, `[MAX_CONTACTS][MAX_CONTACTS + 1]` (only the part in
+    /// use is written), and of post-stabilisation's compliance matrix, `[MAX_CONTACTS]²`.
+    dense: Vec<f64>,
+    stat: Vec<f64>,
 }
 
 impl Scratch {
@@ -129,6 +133,8 @@ impl Scratch {
             acc: vec![0.0; n],
             acc_lasting: vec![0.0; n],
             position_fix: vec![0.0; n],
+            dense: vec![0.0; MAX_CONTACTS * (MAX_CONTACTS + 1)],
+            stat: vec![0.0; MAX_CONTACTS * MAX_CONTACTS],
         }
     }
 
@@ -329,7 +335,10 @@ pub(crate) fn solve(
             // segment lying along a face touches it at both ends). A node shared with the previous
             // segment is taken once.
             let near = closest(&obj.shape, &pose, a, b);
-            let end = if near.u < 1.0 {
+            // The far node's distance to the object's bounding box bounds its gap from below.
+            let bx = (ob[0] - b[0]).max(b[0] - ob[2]).max(0.0);
+            let by = (ob[1] - b[1]).max(b[1] - ob[3]).max(0.0);
+            let end = if near.u < 1.0 && bx * bx + by * by <= reach * reach {
                 let a2 = [b[0] - 1e-6 * (b[0] - a[0]), b[1] - 1e-6 * (b[1] - a[1])];
                 let e = closest(&obj.shape, &pose, a2, b);
                 Some(Closest {
@@ -489,12 +498,17 @@ pub(crate) fn solve(
     // Delassus matrix: every row is a velocity at the end of the step. An impact's force changes
     // the rates by h times its acceleration; a lasting contact's force is integrated like any
     // other force (by the method's own weights).
+    // Tangential rows and columns of frictionless candidates are zero (their J rows are).
     for r in 0..m {
+        let row_zero = r % 2 == 1 && sc.cand[r / 2].mu == 0.0;
         for &k in act {
             let scale = if sc.cand[k].impact { h } else { cv };
             for col in [2 * k, 2 * k + 1] {
-                sc.w[r * m + col] =
-                    scale * dot(&jac[r * n..(r + 1) * n], &resp[col * n..(col + 1) * n]);
+                sc.w[r * m + col] = if row_zero || (col % 2 == 1 && sc.cand[k].mu == 0.0) {
+                    0.0
+                } else {
+                    scale * dot(&jac[r * n..(r + 1) * n], &resp[col * n..(col + 1) * n])
+                };
             }
         }
     }
@@ -623,37 +637,51 @@ fn pivot_normal(sc: &mut Scratch, act: &[usize], m: usize) -> bool {
                 ns += 1;
             }
         }
-        let mut mat = [[0.0f64; MAX_CONTACTS + 1]; MAX_CONTACTS];
+        // Rows of the augmented matrix [W_SS | −c_S], stride MAX_CONTACTS + 1.
+        const S: usize = MAX_CONTACTS + 1;
+        let mut mat = std::mem::take(&mut sc.dense);
         for i in 0..ns {
             for j in 0..ns {
-                mat[i][j] = wn(sc, map[i], map[j]);
+                mat[i * S + j] = wn(sc, map[i], map[j]);
             }
-            mat[i][ns] = -sc.cand[act[map[i]]].c_n;
+            mat[i * S + ns] = -sc.cand[act[map[i]]].c_n;
         }
-        let scale = (0..ns).fold(f64::MIN_POSITIVE, |a, i| a.max(mat[i][i].abs()));
+        let scale = (0..ns).fold(f64::MIN_POSITIVE, |a, i| a.max(mat[i * S + i].abs()));
+        let mut singular = false;
         for col in 0..ns {
             let piv = (col..ns)
-                .max_by(|&a, &b| mat[a][col].abs().total_cmp(&mat[b][col].abs()))
+                .max_by(|&a, &b| mat[a * S + col].abs().total_cmp(&mat[b * S + col].abs()))
                 .unwrap_or(col);
-            let p = mat[piv][col].abs();
+            let p = mat[piv * S + col].abs();
             if p.is_nan() || p <= 1e-12 * scale {
-                return false;
+                singular = true;
+                break;
             }
-            mat.swap(col, piv);
-            for r in col + 1..ns {
-                let f = mat[r][col] / mat[col][col];
+            if piv != col {
                 for c in col..=ns {
-                    mat[r][c] -= f * mat[col][c];
+                    mat.swap(col * S + c, piv * S + c);
+                }
+            }
+            for r in col + 1..ns {
+                let f = mat[r * S + col] / mat[col * S + col];
+                for c in col..=ns {
+                    mat[r * S + c] -= f * mat[col * S + c];
                 }
             }
         }
-        lambda[..na].fill(0.0);
-        for i in (0..ns).rev() {
-            let mut x = mat[i][ns];
-            for j in i + 1..ns {
-                x -= mat[i][j] * lambda[map[j]];
+        if !singular {
+            lambda[..na].fill(0.0);
+            for i in (0..ns).rev() {
+                let mut x = mat[i * S + ns];
+                for j in i + 1..ns {
+                    x -= mat[i * S + j] * lambda[map[j]];
+                }
+                lambda[map[i]] = x / mat[i * S + i];
             }
-            lambda[map[i]] = x / mat[i][i];
+        }
+        sc.dense = mat;
+        if singular {
+            return false;
         }
         // A contact in the set pulling: drop the most negative.
         let worst = (0..na)
@@ -719,7 +747,8 @@ fn post_stabilise(
     }
     if gap[..count].iter().any(|g| *g < 0.0) {
         // Static compliance matrix of the contacts' normal directions, J K⁻¹ Jᵀ.
-        let mut stat = [[0.0f64; MAX_CONTACTS]; MAX_CONTACTS];
+        let mut stat = std::mem::take(&mut sc.stat);
+        const S: usize = MAX_CONTACTS;
         for k in 0..count {
             for j in 0..=k {
                 let (a, b) = (
@@ -727,8 +756,8 @@ fn post_stabilise(
                     &sc.jac[2 * j * n..(2 * j + 1) * n],
                 );
                 let v: f64 = (0..n).map(|i| a[i] * b[i] * k_inv(i)).sum();
-                stat[k][j] = v;
-                stat[j][k] = v;
+                stat[k * S + j] = v;
+                stat[j * S + k] = v;
             }
         }
         // Smallest non-negative multipliers that close every gap (projected Gauss–Seidel).
@@ -736,10 +765,11 @@ fn post_stabilise(
         for _ in 0..2000 {
             let mut change = 0.0f64;
             for k in 0..count {
-                let g = gap[k] + (0..count).map(|j| stat[k][j] * mu[j]).sum::<f64>();
-                if stat[k][k] > 0.0 {
-                    let new = (mu[k] - g / stat[k][k]).max(0.0);
-                    change = change.max((new - mu[k]).abs() * stat[k][k]);
+                let g = gap[k] + (0..count).map(|j| stat[k * S + j] * mu[j]).sum::<f64>();
+                let diag = stat[k * S + k];
+                if diag > 0.0 {
+                    let new = (mu[k] - g / diag).max(0.0);
+                    change = change.max((new - mu[k]).abs() * diag);
                     mu[k] = new;
                 }
             }
@@ -747,6 +777,7 @@ fn post_stabilise(
                 break;
             }
         }
+        sc.stat = stat;
         for (k, &muk) in mu.iter().enumerate().take(count) {
             if muk > 0.0 {
                 for (i, f) in sc.position_fix.iter_mut().enumerate() {
