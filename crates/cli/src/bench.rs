@@ -43,6 +43,18 @@ pub struct Args {
     #[arg(long, value_name = "RULE", default_value = Discretisation::default().name(),
           value_parser = PossibleValuesParser::new(DISCRETISATIONS))]
     discretisation: String,
+    /// Measure the particle filter instead: its real-time factor on a noisy e2 run for each
+    /// particle count of --particles.
+    #[arg(long)]
+    pf: bool,
+    /// Particle counts of --pf, comma-separated.
+    #[arg(
+        long,
+        value_name = "LIST",
+        value_delimiter = ',',
+        default_value = "100,1000,10000"
+    )]
+    particles: Vec<usize>,
 }
 
 /// Segment counts of the single-state measurement, ascending.
@@ -173,6 +185,9 @@ struct BenchReport {
 
 /// Measures, then prints the figures.
 pub fn run(args: &Args) -> Result<()> {
+    if args.pf {
+        return crate::bench_pf::run(&args.particles, args.quick, &args.format);
+    }
     let plan = Plan::new(args.quick);
     let optimised = !cfg!(debug_assertions);
     if !optimised {

@@ -4,6 +4,7 @@
 //! with its causes. Usage errors are clap's (exit status 2); any other failure exits with 1.
 
 mod bench;
+mod bench_pf;
 mod estimate;
 mod estimate_pf;
 mod experiment;

@@ -496,3 +496,25 @@ fn sweep_refuses_a_malformed_grid() {
         stderr(&out)
     );
 }
+
+#[test]
+fn bench_pf_reports_the_real_time_factor_per_particle_count() {
+    let out = vibrissa(&["bench", "--pf", "--quick", "--particles", "16,32", "--json"]);
+    assert!(out.status.success(), "stderr:\n{}", stderr(&out));
+    let report = json(&out);
+    let rows = report["rows"].as_array().expect("rows");
+    assert_eq!(rows.len(), 2);
+    for (row, n) in rows.iter().zip([16, 32]) {
+        assert_eq!(row["particles"], n);
+        let (wall, data) = (
+            row["seconds"].as_f64().unwrap(),
+            row["data_seconds"].as_f64().unwrap(),
+        );
+        assert!((data - 0.15).abs() < 1e-9);
+        let rtf = row["real_time_factor"].as_f64().unwrap();
+        assert!((rtf * wall - data).abs() < 1e-9 * data.max(1.0), "{row}");
+    }
+    let bad = vibrissa(&["bench", "--pf", "--particles", "0"]);
+    assert!(!bad.status.success());
+    assert!(stderr(&bad).contains("at least 1"), "{}", stderr(&bad));
+}

@@ -1,0 +1,120 @@
+//! `vibrissa bench --pf`: the particle filter's real-time factor against its particle count.
+//!
+//! One noisy `e2` run (d = 22 mm, v = 0.9 m/s, seed 1) is filtered with each particle count on
+//! every core of the machine's default pool; the real-time factor is the simulated seconds of
+//! data per wall second (above 1: faster than the data arrive at 1 kHz). The filter's settings
+//! are those of `vibrissa estimate --method pf` (tempering by particle count); no training runs
+//! are simulated: the observation noise is the `noisy` variant's, as the filter's fit finds it.
+
+use crate::output::{sig, Align, FormatArgs, Render, Table};
+use anyhow::{bail, Result};
+use serde::Serialize;
+use std::io::{self, Write};
+use std::time::Instant;
+use vibrissa_infer::experiment::{simulate, Experiment, Noise, Variant};
+use vibrissa_infer::pf::{self, Config, Observations, MODEL_ERROR};
+
+/// One particle count's figures.
+#[derive(Debug, Clone, Serialize)]
+struct Row {
+    particles: usize,
+    /// Wall seconds of the fastest repetition.
+    seconds: f64,
+    /// Seconds of data filtered.
+    data_seconds: f64,
+    /// Data seconds per wall second.
+    real_time_factor: f64,
+    /// Physics steps per wall second, over all particles.
+    steps_per_second: f64,
+    /// The estimates at the last sample, for a sanity check (m, m/s).
+    d: f64,
+    v: f64,
+}
+
+/// The report.
+#[derive(Debug, Clone, Serialize)]
+struct Report {
+    threads: usize,
+    truth: [f64; 2],
+    rows: Vec<Row>,
+}
+
+impl Render for Report {
+    fn render(&self, out: &mut dyn Write) -> io::Result<()> {
+        writeln!(
+            out,
+            "particle filter on one noisy e2 run (d = {} mm, v = {} m/s), {} threads",
+            self.truth[0] * 1e3,
+            self.truth[1],
+            self.threads
+        )?;
+        let mut t = Table::new(&[
+            ("particles", Align::Right),
+            ("wall (s)", Align::Right),
+            ("data (s)", Align::Right),
+            ("real-time factor", Align::Right),
+            ("steps/s", Align::Right),
+            ("d (mm)", Align::Right),
+            ("v (m/s)", Align::Right),
+        ]);
+        for r in &self.rows {
+            t.row(vec![
+                r.particles.to_string(),
+                sig(r.seconds, 3),
+                sig(r.data_seconds, 3),
+                format!("{:.2}", r.real_time_factor),
+                sig(r.steps_per_second, 3),
+                format!("{:.2}", r.d * 1e3),
+                format!("{:.3}", r.v),
+            ]);
+        }
+        t.write(out, "  ")
+    }
+}
+
+/// Measures and prints.
+pub fn run(particles: &[usize], quick: bool, format: &FormatArgs) -> Result<()> {
+    if particles.is_empty() || particles.contains(&0) {
+        bail!("--particles takes counts of at least 1 (e.g. 100,1000,10000)");
+    }
+    let truth = [0.022, 0.9];
+    let noise = Noise::of(Variant::Noisy)?;
+    let run = simulate(Experiment::E2, truth, &noise, 1)?;
+    let obs = Observations::at_rate(run.series, vibrissa_infer::experiment::SAMPLE_RATE);
+    let data_seconds = obs.t[obs.t.len() - 1] - obs.t[0];
+    let mut rows = Vec::new();
+    for &n in particles {
+        let temper = pf::temper_for(n);
+        let sigma =
+            pf::observation_sigma(noise.sensor, noise.sensor.map(|s| MODEL_ERROR * s), temper);
+        let config = Config::e2(sigma, n, 1);
+        // Fastest of a few repetitions (one for the largest counts).
+        let reps = if quick || n >= 5000 { 1 } else { 3 };
+        let mut best = f64::INFINITY;
+        let mut last = None;
+        for _ in 0..reps {
+            let start = Instant::now();
+            let post = pf::run(&config, &obs, &mut |_| {})?;
+            best = best.min(start.elapsed().as_secs_f64());
+            last = Some(post);
+        }
+        let post = last.expect("at least one repetition");
+        let est = post.last();
+        eprintln!("{n} particles: {best:.3} s");
+        rows.push(Row {
+            particles: n,
+            seconds: best,
+            data_seconds,
+            real_time_factor: data_seconds / best,
+            steps_per_second: post.steps as f64 / best,
+            d: est[0].mean,
+            v: est[1].mean,
+        });
+    }
+    format.format().print(&Report {
+        threads: rayon::current_num_threads(),
+        truth,
+        rows,
+    })?;
+    Ok(())
+}
