@@ -1,0 +1,102 @@
+//! Scores the particle filter on many runs, with the options that `vibrissa experiment` does not
+//! have: a recording that starts up to MAX_DELAY seconds early (t0 unknown), hypothesis injection
+//! from `krr`, and a chosen tempering.
+//!
+//! ```sh
+//! cargo run --release -p vibrissa-infer --example pf_evaluate -- SET PARTICLES TEMPER MAX_DELAY INJECT [VARIANT]
+//! ```
+//! - SET: `grid` (the 71 evaluated runs of `e2`) or `train` (24 runs at random parameters, drawn
+//!   apart from the grid, on which the tempering was chosen);
+//! - PARTICLES, TEMPER (likelihood tempering; see `pf::temper_for`);
+//! - MAX_DELAY: 0 for a known start, else each run's recording starts a random whole number of
+//!   milliseconds in [0, MAX_DELAY] before the run's t = 0 and the filter's t0 is unknown on
+//!   [0, 0.05 s];
+//! - INJECT: share of the initial particles drawn around `krr`'s estimate (0: none);
+//! - VARIANT: `noisy` (default) or `clean`.
+//!
+//! Prints the runs whose error exceeds 0.5 mm or 0.03 m/s, then the mean absolute errors, the
+//! coverage of the 90% intervals and the real-time factor (under whatever else the machine runs).
+
+use std::sync::Arc;
+use vibrissa_core::rng::Rng;
+use vibrissa_infer::experiment::{simulate_all, simulate_delayed, Experiment, Noise, Variant};
+use vibrissa_infer::pf::Pf;
+use vibrissa_infer::{methods, Method, Training};
+
+fn arg<T: std::str::FromStr>(args: &[String], k: usize, default: T) -> T {
+    args.get(k).and_then(|s| s.parse().ok()).unwrap_or(default)
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().collect();
+    let set = args.get(1).cloned().unwrap_or_else(|| "train".into());
+    let particles: usize = arg(&args, 2, 1000);
+    let temper: f64 = arg(&args, 3, vibrissa_infer::pf::temper_for(particles));
+    let max_delay: f64 = arg(&args, 4, 0.0);
+    let inject: f64 = arg(&args, 5, 0.0);
+    let variant = Variant::parse(args.get(6).map_or("noisy", |s| s.as_str()))?;
+    let e = Experiment::E2;
+    let noise = Noise::of(variant)?;
+    let params: Vec<[f64; 2]> = match set.as_str() {
+        "train" => e.random_params(24, 4242),
+        "grid" => e
+            .grid()
+            .into_iter()
+            .filter(|p| !e.is_template(*p))
+            .collect(),
+        other => return Err(format!("unknown set `{other}`: choose grid or train").into()),
+    };
+    // The filter's training runs, as `vibrissa experiment` makes them.
+    let train_p = e.random_params(400, 1 ^ 0x5eed);
+    let training = Training {
+        experiment: e,
+        samples: simulate_all(e, &train_p, &noise, 2, &|| {})?,
+        calibration: vec![],
+    };
+    let mut pf = Pf::new(particles);
+    pf.temper = temper;
+    pf.max_delay = if max_delay > 0.0 { 0.05 } else { 0.0 };
+    if inject > 0.0 {
+        let m: Arc<dyn Method> = Arc::from(methods::by_name("krr")?);
+        pf.inject = Some((inject, m));
+    }
+    pf.fit(&training)?;
+
+    let start = std::time::Instant::now();
+    let (mut ed, mut ev, mut cd, mut cv, mut data) = (0.0, 0.0, 0, 0, 0.0);
+    let mut rng = Rng::stream(77, 0);
+    for (k, p) in params.iter().enumerate() {
+        let delay = (rng.uniform() * max_delay * 1000.0).round() / 1000.0;
+        let s = simulate_delayed(e, *p, delay, &noise, 5000 + k as u64)?;
+        data += (s.series[0].len() - 1) as f64 * 1e-3;
+        let est = pf.predict(&s.series)?;
+        ed += (est[0].mean - p[0]).abs();
+        ev += (est[1].mean - p[1]).abs();
+        cd += usize::from(est[0].covers(p[0]));
+        cv += usize::from(est[1].covers(p[1]));
+        if (est[0].mean - p[0]).abs() > 5e-4 || (est[1].mean - p[1]).abs() > 0.03 {
+            println!(
+                "  d = {:.1} mm, v = {:.2} m/s, delay {delay} s: d = {:.2} ± {:.2} mm, v = {:.3} ± {:.3} m/s",
+                p[0] * 1e3,
+                p[1],
+                est[0].mean * 1e3,
+                est[0].std * 1e3,
+                est[1].mean,
+                est[1].std
+            );
+        }
+    }
+    let n = params.len() as f64;
+    let wall = start.elapsed().as_secs_f64();
+    println!(
+        "{set}: {} runs, {particles} particles, tempering {temper}, delay <= {max_delay} s, injection {inject}: \
+         MAE d {:.3} mm, v {:.4} m/s; 90% cover d {:.0}%, v {:.0}%; {wall:.1} s, real-time factor {:.2}",
+        params.len(),
+        ed / n * 1e3,
+        ev / n,
+        cd as f64 / n * 100.0,
+        cv as f64 / n * 100.0,
+        data / wall
+    );
+    Ok(())
+}
