@@ -27,3 +27,19 @@ pub fn step_all(
         },
     )
 }
+
+/// Calls `f(workspace, item)` on every item of a parallel iterator (states zipped with whatever
+/// each one carries: a particle's object, its weight) over the current rayon pool, with one
+/// workspace of `model` per rayon split, and sums what `f` returns (a count of failures, say).
+/// The items' order of processing varies with the thread count; give each item its own random
+/// stream and the result does not.
+pub fn sum_with_workspace<I, F>(model: &Model, items: I, f: F) -> usize
+where
+    I: IndexedParallelIterator,
+    F: Fn(&mut Workspace, I::Item) -> usize + Sync + Send,
+{
+    items
+        .with_min_len(8)
+        .map_init(|| Workspace::new(model), |ws, item| f(ws, item))
+        .sum()
+}

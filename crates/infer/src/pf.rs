@@ -24,6 +24,7 @@ use crate::experiment::CHANNELS;
 use crate::method::{Estimate, Z90};
 use rayon::prelude::*;
 use serde::Serialize;
+use vibrissa_core::batch;
 use vibrissa_core::chain::{Discretisation, Model};
 use vibrissa_core::dynamics::{initialize, step, Inputs, Integrator, State, Workspace};
 use vibrissa_core::objects::{Motion, Object, Shape};
@@ -483,80 +484,78 @@ pub fn run(
             (((t - obs.t[k - 1]) / period) + 0.5).floor() as usize
         };
         let per_period = steps / periods.max(1);
-        let diverged: usize = states
-            .par_iter_mut()
-            .zip(objs.par_iter())
-            .zip(logw.par_iter_mut())
-            .zip(cleared.par_iter_mut())
-            .with_min_len(8)
-            .map_init(
-                || Workspace::new(&model),
-                |ws, (((s, o), lw), gone)| {
-                    if *lw == f64::NEG_INFINITY {
-                        return 0;
+        let diverged = batch::sum_with_workspace(
+            &model,
+            states
+                .par_iter_mut()
+                .zip(objs.par_iter())
+                .zip(logw.par_iter_mut())
+                .zip(cleared.par_iter_mut()),
+            |ws, (((s, o), lw), gone)| {
+                if *lw == f64::NEG_INFINITY {
+                    return 0;
+                }
+                if *gone {
+                    // Free ringing: one step per period of the free model.
+                    let inputs = Inputs {
+                        base: Default::default(),
+                        loads: &[],
+                        noise: config.process_noise,
+                        objects: &[],
+                    };
+                    for _ in 0..periods {
+                        if step(&ringing.model, &ringing.stepper, s, &inputs, ws).is_err() {
+                            *lw = f64::NEG_INFINITY;
+                            return 1;
+                        }
                     }
-                    if *gone {
-                        // Free ringing: one step per period of the free model.
+                } else {
+                    let object = [object_of(o)];
+                    // Process noise drawn once per period (on its first step, with the
+                    // intensity that gives the period's impulse its full variance).
+                    let lumped = config.process_noise * (per_period as f64).sqrt();
+                    for j in 0..steps {
                         let inputs = Inputs {
                             base: Default::default(),
                             loads: &[],
-                            noise: config.process_noise,
+                            noise: if j % per_period.max(1) == 0 {
+                                lumped
+                            } else {
+                                0.0
+                            },
+                            objects: &object,
+                        };
+                        if step(&model, &stepper, s, &inputs, ws).is_err() {
+                            *lw = f64::NEG_INFINITY;
+                            return 1;
+                        }
+                    }
+                    if s.contact.is_none() && ringing.cleared(s, o, t, ws) {
+                        let none = Inputs {
+                            base: Default::default(),
+                            loads: &[],
+                            noise: 0.0,
                             objects: &[],
                         };
-                        for _ in 0..periods {
-                            if step(&ringing.model, &ringing.stepper, s, &inputs, ws).is_err() {
-                                *lw = f64::NEG_INFINITY;
-                                return 1;
-                            }
+                        if initialize(&ringing.model, s, &none, ws).is_err() {
+                            *lw = f64::NEG_INFINITY;
+                            return 1;
                         }
-                    } else {
-                        let object = [object_of(o)];
-                        // Process noise drawn once per period (on its first step, with the
-                        // intensity that gives the period's impulse its full variance).
-                        let lumped = config.process_noise * (per_period as f64).sqrt();
-                        for j in 0..steps {
-                            let inputs = Inputs {
-                                base: Default::default(),
-                                loads: &[],
-                                noise: if j % per_period.max(1) == 0 {
-                                    lumped
-                                } else {
-                                    0.0
-                                },
-                                objects: &object,
-                            };
-                            if step(&model, &stepper, s, &inputs, ws).is_err() {
-                                *lw = f64::NEG_INFINITY;
-                                return 1;
-                            }
-                        }
-                        if s.contact.is_none() && ringing.cleared(s, o, t, ws) {
-                            let none = Inputs {
-                                base: Default::default(),
-                                loads: &[],
-                                noise: 0.0,
-                                objects: &[],
-                            };
-                            if initialize(&ringing.model, s, &none, ws).is_err() {
-                                *lw = f64::NEG_INFINITY;
-                                return 1;
-                            }
-                            *gone = true;
-                        }
+                        *gone = true;
                     }
-                    let pred = Sensors::read(s).to_array();
-                    let mut ll = 0.0;
-                    for c in 0..5 {
-                        if seen[c] {
-                            let z = (y[c] - pred[c]) / config.sigma[c];
-                            ll -= 0.5 * z * z;
-                        }
+                }
+                let pred = Sensors::read(s).to_array();
+                let mut ll = 0.0;
+                for c in 0..5 {
+                    if seen[c] {
+                        let z = (y[c] - pred[c]) / config.sigma[c];
+                        ll -= 0.5 * z * z;
                     }
-                    *lw += ll;
-                    0
-                },
-            )
-            .sum();
+                }
+                *lw += ll;
+                0
+            },
+        );
         post.diverged += diverged;
         post.steps += (steps * np) as u64;
 
