@@ -47,6 +47,11 @@ pub struct Args {
     /// `t0` becomes an unknown, uniform on [0, MAX]).
     #[arg(long, value_name = "SECONDS", default_value_t = 0.0)]
     pub(crate) max_delay: f64,
+    /// pf: a uniform prior NAME=LO:HI for an unknown of the object (d, v, t0, size, mu; SI), which
+    /// makes a fixed parameter unknown (size: the box's side, default 0.01 m; mu: its friction
+    /// coefficient, default 0) or narrows or widens a free one. Repeatable.
+    #[arg(long, value_name = "NAME=LO:HI")]
+    pub(crate) prior: Vec<String>,
     /// pf: observed channels, comma-separated (theta01, theta12, m0, fx, fy).
     #[arg(long, value_name = "LIST", value_delimiter = ',')]
     pub(crate) channels: Vec<String>,
@@ -160,8 +165,12 @@ pub fn run(args: &Args) -> Result<()> {
     if args.method.as_deref() == Some("pf") {
         return crate::estimate_pf::run(args, experiment, variant);
     }
-    if args.trace.is_some() || args.inject.is_some() || !args.channels.is_empty() {
-        bail!("--trace, --inject and --channels apply to --method pf only");
+    if args.trace.is_some()
+        || args.inject.is_some()
+        || !args.channels.is_empty()
+        || !args.prior.is_empty()
+    {
+        bail!("--trace, --inject, --channels and --prior apply to --method pf only");
     }
     let mut method = methods::by_name(args.method.as_deref().unwrap_or_default())?;
 

@@ -45,6 +45,7 @@ pub fn run(args: &Args, experiment: Experiment, variant: Variant) -> Result<()> 
         files::check_folder(trace, "--trace")?;
     }
     let channels = parse_channels(&args.channels)?;
+    let priors = parse_priors(&args.prior)?;
 
     // Read and check every file before anything is trained.
     let obs = args
@@ -88,6 +89,10 @@ pub fn run(args: &Args, experiment: Experiment, variant: Variant) -> Result<()> 
         let start = Instant::now();
         let mut config = filter.config(experiment, sigma);
         config.channels = channels.clone();
+        for &(k, p) in &priors {
+            config.priors[k] = p;
+        }
+        config.check().context("--prior")?;
         if let Some(m) = &inject {
             let e = m.predict(&o.values).with_context(|| {
                 format!(
@@ -164,6 +169,35 @@ pub fn run(args: &Args, experiment: Experiment, variant: Variant) -> Result<()> 
         }
     }
     Ok(())
+}
+
+/// `NAME=LO:HI` priors as (index into `pf::PARAMS`, prior).
+fn parse_priors(specs: &[String]) -> Result<Vec<(usize, pf::Prior)>> {
+    specs
+        .iter()
+        .map(|spec| {
+            let bad = || {
+                anyhow::anyhow!(
+                    "--prior `{spec}`: expected NAME=LO:HI with NAME one of {} and numbers LO <= HI (SI units)",
+                    pf::PARAMS.join(", ")
+                )
+            };
+            let (name, range) = spec.split_once('=').ok_or_else(bad)?;
+            let k = pf::PARAMS
+                .iter()
+                .position(|p| *p == name.trim())
+                .ok_or_else(bad)?;
+            let (lo, hi) = range.split_once(':').ok_or_else(bad)?;
+            let (lo, hi): (f64, f64) = (
+                lo.trim().parse().map_err(|_| bad())?,
+                hi.trim().parse().map_err(|_| bad())?,
+            );
+            if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
+                return Err(bad());
+            }
+            Ok((k, pf::Prior::uniform(lo, hi)))
+        })
+        .collect()
 }
 
 /// Channel indices from names (all five when none are given).

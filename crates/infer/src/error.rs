@@ -17,6 +17,9 @@ pub enum Error {
     /// An observation does not fit the experiment or the method.
     #[error("unusable observation: {0}")]
     Observation(String),
+    /// A setting of a method is out of its range.
+    #[error("invalid setting: {0}")]
+    Setting(String),
     /// A method was used before it was fitted, or with unusable training data.
     #[error("{method}: {detail}")]
     Fit {

@@ -142,7 +142,7 @@ impl Config {
     /// Checks every setting, naming the first bad one.
     pub fn check(&self) -> Result<()> {
         let bad = |field: &str, allowed: &str| {
-            Err(Error::Observation(format!(
+            Err(Error::Setting(format!(
                 "filter setting `{field}`: expected {allowed}"
             )))
         };
