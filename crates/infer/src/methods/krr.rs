@@ -136,14 +136,9 @@ fn principal_axes(x: &[Vec<f64>], mean: &[f64], count: usize) -> Vec<Vec<f64>> {
         .iter()
         .map(|r| r.iter().zip(mean).map(|(a, m)| a - m).collect())
         .collect();
-    let mut g = DMatrix::<f64>::zeros(n, n);
-    for i in 0..n {
-        for j in 0..=i {
-            let v: f64 = c[i].iter().zip(&c[j]).map(|(a, b)| a * b).sum();
-            g[(i, j)] = v;
-            g[(j, i)] = v;
-        }
-    }
+    // The Gram matrix C Cᵀ as one matrix product.
+    let cm = DMatrix::from_fn(n, mean.len(), |i, j| c[i][j]);
+    let g = &cm * cm.transpose();
     let eig = g.symmetric_eigen();
     let mut order: Vec<usize> = (0..n).collect();
     order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
@@ -308,13 +303,21 @@ impl Method for Krr {
                     .iter()
                     .copied()
                     .collect();
-                let inv = chol.inverse();
+                // (A⁻¹)_ii = Σ_k (L⁻¹)_ki², from the inverse of the Cholesky factor alone.
+                let n = z.len();
+                let linv = chol
+                    .l()
+                    .solve_lower_triangular(&DMatrix::<f64>::identity(n, n))
+                    .ok_or_else(|| fail("kernel matrix not positive definite"))?;
+                let inv_diag: Vec<f64> = (0..n)
+                    .map(|i| linv.column(i).iter().map(|v| v * v).sum())
+                    .collect();
                 let [lo, hi] = self.ranges[u];
                 let pairs: Vec<(f64, f64)> = (0..z.len())
                     .filter(|&i| inside[i])
                     .map(|i| {
                         // f_{−i}(z_i) = y_i − α_i / (A⁻¹)_ii.
-                        let loo = (y[u][i] - alpha[i] / inv[(i, i)]).clamp(0.0, 1.0);
+                        let loo = (y[u][i] - alpha[i] / inv_diag[i]).clamp(0.0, 1.0);
                         ((loo - y[u][i]) * (hi - lo), 1.0 / Z90)
                     })
                     .collect();
