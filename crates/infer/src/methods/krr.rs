@@ -1,11 +1,12 @@
 //! Kernel ridge regression (RBF kernel) on principal components of normalised series.
 
 use crate::error::{Error, Result};
-use crate::experiment::{Sample, CHANNELS};
+use crate::experiment::{Experiment, Sample, CHANNELS};
 use crate::features::{channel_scales, coverage_factor_at, dist2, flatten};
 use crate::method::{Budget, Estimate, Method, Training, Z90};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
+use std::sync::Mutex;
 
 /// Principal components kept.
 const COMPONENTS: usize = 24;
@@ -53,6 +54,18 @@ pub struct Krr {
     ranges: Vec<[f64; 2]>,
     /// Per unknown.
     heads: Vec<Head>,
+}
+
+/// The latest fit and the runs it learnt from. Fitting is deterministic, so a second fit on the
+/// same runs (`krr-local`'s first stage learns from the same runs as `krr` in one evaluation)
+/// takes the first's result.
+static LATEST: Mutex<Option<(Experiment, Vec<Sample>, Krr)>> = Mutex::new(None);
+
+/// The latest fit, if it learnt from exactly `training`'s runs.
+fn latest(training: &Training) -> Option<Krr> {
+    let l = LATEST.lock().ok()?;
+    let (e, s, k) = l.as_ref()?;
+    (*e == training.experiment && *s == training.samples).then(|| k.clone())
 }
 
 /// Kernel matrix of `z` with length scale `length`, without ridge.
@@ -196,6 +209,10 @@ impl Method for Krr {
         if s.len() < 10 {
             return Err(fail("needs at least 10 training runs"));
         }
+        if let Some(k) = latest(training) {
+            *self = k;
+            return Ok(());
+        }
         let channels: Vec<usize> = (0..CHANNELS.len()).collect();
         self.scales = channel_scales(s, &channels);
         self.ranges = training.experiment.ranges();
@@ -331,6 +348,9 @@ impl Method for Krr {
             .collect();
         self.heads = heads.into_iter().collect::<Result<_>>()?;
         self.z = z;
+        if let Ok(mut l) = LATEST.lock() {
+            *l = Some((training.experiment, training.samples.clone(), self.clone()));
+        }
         Ok(())
     }
 
@@ -357,5 +377,55 @@ impl Method for Krr {
             s.push((format!("ridge_{name}"), h.ridge));
         }
         s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::experiment::SAMPLES;
+
+    /// 40 synthetic runs whose series depend smoothly on (d, v), shifted by `shift`.
+    fn runs(shift: f64) -> Training {
+        let samples = (0..40)
+            .map(|k| {
+                let d = 0.015 + 0.000_37 * k as f64;
+                let v = 0.3 + 0.17 * (k % 7) as f64;
+                Sample {
+                    series: (0..CHANNELS.len())
+                        .map(|c| {
+                            (0..SAMPLES)
+                                .map(|t| {
+                                    let t = t as f64 * 1e-3;
+                                    (c as f64 + 1.0) * (t * (30.0 + 900.0 * d) * v + shift).sin()
+                                })
+                                .collect()
+                        })
+                        .collect(),
+                    params: vec![d, v],
+                }
+            })
+            .collect();
+        Training {
+            experiment: Experiment::E2,
+            samples,
+            calibration: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn a_refit_on_the_same_runs_matches_and_other_runs_are_not_mistaken_for_them() {
+        let (a, b) = (runs(0.0), runs(0.7));
+        let probe = &a.samples[11].series;
+        let mut first = Krr::new();
+        first.fit(&a).unwrap();
+        let pa = first.predict(probe).unwrap();
+        let mut other = Krr::new();
+        other.fit(&b).unwrap();
+        assert_ne!(other.predict(probe).unwrap(), pa);
+        let mut again = Krr::new();
+        again.fit(&a).unwrap();
+        assert_eq!(again.predict(probe).unwrap(), pa);
+        assert_eq!(again.settings(), first.settings());
     }
 }

@@ -326,6 +326,9 @@ impl Method for LocalKrr {
                 ),
             });
         }
+        // The first stage on every run first: when `krr` has just learnt from the same runs, its
+        // fit is reused (before the held-out fit below replaces it as the latest).
+        self.global.fit(training)?;
         let channels: Vec<usize> = (0..CHANNELS.len()).collect();
         self.scales = channel_scales(s, &channels);
         self.ranges = training.experiment.ranges();
@@ -476,7 +479,7 @@ impl Method for LocalKrr {
                 }
             }
         }
-        self.global.fit(training)
+        Ok(())
     }
 
     fn predict(&self, obs: &[Vec<f64>]) -> Result<Vec<Estimate>> {
