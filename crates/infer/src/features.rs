@@ -78,6 +78,12 @@ pub fn dist2(a: &[f64], b: &[f64]) -> f64 {
 /// The factor that makes `|error| ≤ 1.645·factor·std` hold for 90% of `(error, std)` pairs
 /// (the 90th percentile of `|error|/(1.645·std)`); 1 without pairs.
 pub fn coverage_factor(pairs: &[(f64, f64)]) -> f64 {
+    coverage_factor_at(pairs, 0.9)
+}
+
+/// The factor that makes `|error| ≤ 1.645·factor·std` hold for a share `quantile` of
+/// `(error, std)` pairs; 1 without pairs.
+pub fn coverage_factor_at(pairs: &[(f64, f64)], quantile: f64) -> f64 {
     let mut r: Vec<f64> = pairs
         .iter()
         .filter(|(_, s)| *s > 0.0)
@@ -87,8 +93,8 @@ pub fn coverage_factor(pairs: &[(f64, f64)]) -> f64 {
         return 1.0;
     }
     r.sort_by(|a, b| a.total_cmp(b));
-    // Linear interpolation at the 90th percentile.
-    let pos = 0.9 * (r.len() - 1) as f64;
+    // Linear interpolation at the quantile.
+    let pos = quantile.clamp(0.0, 1.0) * (r.len() - 1) as f64;
     let (i, f) = (pos.floor() as usize, pos.fract());
     let q = if i + 1 < r.len() {
         r[i] * (1.0 - f) + r[i + 1] * f
@@ -111,5 +117,11 @@ mod tests {
             .filter(|(e, s)| e.abs() <= Z90 * f * s + 1e-9)
             .count();
         assert!((89..=91).contains(&inside), "{inside}");
+        let wide = coverage_factor_at(&pairs, 0.95);
+        let inside = pairs
+            .iter()
+            .filter(|(e, s)| e.abs() <= Z90 * wide * s + 1e-9)
+            .count();
+        assert!((94..=96).contains(&inside), "{inside}");
     }
 }

@@ -1,11 +1,12 @@
 //! Kernel ridge regression (RBF kernel) on principal components of normalised series.
 
 use crate::error::{Error, Result};
-use crate::experiment::{Sample, CHANNELS};
-use crate::features::{channel_scales, coverage_factor, dist2, flatten};
+use crate::experiment::{Experiment, Sample, CHANNELS};
+use crate::features::{channel_scales, coverage_factor_at, dist2, flatten};
 use crate::method::{Budget, Estimate, Method, Training, Z90};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
+use std::sync::Mutex;
 
 /// Principal components kept.
 const COMPONENTS: usize = 24;
@@ -13,6 +14,10 @@ const COMPONENTS: usize = 24;
 const LENGTHS: [f64; 5] = [0.25, 0.5, 1.0, 2.0, 4.0];
 /// Ridges tried (the kernel's diagonal is 1).
 const RIDGES: [f64; 6] = [1e-6, 1e-4, 1e-3, 1e-2, 3e-2, 1e-1];
+/// Share of the leave-one-out errors that the 90% intervals are widened to hold (above 0.9:
+/// the training runs lie inside the range, away from its edges, more often than the grid's
+/// runs do).
+const QUANTILE: f64 = 0.92;
 /// Every `HOLD`-th training run is held out while the hyper-parameters are chosen.
 const HOLD: usize = 5;
 
@@ -49,6 +54,18 @@ pub struct Krr {
     ranges: Vec<[f64; 2]>,
     /// Per unknown.
     heads: Vec<Head>,
+}
+
+/// The latest fit and the runs it learnt from. Fitting is deterministic, so a second fit on the
+/// same runs (`krr-local`'s first stage learns from the same runs as `krr` in one evaluation)
+/// takes the first's result.
+static LATEST: Mutex<Option<(Experiment, Vec<Sample>, Krr)>> = Mutex::new(None);
+
+/// The latest fit, if it learnt from exactly `training`'s runs.
+fn latest(training: &Training) -> Option<Krr> {
+    let l = LATEST.lock().ok()?;
+    let (e, s, k) = l.as_ref()?;
+    (*e == training.experiment && *s == training.samples).then(|| k.clone())
 }
 
 /// Kernel matrix of `z` with length scale `length`, without ridge.
@@ -132,14 +149,9 @@ fn principal_axes(x: &[Vec<f64>], mean: &[f64], count: usize) -> Vec<Vec<f64>> {
         .iter()
         .map(|r| r.iter().zip(mean).map(|(a, m)| a - m).collect())
         .collect();
-    let mut g = DMatrix::<f64>::zeros(n, n);
-    for i in 0..n {
-        for j in 0..=i {
-            let v: f64 = c[i].iter().zip(&c[j]).map(|(a, b)| a * b).sum();
-            g[(i, j)] = v;
-            g[(j, i)] = v;
-        }
-    }
+    // The Gram matrix C Cᵀ as one matrix product.
+    let cm = DMatrix::from_fn(n, mean.len(), |i, j| c[i][j]);
+    let g = &cm * cm.transpose();
     let eig = g.symmetric_eigen();
     let mut order: Vec<usize> = (0..n).collect();
     order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
@@ -196,6 +208,10 @@ impl Method for Krr {
         let s: &[Sample] = &training.samples;
         if s.len() < 10 {
             return Err(fail("needs at least 10 training runs"));
+        }
+        if let Some(k) = latest(training) {
+            *self = k;
+            return Ok(());
         }
         let channels: Vec<usize> = (0..CHANNELS.len()).collect();
         self.scales = channel_scales(s, &channels);
@@ -304,13 +320,21 @@ impl Method for Krr {
                     .iter()
                     .copied()
                     .collect();
-                let inv = chol.inverse();
+                // (A⁻¹)_ii = Σ_k (L⁻¹)_ki², from the inverse of the Cholesky factor alone.
+                let n = z.len();
+                let linv = chol
+                    .l()
+                    .solve_lower_triangular(&DMatrix::<f64>::identity(n, n))
+                    .ok_or_else(|| fail("kernel matrix not positive definite"))?;
+                let inv_diag: Vec<f64> = (0..n)
+                    .map(|i| linv.column(i).iter().map(|v| v * v).sum())
+                    .collect();
                 let [lo, hi] = self.ranges[u];
                 let pairs: Vec<(f64, f64)> = (0..z.len())
                     .filter(|&i| inside[i])
                     .map(|i| {
                         // f_{−i}(z_i) = y_i − α_i / (A⁻¹)_ii.
-                        let loo = (y[u][i] - alpha[i] / inv[(i, i)]).clamp(0.0, 1.0);
+                        let loo = (y[u][i] - alpha[i] / inv_diag[i]).clamp(0.0, 1.0);
                         ((loo - y[u][i]) * (hi - lo), 1.0 / Z90)
                     })
                     .collect();
@@ -318,12 +342,15 @@ impl Method for Krr {
                     length,
                     ridge,
                     alpha,
-                    std: coverage_factor(&pairs) / Z90,
+                    std: coverage_factor_at(&pairs, QUANTILE) / Z90,
                 })
             })
             .collect();
         self.heads = heads.into_iter().collect::<Result<_>>()?;
         self.z = z;
+        if let Ok(mut l) = LATEST.lock() {
+            *l = Some((training.experiment, training.samples.clone(), self.clone()));
+        }
         Ok(())
     }
 
@@ -350,5 +377,55 @@ impl Method for Krr {
             s.push((format!("ridge_{name}"), h.ridge));
         }
         s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::experiment::SAMPLES;
+
+    /// 40 synthetic runs whose series depend smoothly on (d, v), shifted by `shift`.
+    fn runs(shift: f64) -> Training {
+        let samples = (0..40)
+            .map(|k| {
+                let d = 0.015 + 0.000_37 * k as f64;
+                let v = 0.3 + 0.17 * (k % 7) as f64;
+                Sample {
+                    series: (0..CHANNELS.len())
+                        .map(|c| {
+                            (0..SAMPLES)
+                                .map(|t| {
+                                    let t = t as f64 * 1e-3;
+                                    (c as f64 + 1.0) * (t * (30.0 + 900.0 * d) * v + shift).sin()
+                                })
+                                .collect()
+                        })
+                        .collect(),
+                    params: vec![d, v],
+                }
+            })
+            .collect();
+        Training {
+            experiment: Experiment::E2,
+            samples,
+            calibration: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn a_refit_on_the_same_runs_matches_and_other_runs_are_not_mistaken_for_them() {
+        let (a, b) = (runs(0.0), runs(0.7));
+        let probe = &a.samples[11].series;
+        let mut first = Krr::new();
+        first.fit(&a).unwrap();
+        let pa = first.predict(probe).unwrap();
+        let mut other = Krr::new();
+        other.fit(&b).unwrap();
+        assert_ne!(other.predict(probe).unwrap(), pa);
+        let mut again = Krr::new();
+        again.fit(&a).unwrap();
+        assert_eq!(again.predict(probe).unwrap(), pa);
+        assert_eq!(again.settings(), first.settings());
     }
 }

@@ -6,8 +6,8 @@
 use super::krr::Krr;
 use crate::error::{Error, Result};
 use crate::experiment::{Sample, CHANNELS, E1_SPEED, SAMPLES};
-use crate::features::{channel_scales, flatten};
-use crate::method::{Budget, Estimate, Method, Training, Z90};
+use crate::features::{channel_scales, coverage_factor_at, flatten};
+use crate::method::{Budget, Estimate, Method, Training};
 use nalgebra::DMatrix;
 use rayon::prelude::*;
 
@@ -98,23 +98,7 @@ fn register(series: &[Vec<f64>], r: f64) -> Vec<f64> {
 
 /// The factor `f` such that `|e| ≤ Z90·f·s` holds for a share [`QUANTILE`] of the pairs `(e, s)`.
 fn widening(pairs: &[(f64, f64)]) -> f64 {
-    let mut r: Vec<f64> = pairs
-        .iter()
-        .filter(|(_, s)| *s > 0.0)
-        .map(|(e, s)| e.abs() / (Z90 * s))
-        .collect();
-    if r.is_empty() {
-        return 1.0;
-    }
-    r.sort_by(|a, b| a.total_cmp(b));
-    let pos = QUANTILE * (r.len() - 1) as f64;
-    let (i, f) = (pos.floor() as usize, pos.fract());
-    let q = if i + 1 < r.len() {
-        r[i] * (1.0 - f) + r[i + 1] * f
-    } else {
-        r[i]
-    };
-    q.max(1e-12)
+    coverage_factor_at(pairs, QUANTILE)
 }
 
 /// The local regressions' predictions and leave-one-out spreads for one observation.
@@ -342,6 +326,9 @@ impl Method for LocalKrr {
                 ),
             });
         }
+        // The first stage on every run first: when `krr` has just learnt from the same runs, its
+        // fit is reused (before the held-out fit below replaces it as the latest).
+        self.global.fit(training)?;
         let channels: Vec<usize> = (0..CHANNELS.len()).collect();
         self.scales = channel_scales(s, &channels);
         self.ranges = training.experiment.ranges();
@@ -492,7 +479,7 @@ impl Method for LocalKrr {
                 }
             }
         }
-        self.global.fit(training)
+        Ok(())
     }
 
     fn predict(&self, obs: &[Vec<f64>]) -> Result<Vec<Estimate>> {

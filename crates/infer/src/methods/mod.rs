@@ -80,10 +80,10 @@ pub fn describe(name: &str) -> &'static str {
         "template-interp" => "all channels: least-squares fit of a linear (e1) or bilinear (e2) interpolation between the template series",
         "emulator" => "all channels: the same fit between simulated runs on a dense grid that avoids the evaluated points",
         "knn" => "all channels: inverse-distance-weighted nearest neighbours among random simulated runs",
-        "krr" => "all channels: kernel ridge regression (RBF) on principal components of random simulated runs",
+        "krr" => "all channels: kernel ridge regression (RBF) on principal components of random simulated runs (some just outside the range)",
         "shift" => "all channels aligned at the contact's onset (first |theta12| above a threshold): nearest neighbours, invariant to when contact starts",
-        "template-warp" => "all channels: least-squares fit of an interpolation between the templates registered at the contact's rise and first zero crossing (travel v·t interpolated), weights linear in sqrt(L - d) and v",
-        "krr-local" => "all channels: krr's estimate refined by ridge regression on principal components of the nearest runs in parameter space (series optionally registered to the estimated travel), settings chosen on held-out training runs",
+        "template-warp" => "all channels: least-squares fit of an interpolation between the templates registered at the contact's rise and first zero crossing (travel v·t interpolated), weights linear in sqrt(L - d) and quadratic in v, channels weighted by how well the interpolation predicts the templates",
+        "krr-local" => "all channels: krr's estimate refined by ridge regression on principal components of the nearest runs in parameter space (speed optionally weighted down, series optionally registered to the estimated travel, repeated about the refined estimate), settings chosen on held-out training runs",
         "pf" => "all channels: particle filter whose transitions are the whisker physics; posterior over the object's state at the last sample",
         _ => "",
     }

@@ -32,10 +32,15 @@ const LATTICE: [usize; 2] = [16, 13];
 /// candidate's series at registered time `τ` mixes the templates' series at `τ` with the same
 /// interpolation weights. Weights are piecewise linear in `√(L − d)` (L = 30 mm, the whisker's
 /// length: slip-off needs the projected length to shrink by `L − d`, which makes the travel
-/// to slip-off grow about as `√(L − d)`) and piecewise linear in `v`.
+/// to slip-off grow about as `√(L − d)`) and quadratic in `v` (Lagrange through the three
+/// speeds of `e2`: the series change with speed at an uneven rate, and a piecewise-linear mix
+/// pulls fast runs near d = 30 mm to lower speeds).
 ///
-/// The estimate minimises `Σ (m(d, v) − o)²` over all five channels, each divided by its
-/// standard deviation over the templates: a lattice search (16 × 13; a finer lattice finds
+/// The estimate minimises `Σ w_c (m(d, v) − o)²` over all five channels, each divided by its
+/// standard deviation over the templates and weighted by `w_c`, the inverse of its mean squared
+/// residual where the corner templates' model meets the other templates (scaled to average 1:
+/// the channels that the interpolation represents poorly, mostly fx and fy, count less): a
+/// lattice search (16 × 13; a finer lattice finds
 /// deeper but wrong minima where the interpolation is poorest, near d = 30 mm) then a pattern
 /// search. Its std is the Laplace approximation `σ̂²·(JᵀJ)⁻¹` from a finite-difference Hessian,
 /// scaled per unknown so that the corner templates alone cover the other templates (90%).
@@ -55,6 +60,8 @@ pub struct Warp {
     unknowns: usize,
     /// Std factors per unknown from the calibration.
     factors: Vec<f64>,
+    /// Weight of each channel's squared residuals, `[CHANNELS]`.
+    channel_weights: Vec<f64>,
 }
 
 impl Default for Warp {
@@ -75,6 +82,28 @@ fn hat_weights(nodes: &[f64], x: f64) -> Vec<(usize, f64)> {
     }
     let u = ((x - nodes[i]) / (nodes[i + 1] - nodes[i])).clamp(0.0, 1.0);
     vec![(i, 1.0 - u), (i + 1, u)]
+}
+
+/// Quadratic (Lagrange) interpolation weights over increasing `nodes` at `x` (clamped): through
+/// the three consecutive nodes centred nearest `x`; piecewise linear with fewer than three.
+fn quadratic_weights(nodes: &[f64], x: f64) -> Vec<(usize, f64)> {
+    let n = nodes.len();
+    if n < 3 {
+        return hat_weights(nodes, x);
+    }
+    let x = x.clamp(nodes[0], nodes[n - 1]);
+    let mid = (1..n - 1)
+        .min_by(|&a, &b| (nodes[a] - x).abs().total_cmp(&(nodes[b] - x).abs()))
+        .expect("three nodes");
+    (mid - 1..=mid + 1)
+        .map(|i| {
+            let w: f64 = (mid - 1..=mid + 1)
+                .filter(|&k| k != i)
+                .map(|k| (x - nodes[k]) / (nodes[i] - nodes[k]))
+                .product();
+            (i, w)
+        })
+        .collect()
 }
 
 /// The distance coordinate the weights are linear in.
@@ -159,6 +188,7 @@ impl Warp {
             travel: Vec::new(),
             unknowns: 0,
             factors: Vec::new(),
+            channel_weights: vec![1.0; CHANNELS.len()],
         }
     }
 
@@ -211,12 +241,12 @@ impl Warp {
         // d_coord decreases with d: interpolate over the reversed nodes.
         let rev: Vec<f64> = dc.iter().rev().copied().collect();
         let wd = hat_weights(&rev, d_coord(d));
-        let wv = hat_weights(&self.v_nodes, v);
+        let wv = quadratic_weights(&self.v_nodes, v);
         let nd = self.d_nodes.len();
         let mut out = Vec::with_capacity(4);
         for &(j, a) in &wv {
             for &(ir, b) in &wd {
-                if a * b > 0.0 {
+                if a * b != 0.0 {
                     out.push((j, nd - 1 - ir, a * b));
                 }
             }
@@ -224,8 +254,18 @@ impl Warp {
         out
     }
 
-    /// Sum of squared residuals of the model at `(d, v)` against the normalised `x`.
+    /// Sum of squared residuals of the model at `(d, v)` against the normalised `x`, each
+    /// channel's weighted.
     fn sse(&self, x: &[Vec<f64>], d: f64, v: f64) -> f64 {
+        self.channel_sse(x, d, v)
+            .iter()
+            .zip(&self.channel_weights)
+            .map(|(e, w)| e * w)
+            .sum()
+    }
+
+    /// Sum of squared residuals of the model at `(d, v)` against the normalised `x`, per channel.
+    fn channel_sse(&self, x: &[Vec<f64>], d: f64, v: f64) -> Vec<f64> {
         let w = self.weights(d, v);
         let mut s = [0.0; 2];
         for &(j, i, wt) in &w {
@@ -234,7 +274,7 @@ impl Warp {
         }
         let lm = [s[0] / v, s[1] / v];
         let dt = 1.0 / SAMPLE_RATE;
-        let mut total = 0.0;
+        let mut total = vec![0.0; x.len()];
         let mut pos: Vec<(usize, f64)> = Vec::with_capacity(w.len());
         for k in 0..SAMPLES {
             let tau = to_reg(k as f64 * dt, lm);
@@ -252,7 +292,7 @@ impl Warp {
                     m += wt * (y[ii] * (1.0 - f) + y[ii + 1] * f);
                 }
                 let r = m - xc[k];
-                total += r * r;
+                total[c] += r * r;
             }
         }
         total
@@ -347,6 +387,26 @@ impl Warp {
         Ok(x.chunks(SAMPLES).map(|c| c.to_vec()).collect())
     }
 
+    /// Channel weights from how well the model predicts `samples` at their own parameters: the
+    /// inverse of each channel's mean squared residual, scaled to average 1 (all 1 without
+    /// samples).
+    fn model_weights(&self, samples: &[Sample]) -> Result<Vec<f64>> {
+        let mut ms = vec![0.0; CHANNELS.len()];
+        for s in samples {
+            let x = self.normalised(&s.series)?;
+            let v = s.params.get(1).copied().unwrap_or(self.v_nodes[0]);
+            for (m, e) in ms.iter_mut().zip(self.channel_sse(&x, s.params[0], v)) {
+                *m += e;
+            }
+        }
+        if samples.is_empty() || ms.iter().any(|m| *m <= 0.0) {
+            return Ok(vec![1.0; CHANNELS.len()]);
+        }
+        let inv: Vec<f64> = ms.iter().map(|m| 1.0 / m).collect();
+        let mean = inv.iter().sum::<f64>() / inv.len() as f64;
+        Ok(inv.iter().map(|w| w / mean).collect())
+    }
+
     /// Calibration pairs `(error, std)` per unknown for `samples`.
     fn pairs(&self, samples: &[Sample]) -> Result<Vec<Vec<(f64, f64)>>> {
         let mut out = vec![Vec::new(); self.unknowns];
@@ -389,8 +449,13 @@ impl Method for Warp {
             training.samples.iter().cloned().partition(|s| corner(s));
         let mut coarse = Warp::new();
         coarse.build(&corners, unknowns)?;
+        // Channels that the interpolation predicts poorly (the corner model at the other
+        // templates' parameters) weigh less.
+        let channel_weights = coarse.model_weights(&rest)?;
+        coarse.channel_weights = channel_weights.clone();
         let pairs = coarse.pairs(&rest)?;
         self.build(&training.samples, unknowns)?;
+        self.channel_weights = channel_weights;
         self.factors = pairs.iter().map(|p| coverage_factor(p)).collect();
         Ok(())
     }
@@ -410,7 +475,11 @@ impl Method for Warp {
     }
 
     fn settings(&self) -> Vec<(String, f64)> {
-        super::interp::grid_settings(&self.d_nodes, &self.v_nodes, &self.factors)
+        let mut s = super::interp::grid_settings(&self.d_nodes, &self.v_nodes, &self.factors);
+        for (c, w) in CHANNELS.iter().zip(&self.channel_weights) {
+            s.push((format!("weight_{c}"), *w));
+        }
+        s
     }
 }
 
@@ -429,6 +498,56 @@ mod tests {
             let w: f64 = hat_weights(&[0.3, 0.9, 1.5], x).iter().map(|p| p.1).sum();
             assert!((w - 1.0).abs() < 1e-12);
         }
+    }
+
+    #[test]
+    fn a_channel_the_model_misses_weighs_less() {
+        // A bump whose height grows with d and v on every channel.
+        let run = |d: f64, v: f64, offset: f64| Sample {
+            series: (0..CHANNELS.len())
+                .map(|c| {
+                    (0..SAMPLES)
+                        .map(|k| {
+                            let t = k as f64 - 20.0;
+                            let bump = (1.0 + d * 10.0 + v) * (-t * t / 50.0).exp();
+                            bump + if c == 3 { offset } else { 0.0 }
+                        })
+                        .collect()
+                })
+                .collect(),
+            params: vec![d, v],
+        };
+        let corners: Vec<Sample> = [(0.015, 0.3), (0.015, 1.5), (0.030, 0.3), (0.030, 1.5)]
+            .iter()
+            .map(|&(d, v)| run(d, v, 0.0))
+            .collect();
+        let mut w = Warp::new();
+        w.build(&corners, 2).unwrap();
+        let weights = w.model_weights(&[run(0.023, 0.9, 0.5)]).unwrap();
+        assert!((weights.iter().sum::<f64>() - CHANNELS.len() as f64).abs() < 1e-9);
+        for (c, x) in weights.iter().enumerate() {
+            if c != 3 {
+                assert!(weights[3] < 0.5 * x, "{weights:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn quadratic_weights_reproduce_a_parabola() {
+        let nodes = [0.3, 0.9, 1.5];
+        let f = |v: f64| 2.0 - 3.0 * v + 1.7 * v * v;
+        for v in [0.3, 0.45, 0.6, 0.9, 1.2, 1.37, 1.5] {
+            let w = quadratic_weights(&nodes, v);
+            let sum: f64 = w.iter().map(|p| p.1).sum();
+            let interp: f64 = w.iter().map(|&(i, a)| a * f(nodes[i])).sum();
+            assert!((sum - 1.0).abs() < 1e-12);
+            assert!((interp - f(v)).abs() < 1e-12, "{v}: {interp} vs {}", f(v));
+        }
+        // Two nodes: piecewise linear.
+        assert_eq!(
+            quadratic_weights(&[0.0, 1.0], 0.25),
+            hat_weights(&[0.0, 1.0], 0.25)
+        );
     }
 
     #[test]
