@@ -26,6 +26,8 @@ struct Row {
     real_time_factor: f64,
     /// Physics steps per wall second, over all particles.
     steps_per_second: f64,
+    /// Share of particle-samples on the free-ringing model.
+    ringing_share: f64,
     /// The estimates at the last sample, for a sanity check (m, m/s).
     d: f64,
     v: f64,
@@ -54,6 +56,7 @@ impl Render for Report {
             ("data (s)", Align::Right),
             ("real-time factor", Align::Right),
             ("steps/s", Align::Right),
+            ("ringing", Align::Right),
             ("d (mm)", Align::Right),
             ("v (m/s)", Align::Right),
         ]);
@@ -64,6 +67,7 @@ impl Render for Report {
                 sig(r.data_seconds, 3),
                 format!("{:.2}", r.real_time_factor),
                 sig(r.steps_per_second, 3),
+                format!("{:.0}%", 100.0 * r.ringing_share),
                 format!("{:.2}", r.d * 1e3),
                 format!("{:.3}", r.v),
             ]);
@@ -107,6 +111,7 @@ pub fn run(particles: &[usize], quick: bool, format: &FormatArgs) -> Result<()> 
             data_seconds,
             real_time_factor: data_seconds / best,
             steps_per_second: post.steps as f64 / best,
+            ringing_share: post.ringing_share,
             d: est[0].mean,
             v: est[1].mean,
         });

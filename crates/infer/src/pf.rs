@@ -258,6 +258,8 @@ pub struct Posterior {
     pub diverged: usize,
     /// Physics steps taken over all particles.
     pub steps: u64,
+    /// Share of particle-samples advanced on the free-ringing model (the box gone for good).
+    pub ringing_share: f64,
 }
 
 impl Posterior {
@@ -446,7 +448,9 @@ pub fn run(
         resamples: 0,
         diverged: 0,
         steps: 0,
+        ringing_share: 0.0,
     };
+    let mut ringing_samples = 0usize;
     let ringing = FreeModel::new(config, &model, period)?;
     // Whether each particle's box has left for good (its whisker then rings free).
     let mut cleared = vec![false; np];
@@ -484,6 +488,7 @@ pub fn run(
             (((t - obs.t[k - 1]) / period) + 0.5).floor() as usize
         };
         let per_period = steps / periods.max(1);
+        let ringing_before = cleared.iter().filter(|c| **c).count();
         let diverged = batch::sum_with_workspace(
             &model,
             states
@@ -557,7 +562,8 @@ pub fn run(
             },
         );
         post.diverged += diverged;
-        post.steps += (steps * np) as u64;
+        post.steps += ((np - ringing_before) * steps + ringing_before * periods) as u64;
+        ringing_samples += ringing_before;
 
         // Normalise.
         let max = logw.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
@@ -608,6 +614,7 @@ pub fn run(
         }
     }
     progress(1.0);
+    post.ringing_share = ringing_samples as f64 / (np * samples) as f64;
     Ok(post)
 }
 
