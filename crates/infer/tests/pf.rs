@@ -6,10 +6,10 @@ use vibrissa_infer::pf::{self, Config, Observations, Prior};
 
 /// The noisy variant's sensor noise (5% of the clean e2 ranges), tempered as `pf` does.
 const SIGMA: [f64; 5] = [
-    2.5 * 6.04e-3,
+    2.5 * 6.08e-3,
     2.5 * 1.49e-2,
     2.5 * 2.31e-6,
-    2.5 * 1.41e-4,
+    2.5 * 1.46e-4,
     2.5 * 1.20e-4,
 ];
 
