@@ -16,7 +16,10 @@
 //! * [`from_moment_and_angle`]: base moment and first chord angle (Birdwell's pair).
 //! * [`kaneko_torque_angle`]: base rotation since first contact against a fixed point, and the
 //!   base torque: `C = 3 EI Δψ / M`.
+//! * [`birdwell_rates`]: Birdwell's pair in rate form, `C = 3 EI ψ̇ / ṁ0`.
 //! * [`kaneko_frequency`]: inverts Kaneko's tip-mass frequency `ω(C)`.
+//! * [`kaneko_frequency_beam`]: inverts the first frequency of the beam with its own mass,
+//!   clamped at the base and propped at `C` ([`pinned_beam_omega`]).
 //!
 //! [`evaluate_peg_sweep`] runs every estimator on simulated whisks against stationary pegs and
 //! tabulates the error against the true contact arc length.
@@ -223,6 +226,180 @@ pub fn kaneko_frequency(omega: f64, ei: f64, tip_mass: f64, length: f64) -> Resu
     Ok(0.5 * (lo + hi) * length)
 }
 
+/// First natural angular frequency (rad/s) of a uniform Euler–Bernoulli beam clamped at its base
+/// and propped (pinned) at arc length `c`, free at its tip: the in-contact frequency of a whisker
+/// touching a point, with its mass spread along it (Kaneko's analysis for a beam with mass rather
+/// than a massless beam with a tip mass).
+///
+/// With `β⁴ = ρA ω² / EI`, the base span is `A(cosh − cos) + B(sinh − sin)`, the outer span
+/// `a cosh + b sinh + c cos + d sin` of the distance beyond the prop; the prop (zero deflection,
+/// continuous slope and moment) and the free tip (zero moment and shear) give six homogeneous
+/// equations whose determinant vanishes at the natural frequencies. The first root in βL is
+/// bracketed by a scan and refined by bisection: 1.8751 (prop at the base: the cantilever) to
+/// 3.9266 (prop at the tip: the clamped–pinned beam).
+///
+/// Errors: `ei`, `rho_a` or `length` not finite and positive, or `c` outside `[0, length]`.
+pub fn pinned_beam_omega(ei: f64, rho_a: f64, length: f64, c: f64) -> Result<f64> {
+    check_positive("ei", ei)?;
+    check_positive("rho_a", rho_a)?;
+    check_positive("length", length)?;
+    if !(c.is_finite() && (0.0..=length).contains(&c)) {
+        return Err(Error::invalid("c", c, "an arc length in [0, length]"));
+    }
+    // A prop at the very base is the clamp itself (the base span would vanish).
+    let c = c.max(1e-6 * length);
+    let det = |bl: f64| -> f64 {
+        let b = bl / length;
+        let (x, y) = (b * c, b * (length - c));
+        let (chc, shc, cc, sc) = (x.cosh(), x.sinh(), x.cos(), x.sin());
+        let (chd, shd, cd, sd) = (y.cosh(), y.sinh(), y.cos(), y.sin());
+        // Unknowns A, B, a, b, c, d.
+        let m = DMatrix::from_row_slice(
+            6,
+            6,
+            &[
+                chc - cc,
+                shc - sc,
+                0.0,
+                0.0,
+                0.0,
+                0.0, //
+                0.0,
+                0.0,
+                1.0,
+                0.0,
+                1.0,
+                0.0, //
+                -(shc + sc),
+                -(chc - cc),
+                0.0,
+                1.0,
+                0.0,
+                1.0, //
+                -(chc + cc),
+                -(shc + sc),
+                1.0,
+                0.0,
+                -1.0,
+                0.0, //
+                0.0,
+                0.0,
+                chd,
+                shd,
+                -cd,
+                -sd, //
+                0.0,
+                0.0,
+                shd,
+                chd,
+                sd,
+                -cd,
+            ],
+        );
+        m.determinant()
+    };
+    // Scan βL from below the cantilever's root for the first sign change, then bisect.
+    let (mut lo, mut flo) = (1.0f64, det(1.0));
+    let mut hi = lo;
+    let mut found = false;
+    while hi < 5.0 {
+        hi = lo + 0.01;
+        let fhi = det(hi);
+        if flo == 0.0 || flo.signum() != fhi.signum() {
+            found = true;
+            break;
+        }
+        (lo, flo) = (hi, fhi);
+    }
+    if !found {
+        return Err(Error::NoConvergence {
+            what: "propped-beam frequency".into(),
+            detail: format!("no root of the frequency equation below βL = 5 (c = {c} m)"),
+        });
+    }
+    for _ in 0..100 {
+        let mid = 0.5 * (lo + hi);
+        let fm = det(mid);
+        if fm == 0.0 {
+            (lo, hi) = (mid, mid);
+            break;
+        }
+        if fm.signum() == flo.signum() {
+            (lo, flo) = (mid, fm);
+        } else {
+            hi = mid;
+        }
+    }
+    let beta = 0.5 * (lo + hi) / length;
+    Ok(beta * beta * (ei / rho_a).sqrt())
+}
+
+/// Where the propped beam's first frequency peaks, as a fraction of the length: beyond it the
+/// frequency falls again toward the clamped–pinned beam's, so one frequency belongs to two props
+/// (the bi-valued estimator the seed paper warns of). Found by a golden-section search.
+pub fn pinned_beam_peak(ei: f64, rho_a: f64, length: f64) -> Result<f64> {
+    let f = |x: f64| pinned_beam_omega(ei, rho_a, length, x * length);
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    let (mut a, mut b) = (0.5f64, 1.0f64);
+    let (mut x1, mut x2) = (b - g * (b - a), a + g * (b - a));
+    let (mut f1, mut f2) = (f(x1)?, f(x2)?);
+    for _ in 0..60 {
+        if f1 > f2 {
+            b = x2;
+            (x2, f2) = (x1, f1);
+            x1 = b - g * (b - a);
+            f1 = f(x1)?;
+        } else {
+            a = x1;
+            (x1, f1) = (x2, f2);
+            x2 = a + g * (b - a);
+            f2 = f(x2)?;
+        }
+    }
+    Ok(0.5 * (a + b))
+}
+
+/// Kaneko's frequency method with the beam's own mass: the contact arc length `C` (m) at which
+/// [`pinned_beam_omega`] equals the measured in-contact frequency `omega` (rad/s), on the branch
+/// where the frequency rises with `C` (from the free cantilever's up to its peak at
+/// [`pinned_beam_peak`]); a frequency outside that range gives `0` or the peak's `C`. Props
+/// beyond the peak cannot be told from props before it by the frequency alone.
+///
+/// Errors: as [`pinned_beam_omega`], or `omega` not finite and positive.
+pub fn kaneko_frequency_beam(omega: f64, ei: f64, rho_a: f64, length: f64) -> Result<f64> {
+    check_positive("omega", omega)?;
+    let peak = pinned_beam_peak(ei, rho_a, length)? * length;
+    if pinned_beam_omega(ei, rho_a, length, 0.0)? >= omega {
+        return Ok(0.0);
+    }
+    if pinned_beam_omega(ei, rho_a, length, peak)? <= omega {
+        return Ok(peak);
+    }
+    let (mut lo, mut hi) = (0.0f64, peak);
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if pinned_beam_omega(ei, rho_a, length, mid)? < omega {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    Ok(0.5 * (lo + hi))
+}
+
+/// Birdwell's pair in its temporal-derivative form: while the base turns at `psi_rate` (rad/s)
+/// against a fixed point, the base torque changes at `m0_rate` (N·m/s), and the small-deflection
+/// cantilever gives `C = 3 EI ψ̇ / ṁ0` (the rate form of [`kaneko_torque_angle`]; it needs no
+/// first-contact angle).
+///
+/// Errors: a rate that is zero or not finite, or `ei` not finite and positive.
+pub fn birdwell_rates(psi_rate: f64, m0_rate: f64, ei: f64) -> Result<f64> {
+    check_positive("ei", ei)?;
+    let psi_rate = nonzero("psi_rate", psi_rate)?;
+    let m0_rate = nonzero("m0_rate", m0_rate)?;
+    Ok(3.0 * ei * (psi_rate / m0_rate).abs())
+}
+
 /// Lowest undamped natural angular frequency (rad/s) of `model` with its centreline point at
 /// arc length `s` held against motion normal to the whisker (a bilateral pin), linearised about
 /// the rest shape with the base fixed. This is the in-contact frequency a frequency-based
@@ -304,18 +481,25 @@ pub enum Estimator {
     KanekoTorqueAngle,
     /// [`kaneko_frequency`] on the chain's pinned frequency with Rayleigh's tip mass.
     KanekoFrequency,
+    /// [`birdwell_rates`] with the base's turning rate and the torque's rate over the last
+    /// millisecond.
+    BirdwellRates,
+    /// [`kaneko_frequency_beam`] on the chain's pinned frequency.
+    KanekoFrequencyBeam,
 }
 
 impl Estimator {
     /// All estimators, in table order.
-    pub const ALL: [Estimator; 7] = [
+    pub const ALL: [Estimator; 9] = [
         Estimator::MomentOverForce,
         Estimator::MomentOverTransverseForce,
         Estimator::JointAngles,
         Estimator::ChordAngles,
         Estimator::MomentAndAngle,
         Estimator::KanekoTorqueAngle,
+        Estimator::BirdwellRates,
         Estimator::KanekoFrequency,
+        Estimator::KanekoFrequencyBeam,
     ];
 
     /// Short name for tables.
@@ -328,6 +512,8 @@ impl Estimator {
             Estimator::MomentAndAngle => "m0 + theta01",
             Estimator::KanekoTorqueAngle => "kaneko rotation",
             Estimator::KanekoFrequency => "kaneko frequency",
+            Estimator::BirdwellRates => "birdwell rates",
+            Estimator::KanekoFrequencyBeam => "kaneko freq. beam",
         }
     }
 }
@@ -401,6 +587,9 @@ struct Sample {
     s: f64,
     sensors: Sensors,
     delta_psi: f64,
+    /// Base turning rate and base-torque rate over the last millisecond, rad/s and N·m/s.
+    psi_rate: f64,
+    m0_rate: f64,
 }
 
 /// Whisks the w30 whisker (ζ1 = 0.05) at `sweep.rate` into a stationary frictionless peg of
@@ -449,6 +638,10 @@ fn one_peg(
     let mut last_contact = 0.0;
     let mut samples: Vec<Sample> = Vec::new();
     let mut next = 0;
+    // The last millisecond of (t, base angle, m0), for the rates.
+    let lag = ((1e-3 / stepper.dt).round() as usize).max(1);
+    let mut recent: std::collections::VecDeque<(f64, f64, f64)> =
+        std::collections::VecDeque::with_capacity(lag + 1);
     let steps = (sweep.max_time / stepper.dt).ceil() as usize;
     for k in 1..=steps {
         let inputs = Inputs {
@@ -457,6 +650,10 @@ fn one_peg(
             ..Default::default()
         };
         step(model, stepper, &mut s, &inputs, &mut ws)?;
+        recent.push_back((s.t, s.base.angle, Sensors::read(&s).m0));
+        if recent.len() > lag + 1 {
+            recent.pop_front();
+        }
         let Some(c) = s.contact else {
             // Slipped off the peg after a settled contact: nothing more to read.
             if let Some((t0, _, _)) = first {
@@ -477,6 +674,11 @@ fn one_peg(
             if level <= sweep.settle_below && s.t - t0 < sweep.settle {
                 break;
             }
+            let (&(ta, pa, ma), &(tb, pb, mb)) = (
+                recent.front().expect("this step is recorded"),
+                recent.back().expect("this step is recorded"),
+            );
+            let span = (tb - ta).max(f64::MIN_POSITIVE);
             samples.push(Sample {
                 level,
                 tip,
@@ -484,6 +686,8 @@ fn one_peg(
                 s: c.s,
                 sensors: Sensors::read(&s),
                 delta_psi: s.base.angle - psi0,
+                psi_rate: (pb - pa) / span,
+                m0_rate: (mb - ma) / span,
             });
             next += 1;
         }
@@ -533,6 +737,10 @@ fn one_peg(
                 Estimator::KanekoTorqueAngle,
                 kaneko_torque_angle(p.delta_psi, x.m0, ei),
             ),
+            (
+                Estimator::BirdwellRates,
+                birdwell_rates(p.psi_rate, p.m0_rate, ei),
+            ),
         ];
         for (e, v) in ests {
             out.push(row(e, p.level, p.tip, p.since, p.s, v));
@@ -542,6 +750,12 @@ fn one_peg(
         let omega = pinned_frequency(model, s0)?;
         let est = kaneko_frequency(omega, ei, RAYLEIGH_TIP_MASS * w.mass(), length);
         out.push(row(Estimator::KanekoFrequency, 0.0, 0.0, 0.0, s0, est));
+        // Only where the frequency identifies the contact: before its peak.
+        let rho_a = w.mass() / length;
+        if s0 <= pinned_beam_peak(ei, rho_a, length)? * length {
+            let est = kaneko_frequency_beam(omega, ei, rho_a, length);
+            out.push(row(Estimator::KanekoFrequencyBeam, 0.0, 0.0, 0.0, s0, est));
+        }
     }
     Ok(out)
 }

@@ -201,6 +201,58 @@ fn inverse_peg_sweep_small_deflection_and_growth() {
     }
     // The continuum chord formulas do not describe the chain's joint angles.
     assert!(get(Estimator::ChordAngles, 0.005) > 0.5);
+    // Birdwell's rates and the frequency method with the beam's own mass hold within 2 %; the
+    // frequency method only before the propped beam's frequency peak (10 of the 13 pegs).
+    for r in pick(Estimator::BirdwellRates, 0.005) {
+        assert!(r.relative_error.abs() < 0.02, "{r:?}");
+    }
+    let beam: Vec<_> = pick(Estimator::KanekoFrequencyBeam, 0.0);
+    assert_eq!(beam.len(), 10);
+    for r in &beam {
+        assert!(r.relative_error.abs() < 0.02, "{r:?}");
+    }
+    assert!(get(Estimator::KanekoFrequency, 0.0) > 0.1);
+}
+
+/// The propped beam's frequency equation against the classical roots: the cantilever
+/// (βL = 1.8751) with the prop at the base, the clamped–pinned beam (βL = 3.9266) with it at the
+/// tip; a prop at half the length gives βL = π exactly (the outer half then vibrates as a
+/// pinned–free span whose root the clamped–pinned half shares).
+#[test]
+fn inverse_propped_beam_frequencies() {
+    let (rho_a, l) = (3.4558e-5, 0.03);
+    let unit = (EI / rho_a).sqrt() / (l * l);
+    let bl = |c: f64| (pinned_beam_omega(EI, rho_a, l, c).unwrap() / unit).sqrt();
+    assert!((bl(0.0) - 1.875_104).abs() < 1e-5, "{}", bl(0.0));
+    assert!((bl(l) - 3.926_602).abs() < 1e-5, "{}", bl(l));
+    assert!(
+        (bl(0.5 * l) - std::f64::consts::PI).abs() < 1e-6,
+        "{}",
+        bl(0.5 * l)
+    );
+    // The first frequency peaks at about 0.78 L and falls again beyond.
+    let peak = pinned_beam_peak(EI, rho_a, l).unwrap();
+    assert!((0.7..0.85).contains(&peak), "{peak}");
+    assert!(bl(peak * l) > bl(0.7 * l) && bl(peak * l) > bl(0.9 * l));
+    // Inversion on the rising branch returns the prop.
+    for c in [0.004, 0.011, 0.02] {
+        let om = pinned_beam_omega(EI, rho_a, l, c).unwrap();
+        let back = kaneko_frequency_beam(om, EI, rho_a, l).unwrap();
+        assert!((back - c).abs() < 1e-9, "{c} -> {back}");
+    }
+    assert!(pinned_beam_omega(EI, rho_a, l, 0.031).is_err());
+}
+
+#[test]
+fn inverse_birdwell_rates_is_the_rate_form_of_the_cubic() {
+    // Base turning at ψ̇ against a point at C: M = 3 EI ψ / C, so Ṁ = 3 EI ψ̇ / C.
+    for c in [0.005, 0.02] {
+        let psi_rate = 0.05;
+        let m0_rate = -3.0 * EI * psi_rate / c;
+        assert!(rel(birdwell_rates(psi_rate, m0_rate, EI).unwrap(), c) < 1e-12);
+    }
+    assert!(birdwell_rates(0.0, 1.0, EI).is_err());
+    assert!(birdwell_rates(0.05, f64::NAN, EI).is_err());
 }
 
 /// The joint-angle pair within 2 % on every peg at small deflection: the simulated contact keeps
