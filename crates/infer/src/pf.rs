@@ -21,7 +21,7 @@
 
 use crate::error::{Error, Result};
 use crate::experiment::CHANNELS;
-use crate::method::{Estimate, Z90};
+use crate::method::Estimate;
 use rayon::prelude::*;
 use serde::Serialize;
 use vibrissa_core::batch;
@@ -222,7 +222,7 @@ pub struct Observations {
 }
 
 impl Observations {
-    /// Observations at 1 kHz from channel-major series.
+    /// Observations sampled at `rate` (Hz) from t = 0, from channel-major series.
     pub fn at_rate(values: Vec<Vec<f64>>, rate: f64) -> Observations {
         let n = values.iter().map(Vec::len).max().unwrap_or(0);
         Observations {
@@ -665,7 +665,7 @@ fn draw_initial(config: &Config, rng: &mut Rng) -> (ObjState, f64) {
     let uni = |rng: &mut Rng, p: &Prior| p.lo + (p.hi - p.lo) * rng.uniform();
     let mut o: ObjState = [0.0; 5];
     let mut lw = 0.0;
-    let injected = config.injection.filter(|_| true);
+    let injected = config.injection;
     let from_proposal = match &injected {
         Some(inj) => rng.uniform() < inj.fraction,
         None => false,
@@ -886,7 +886,6 @@ fn summarise(vals: &[f64], w: &[f64]) -> Estimate {
         }
         vals[*idx.last().expect("at least one particle")]
     };
-    let _ = Z90;
     Estimate {
         mean,
         std: var.max(0.0).sqrt(),
