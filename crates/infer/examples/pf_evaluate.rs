@@ -5,8 +5,9 @@
 //! ```sh
 //! cargo run --release -p vibrissa-infer --example pf_evaluate -- SET PARTICLES TEMPER MAX_DELAY INJECT [VARIANT]
 //! ```
-//! - SET: `grid` (the 71 evaluated runs of `e2`) or `train` (24 runs at random parameters, drawn
-//!   apart from the grid, on which the tempering was chosen);
+//! - SET: `grid` (the 71 evaluated runs of `e2`), `train` (24 runs at random parameters, drawn
+//!   apart from the grid) or `cal` (24 runs at d = 15.5, 18.5, …, 29.5 mm, off the grid, and
+//!   v = 0.3, 0.75, 1.05, 1.5 m/s, reaching the range's edges; the tempering was chosen on it);
 //! - PARTICLES, TEMPER (likelihood tempering; see `pf::temper_for`);
 //! - MAX_DELAY: 0 for a known start, else each run's recording starts a random whole number of
 //!   milliseconds in [0, MAX_DELAY] before the run's t = 0 and the filter's t0 is unknown on
@@ -31,8 +32,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
     let set = args.get(1).cloned().unwrap_or_else(|| "train".into());
     let particles: usize = arg(&args, 2, 1000);
-    let temper: f64 = arg(&args, 3, vibrissa_infer::pf::temper_for(particles));
     let max_delay: f64 = arg(&args, 4, 0.0);
+    let default_temper = vibrissa_infer::pf::temper_for(particles)
+        * if max_delay > 0.0 {
+            vibrissa_infer::pf::UNKNOWN_START_TEMPER
+        } else {
+            1.0
+        };
+    let temper: f64 = arg(&args, 3, default_temper);
     let inject: f64 = arg(&args, 5, 0.0);
     let variant = Variant::parse(args.get(6).map_or("noisy", |s| s.as_str()))?;
     let e = Experiment::E2;
@@ -44,7 +51,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .into_iter()
             .filter(|p| !e.is_template(*p))
             .collect(),
-        other => return Err(format!("unknown set `{other}`: choose grid or train").into()),
+        // Off the evaluated grid in d, reaching the range's edges in v.
+        "cal" => [15.5, 18.5, 21.5, 24.5, 27.5, 29.5]
+            .iter()
+            .flat_map(|&d| [0.3, 0.75, 1.05, 1.5].map(|v| [d * 1e-3, v]))
+            .collect(),
+        other => return Err(format!("unknown set `{other}`: choose grid, train or cal").into()),
     };
     // The filter's training runs, as `vibrissa experiment` makes them.
     let train_p = e.random_params(400, 1 ^ 0x5eed);
@@ -54,8 +66,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         calibration: vec![],
     };
     let mut pf = Pf::new(particles);
-    pf.temper = temper;
     pf.max_delay = if max_delay > 0.0 { 0.05 } else { 0.0 };
+    // TEMPER is the tempering used, also with an unknown start.
+    pf.temper = if max_delay > 0.0 {
+        temper / vibrissa_infer::pf::UNKNOWN_START_TEMPER
+    } else {
+        temper
+    };
     if inject > 0.0 {
         let m: Arc<dyn Method> = Arc::from(methods::by_name("krr")?);
         pf.inject = Some((inject, m));
