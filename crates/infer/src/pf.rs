@@ -689,9 +689,26 @@ fn redraw_waiting(
             continue;
         }
         // Importance ratio π/q of the draw (π uniform on the allowed region).
+        // With hypothesis injection, a share of the speeds and distances comes from the injected
+        // estimate (weighted back like the initial draws).
+        let inj = config.injection;
         let (v, t0, ratio) = if pr[2].is_free() {
-            // Speed from the prior, then the arrival time a = t0 + travel/v after t.
-            let v = uni(&mut rng, pr[1].lo, pr[1].hi);
+            // Speed from the prior (or the injection), then the arrival time a = t0 + travel/v
+            // after t.
+            let (v, ratio_v) = match &inj {
+                Some(j) => {
+                    let v = if rng.uniform() < j.fraction {
+                        truncated_normal(&mut rng, j.mean[1], j.std[1], &pr[1])
+                    } else {
+                        uni(&mut rng, pr[1].lo, pr[1].hi)
+                    };
+                    let prior = 1.0 / (pr[1].hi - pr[1].lo);
+                    let mix = j.fraction * truncated_density(v, j.mean[1], j.std[1], &pr[1])
+                        + (1.0 - j.fraction) * prior;
+                    (v, prior / mix)
+                }
+                None => (uni(&mut rng, pr[1].lo, pr[1].hi), 1.0),
+            };
             let (lo, hi) = ((pr[2].lo + travel / v).max(t), pr[2].hi + travel / v);
             if hi <= lo {
                 (v, pr[2].lo, 0.0)
@@ -704,7 +721,7 @@ fn redraw_waiting(
                 };
                 let q = ARRIVAL_SHARE * f64::from(u8::from(a <= lo + soon)) / soon
                     + (1.0 - ARRIVAL_SHARE) / (hi - lo);
-                (v, a - travel / v, 1.0 / q)
+                (v, a - travel / v, ratio_v / q)
             }
         } else {
             // Known start: the speeds whose box arrives after t.
@@ -726,7 +743,11 @@ fn redraw_waiting(
                     pr[1].lo
                 };
                 let soon = cap - fast;
-                let v = if soon > 0.0 && rng.uniform() < ARRIVAL_SHARE {
+                let range = Prior::uniform(pr[1].lo, cap);
+                let injected = inj.filter(|j| rng.uniform() < j.fraction);
+                let v = if let Some(j) = injected {
+                    truncated_normal(&mut rng, j.mean[1], j.std[1], &range)
+                } else if soon > 0.0 && rng.uniform() < ARRIVAL_SHARE {
                     uni(&mut rng, fast, cap)
                 } else {
                     uni(&mut rng, pr[1].lo, cap)
@@ -734,11 +755,34 @@ fn redraw_waiting(
                 let share = if soon > 0.0 { ARRIVAL_SHARE } else { 0.0 };
                 let q = share * f64::from(u8::from(v >= fast)) / soon.max(f64::MIN_POSITIVE)
                     + (1.0 - share) / (cap - pr[1].lo);
+                let q = match &inj {
+                    Some(j) => {
+                        j.fraction * truncated_density(v, j.mean[1], j.std[1], &range)
+                            + (1.0 - j.fraction) * q
+                    }
+                    None => q,
+                };
                 (v, t0, 1.0 / q)
             }
         };
         let mut o = [0.0; 5];
-        o[0] = uni(&mut rng, pr[0].lo, pr[0].hi);
+        let ratio = match &inj {
+            Some(j) if pr[0].is_free() => {
+                o[0] = if rng.uniform() < j.fraction {
+                    truncated_normal(&mut rng, j.mean[0], j.std[0], &pr[0])
+                } else {
+                    uni(&mut rng, pr[0].lo, pr[0].hi)
+                };
+                let prior = 1.0 / (pr[0].hi - pr[0].lo);
+                let mix = j.fraction * truncated_density(o[0], j.mean[0], j.std[0], &pr[0])
+                    + (1.0 - j.fraction) * prior;
+                ratio * prior / mix
+            }
+            _ => {
+                o[0] = uni(&mut rng, pr[0].lo, pr[0].hi);
+                ratio
+            }
+        };
         o[1] = v;
         o[Y] = -config.gap - v * t0;
         o[3] = uni(&mut rng, pr[3].lo, pr[3].hi);
@@ -1134,7 +1178,15 @@ mod tests {
         let mut objs = vec![[0.02, 1.0, -1.0, 0.01, 0.0]; n];
         let mut logw = vec![(1.0 / n as f64).ln(); n];
         let mut arrived = vec![false; n];
-        redraw_waiting(&c, &mut objs, &mut logw, &mut arrived, t, zone, Rng::stream(5, 0));
+        redraw_waiting(
+            &c,
+            &mut objs,
+            &mut logw,
+            &mut arrived,
+            t,
+            zone,
+            Rng::stream(5, 0),
+        );
         let w: Vec<f64> = logw.iter().map(|l| l.exp()).collect();
         assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-9);
         let travel = c.gap - zone;
@@ -1162,6 +1214,33 @@ mod tests {
         let (t0_r, v_r) = (t0_r / k as f64, v_r / k as f64);
         assert!((t0_w - t0_r).abs() < 6e-4, "{t0_w} vs {t0_r}");
         assert!((v_w - v_r).abs() < 0.02, "{v_w} vs {v_r}");
+
+        // With half the draws injected near d = 16 mm, v = 1.4 m/s, the weights still give the
+        // prior's conditional means.
+        c.injection = Some(Injection {
+            fraction: 0.5,
+            mean: [0.016, 1.4],
+            std: [0.001, 0.05],
+        });
+        let mut objs = vec![[0.02, 1.0, -1.0, 0.01, 0.0]; n];
+        let mut logw = vec![(1.0 / n as f64).ln(); n];
+        let mut arrived = vec![false; n];
+        redraw_waiting(
+            &c,
+            &mut objs,
+            &mut logw,
+            &mut arrived,
+            t,
+            zone,
+            Rng::stream(7, 0),
+        );
+        let w: Vec<f64> = logw.iter().map(|l| l.exp()).collect();
+        let near = objs.iter().filter(|o| (o[0] - 0.016).abs() < 0.002).count();
+        assert!(near > n / 2, "{near}");
+        let d_w: f64 = objs.iter().zip(&w).map(|(o, w)| w * o[0]).sum();
+        let v_w: f64 = objs.iter().zip(&w).map(|(o, w)| w * o[1]).sum();
+        assert!((d_w - 0.0225).abs() < 3e-4, "{d_w}");
+        assert!((v_w - v_r).abs() < 0.03, "{v_w} vs {v_r}");
     }
 
     #[test]
