@@ -696,6 +696,7 @@ fn redraw_waiting(
             // Speed from the prior (or the injection), then the arrival time a = t0 + travel/v
             // after t.
             let (v, ratio_v) = match &inj {
+                _ if !pr[1].is_free() => (pr[1].lo, 1.0),
                 Some(j) => {
                     let v = if rng.uniform() < j.fraction {
                         truncated_normal(&mut rng, j.mean[1], j.std[1], &pr[1])
@@ -723,6 +724,10 @@ fn redraw_waiting(
                     + (1.0 - ARRIVAL_SHARE) / (hi - lo);
                 (v, a - travel / v, ratio_v / q)
             }
+        } else if !pr[1].is_free() {
+            // Known start and speed: the box arrives when it arrives.
+            let (t0, v) = (pr[2].lo, pr[1].lo);
+            (v, t0, if t0 + travel / v > t { 1.0 } else { 0.0 })
         } else {
             // Known start: the speeds whose box arrives after t.
             let t0 = pr[2].lo;
@@ -1241,6 +1246,29 @@ mod tests {
         let v_w: f64 = objs.iter().zip(&w).map(|(o, w)| w * o[1]).sum();
         assert!((d_w - 0.0225).abs() < 3e-4, "{d_w}");
         assert!((v_w - v_r).abs() < 0.03, "{v_w} vs {v_r}");
+    }
+
+    #[test]
+    fn a_known_speed_and_start_is_kept_while_waiting() {
+        // e1: v fixed; the waiting boxes keep it and their weights.
+        let mut c = Config::e2([1.0; 5], 1, 3);
+        c.priors[1] = Prior::fixed(0.6);
+        let mut objs = vec![[0.02, 0.6, -1e-3, 0.01, 0.0]; 8];
+        let mut logw = vec![(1.0f64 / 8.0).ln(); 8];
+        let mut arrived = vec![false; 8];
+        redraw_waiting(
+            &c,
+            &mut objs,
+            &mut logw,
+            &mut arrived,
+            0.0,
+            3e-4,
+            Rng::stream(1, 0),
+        );
+        for (o, l) in objs.iter().zip(&logw) {
+            assert_eq!(o[1], 0.6);
+            assert!((l.exp() - 0.125).abs() < 1e-12);
+        }
     }
 
     #[test]
