@@ -302,12 +302,12 @@ fn write_trace(path: &Path, post: &Posterior) -> Result<()> {
                     dashed: false,
                 },
                 Curve {
-                    name: "90% interval",
+                    name: "5% quantile",
                     values: lo,
                     dashed: true,
                 },
                 Curve {
-                    name: "",
+                    name: "95% quantile",
                     values: hi,
                     dashed: true,
                 },
@@ -316,7 +316,7 @@ fn write_trace(path: &Path, post: &Posterior) -> Result<()> {
         .collect();
     panels.push(Panel {
         quantity: "ESS",
-        unit: "",
+        unit: "particles",
         curves: vec![Curve {
             name: "effective sample size",
             values: &ess,
