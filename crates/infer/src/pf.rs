@@ -1182,19 +1182,17 @@ mod tests {
         let mut c = Config::e2([1.0; 5], 1, 3);
         c.priors[2] = Prior::uniform(0.0, 0.05);
         let (t, zone, n) = (0.01, 3e-4, 40_000);
-        let mut objs = vec![[0.02, 1.0, -1.0, 0.01, 0.0]; n];
-        let mut logw = vec![(1.0 / n as f64).ln(); n];
-        let mut arrived = vec![false; n];
-        redraw_waiting(
-            &c,
-            &mut objs,
-            &mut logw,
-            &mut arrived,
-            t,
-            zone,
-            Rng::stream(5, 0),
-        );
-        let w: Vec<f64> = logw.iter().map(|l| l.exp()).collect();
+        // n waiting boxes of equal weight, redrawn once: their states and new weights.
+        let redraw = |c: &Config, seed: u64| {
+            let mut objs = vec![[0.02, 1.0, -1.0, 0.01, 0.0]; n];
+            let mut logw = vec![(1.0 / n as f64).ln(); n];
+            let mut arrived = vec![false; n];
+            let rng = Rng::stream(seed, 0);
+            redraw_waiting(c, &mut objs, &mut logw, &mut arrived, t, zone, rng);
+            let w: Vec<f64> = logw.iter().map(|l| l.exp()).collect();
+            (objs, w)
+        };
+        let (objs, w) = redraw(&c, 5);
         assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-9);
         let travel = c.gap - zone;
         let mut soon = 0usize;
@@ -1229,19 +1227,7 @@ mod tests {
             mean: [0.016, 1.4],
             std: [0.001, 0.05],
         });
-        let mut objs = vec![[0.02, 1.0, -1.0, 0.01, 0.0]; n];
-        let mut logw = vec![(1.0 / n as f64).ln(); n];
-        let mut arrived = vec![false; n];
-        redraw_waiting(
-            &c,
-            &mut objs,
-            &mut logw,
-            &mut arrived,
-            t,
-            zone,
-            Rng::stream(7, 0),
-        );
-        let w: Vec<f64> = logw.iter().map(|l| l.exp()).collect();
+        let (objs, w) = redraw(&c, 7);
         let near = objs.iter().filter(|o| (o[0] - 0.016).abs() < 0.002).count();
         assert!(near > n / 2, "{near}");
         let d_w: f64 = objs.iter().zip(&w).map(|(o, w)| w * o[0]).sum();
