@@ -85,10 +85,13 @@ pub fn run(args: &Args, experiment: Experiment, variant: Variant) -> Result<()> 
 
     let mut rows: Vec<FileEstimate> = Vec::new();
     let mut posteriors = Vec::new();
-    for (file, o) in args.obs.iter().zip(&obs) {
+    for (file, (o, segments)) in args.obs.iter().zip(&obs) {
         let start = Instant::now();
         let mut config = filter.config(experiment, sigma);
         config.channels = channels.clone();
+        if let Some(n) = segments {
+            config.observed_segments = *n;
+        }
         for &(k, p) in &priors {
             config.priors[k] = p;
         }
@@ -224,7 +227,9 @@ fn parse_channels(names: &[String]) -> Result<Vec<usize>> {
 }
 
 /// Reads one file's sample times and the observed channels.
-fn read_series(file: &Path, channels: &[usize]) -> Result<Observations> {
+/// Reads one observed series, with the segment count of the chain that recorded it when the file
+/// says (`vibrissa simulate` writes it as metadata; the experiments' chain has 20).
+fn read_series(file: &Path, channels: &[usize]) -> Result<(Observations, Option<usize>)> {
     let name = file.display();
     let series =
         vibrissa_io::series::read_csv(file).with_context(|| format!("cannot read `{name}`"))?;
@@ -251,7 +256,17 @@ fn read_series(file: &Path, channels: &[usize]) -> Result<Observations> {
     if let Some(k) = t.iter().position(|x| !x.is_finite()) {
         bail!("`{name}`: t is not finite in row {}", k + 1);
     }
-    Ok(Observations { t, values })
+    let segments = match series.meta_value("segments") {
+        None => None,
+        Some(s) => match s.trim().parse::<usize>() {
+            Ok(n) if (2..=vibrissa_core::chain::MAX_SEGMENTS).contains(&n) => Some(n),
+            _ => bail!(
+                "`{name}`: metadata `segments` is `{s}`; expected a segment count from 2 to {}",
+                vibrissa_core::chain::MAX_SEGMENTS
+            ),
+        },
+    };
+    Ok((Observations { t, values }, segments))
 }
 
 /// Writes the posterior at every sample as CSV, and its plot beside it (.png).

@@ -77,6 +77,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let m: Arc<dyn Method> = Arc::from(methods::by_name("krr")?);
         pf.inject = Some((inject, m));
     }
+    if let Ok(n) = std::env::var("PF_SEGMENTS") {
+        pf.segments = n.parse()?;
+    }
+    if let Ok(dt) = std::env::var("PF_DT") {
+        pf.dt = dt.parse()?;
+    }
     pf.fit(&training)?;
 
     let start = std::time::Instant::now();
