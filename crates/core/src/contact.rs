@@ -31,7 +31,7 @@
 //! the angles, not the rates, along the static compliance `K⁻¹Jᵀ`.
 
 use crate::chain::Model;
-use crate::dynamics::{fma, shift_force, BaseMotion, Inputs, Stepper, Workspace};
+use crate::dynamics::{fma, shift_force, Inputs, Stepper, Workspace};
 use crate::error::Result;
 use crate::objects::{bounds, closest, Closest};
 
@@ -203,29 +203,41 @@ fn generalised(ws: &Workspace, seg: usize, p: [f64; 2], f: [f64; 2], out: &mut [
     }
 }
 
-/// `x = (M + A)⁻¹ τ` with the articulated-body quantities of the last solve (no velocity terms,
-/// no base acceleration).
-fn apply_inverse(ws: &Workspace, tau: &[f64], u: &mut [f64], x: &mut [f64]) {
+/// Response of the joint accelerations to a unit world force `f` at world point `p` of segment
+/// `seg`: `x = (M + A)⁻¹ Jᵀ f`, with the articulated-body quantities of the last solve (no
+/// velocity terms, no base acceleration). Returns the change of the articulated bias force at the
+/// base, which with `x[0]` gives the change of the base reaction (superposition: the articulated
+/// solve is linear in the external forces).
+fn apply_inverse(
+    ws: &Workspace,
+    seg: usize,
+    p: [f64; 2],
+    f: [f64; 2],
+    u: &mut [f64],
+    x: &mut [f64],
+) -> [f64; 3] {
     let n = ws.n;
-    let (seg, node) = (&ws.seg[..n], &ws.node[..=n]);
-    // Inward pass: bias forces of the torque alone.
-    let mut pa_c = [0.0f64; 3];
-    for i in (0..n).rev() {
-        let sg = &seg[i];
-        let ui = tau[i] - pa_c[0];
+    let (segs, node) = (&ws.seg[..n], &ws.node[..=n]);
+    // Inward pass: the force as a spatial force about its segment's joint, carried to the base.
+    u[seg + 1..n].fill(0.0);
+    let o = node[seg];
+    let mut pa = [-((p[0] - o[0]) * f[1] - (p[1] - o[1]) * f[0]), -f[0], -f[1]];
+    for i in (0..=seg).rev() {
+        let sg = &segs[i];
+        let ui = -pa[0];
         u[i] = ui;
         if i == 0 {
             break;
         }
         let k = ui * sg.inv_d;
         let uv = sg.u_vec;
-        let pa = [
-            fma(uv[0], k, pa_c[0]),
-            fma(uv[1], k, pa_c[1]),
-            fma(uv[2], k, pa_c[2]),
+        let pa_a = [
+            fma(uv[0], k, pa[0]),
+            fma(uv[1], k, pa[1]),
+            fma(uv[2], k, pa[2]),
         ];
         let (pp, pi) = (node[i - 1], node[i]);
-        pa_c = shift_force(pa, pp[0] - pi[0], pp[1] - pi[1]);
+        pa = shift_force(pa_a, pp[0] - pi[0], pp[1] - pi[1]);
     }
     // Outward pass.
     let mut acc = [0.0f64; 3];
@@ -235,12 +247,13 @@ fn apply_inverse(ws: &Workspace, tau: &[f64], u: &mut [f64], x: &mut [f64]) {
             let (dx, dy) = (o[0] - p[0], o[1] - p[1]);
             acc = [acc[0], fma(-acc[0], dy, acc[1]), fma(acc[0], dx, acc[2])];
         }
-        let sg = &seg[i];
+        let sg = &segs[i];
         let uv = sg.u_vec;
         let xi = (u[i] - fma(uv[0], acc[0], fma(uv[1], acc[1], uv[2] * acc[2]))) * sg.inv_d;
         acc[0] += xi;
         x[i] = xi;
     }
+    pa
 }
 
 fn dot(a: &[f64], b: &[f64]) -> f64 {
@@ -256,7 +269,6 @@ pub(crate) fn solve(
     inputs: &Inputs,
     start: &StepStart,
     t0: f64,
-    base: &BaseMotion,
 ) -> Result<()> {
     let n = model.n;
     let h = st.dt;
@@ -475,6 +487,7 @@ pub(crate) fn solve(
         }
     }
     let act = &act[..na];
+    let mut base_resp = [[0.0f64; 3]; 2 * MAX_CONTACTS];
     for &k in act {
         let mu = ws.contacts.cand[k].mu;
         let rows: &[usize] = if mu > 0.0 {
@@ -482,10 +495,14 @@ pub(crate) fn solve(
         } else {
             &[2 * k]
         };
+        let c = ws.contacts.cand[k];
         for &r in rows {
-            apply_inverse(
+            let dir = if r % 2 == 0 { c.n } else { c.t };
+            base_resp[r] = apply_inverse(
                 ws,
-                &jac[r * n..(r + 1) * n],
+                c.seg,
+                c.point,
+                dir,
                 &mut u,
                 &mut resp[r * n..(r + 1) * n],
             );
@@ -594,17 +611,30 @@ pub(crate) fn solve(
         n,
         [0.5 * h, cq / cv],
     );
+    // The step with the contact forces applied, by superposition on the solve without them: the
+    // joint accelerations gain the forces' responses, and the base reaction their bias forces at
+    // the base and the first joint's acceleration.
+    let mut dpa = [0.0f64; 3];
+    let mut dx0 = 0.0;
     for k in 0..count {
         let c = ws.contacts.cand[k];
-        if c.lambda_n > 0.0 {
-            let f = [
-                c.lambda_n * c.n[0] + c.lambda_t * c.t[0],
-                c.lambda_n * c.n[1] + c.lambda_t * c.t[1],
-            ];
-            ws.add_force(c.seg, c.point, f);
+        for (r, lambda) in [(2 * k, c.lambda_n), (2 * k + 1, c.lambda_t)] {
+            if lambda != 0.0 {
+                let x = &ws.contacts.resp[r * n..(r + 1) * n];
+                for (q, xi) in ws.qdd[..n].iter_mut().zip(x) {
+                    *q += lambda * xi;
+                }
+                dx0 += lambda * x[0];
+                for (d, b) in dpa.iter_mut().zip(base_resp[r]) {
+                    *d += lambda * b;
+                }
+            }
         }
     }
-    ws.solve(model, base);
+    for (p, d) in ws.pa0.iter_mut().zip(dpa) {
+        *p += d;
+    }
+    ws.seg[0].acc[0] += dx0;
     Ok(())
 }
 

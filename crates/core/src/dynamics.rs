@@ -414,16 +414,25 @@ const COS_TAYLOR: [f64; 7] = [
 ];
 
 /// `(sin x, cos x)`: Taylor polynomials for the small joint angles of a whisker (|x| <= 0.25 rad,
-/// truncation below 1e-17 relative), the library routine beyond.
+/// truncation below 1e-17 relative), the double-angle formulas on them up to 0.5 rad (a coarse
+/// chain's joints bend that far), the library routine beyond.
 #[inline]
 fn sin_cos(x: f64) -> (f64, f64) {
-    if x.abs() > 0.25 {
-        return x.sin_cos();
+    let taylor = |x: f64| {
+        let x2 = x * x;
+        let s = SIN_TAYLOR.iter().rev().fold(0.0, |acc, &k| fma(acc, x2, k));
+        let c = COS_TAYLOR.iter().rev().fold(0.0, |acc, &k| fma(acc, x2, k));
+        (x * s, c)
+    };
+    let ax = x.abs();
+    if ax <= 0.25 {
+        taylor(x)
+    } else if ax <= 0.5 {
+        let (s, c) = taylor(0.5 * x);
+        (2.0 * s * c, fma(c, c, -s * s))
+    } else {
+        x.sin_cos()
     }
-    let x2 = x * x;
-    let s = SIN_TAYLOR.iter().rev().fold(0.0, |acc, &k| fma(acc, x2, k));
-    let c = COS_TAYLOR.iter().rev().fold(0.0, |acc, &k| fma(acc, x2, k));
-    (x * s, c)
 }
 
 #[inline]
@@ -513,7 +522,11 @@ impl Workspace {
     /// Stage: forward kinematics at joint angles `self.q`, rates `self.v`, base motion `base`.
     pub(crate) fn kinematics(&mut self, model: &Model, base: &BaseMotion) {
         let n = self.n;
-        let (sb, cb) = base.angle.sin_cos();
+        let (sb, cb) = if base.angle == 0.0 {
+            (0.0, 1.0)
+        } else {
+            base.angle.sin_cos()
+        };
         let (mut cs, mut sn) = (cb, sb);
         let mut w = base.rate;
         // Velocity and position of the current joint point.
@@ -797,7 +810,7 @@ pub fn step_with<F: Forcing + ?Sized>(
             // Stage: contact forces that keep the whisker out of the objects at the end of the step.
             if !inputs.objects.is_empty() {
                 let start = contact::StepStart { q, v, a, touching };
-                contact::solve(model, st, ws, inputs, &start, state.t, &base)?;
+                contact::solve(model, st, ws, inputs, &start, state.t)?;
             }
             if ws.iterations >= st.max_iterations {
                 break;
@@ -988,6 +1001,15 @@ mod tests {
     fn taylor_sin_cos_matches_library() {
         for k in -2000..=2000 {
             let x = k as f64 * 5e-4;
+            let (s, c) = sin_cos(x);
+            assert!(
+                (s - x.sin()).abs() < 3e-16 && (c - x.cos()).abs() < 3e-16,
+                "{x}"
+            );
+        }
+        // The double-angle range.
+        for k in -2000..=2000 {
+            let x = k as f64 * 2.5e-4 + if k < 0 { -0.25 } else { 0.25 };
             let (s, c) = sin_cos(x);
             assert!(
                 (s - x.sin()).abs() < 3e-16 && (c - x.cos()).abs() < 3e-16,

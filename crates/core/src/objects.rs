@@ -58,7 +58,7 @@ impl Pose {
 
     /// World position of the local point `l`.
     pub fn to_world(&self, l: [f64; 2]) -> [f64; 2] {
-        let (s, c) = self.angle.sin_cos();
+        let (s, c) = turn(self.angle);
         [
             self.position[0] + c * l[0] - s * l[1],
             self.position[1] + s * l[0] + c * l[1],
@@ -67,9 +67,19 @@ impl Pose {
 
     /// Local coordinates of the world point `p`.
     pub fn to_local(&self, p: [f64; 2]) -> [f64; 2] {
-        let (s, c) = self.angle.sin_cos();
+        let (s, c) = turn(self.angle);
         let (dx, dy) = (p[0] - self.position[0], p[1] - self.position[1]);
         [c * dx + s * dy, -s * dx + c * dy]
+    }
+}
+
+/// `(sin a, cos a)` of a pose's angle, without the library call for the common unturned pose.
+#[inline]
+fn turn(angle: f64) -> (f64, f64) {
+    if angle == 0.0 {
+        (0.0, 1.0)
+    } else {
+        angle.sin_cos()
     }
 }
 
@@ -339,7 +349,7 @@ pub fn closest(shape: &Shape, pose: &Pose, a: [f64; 2], b: [f64; 2]) -> Closest 
     } else {
         [a[0] + u * (b[0] - a[0]), a[1] + u * (b[1] - a[1])]
     };
-    let (s, c) = pose.angle.sin_cos();
+    let (s, c) = turn(pose.angle);
     let n = local.normal;
     Closest {
         u,
@@ -894,7 +904,7 @@ mod tests {
         let pose = at(0.1, -0.05, 0.3);
         let frame = at(2.0, -3.0, 1.1);
         let moved = at_composed(&frame, &pose);
-        let (s, c) = frame.angle.sin_cos();
+        let (s, c) = turn(frame.angle);
         let turn = |n: [f64; 2]| [c * n[0] - s * n[1], s * n[0] + c * n[1]];
         for shape in shapes() {
             for &(a, b) in &segments {

@@ -27,7 +27,11 @@ impl Sensors {
     pub fn read(state: &State) -> Sensors {
         let q = state.q();
         let [m0, fx, fy] = state.base_wrench;
-        let (s, c) = state.base.angle.sin_cos();
+        let (s, c) = if state.base.angle == 0.0 {
+            (0.0, 1.0)
+        } else {
+            state.base.angle.sin_cos()
+        };
         Sensors {
             theta01: q[0],
             theta12: q[1],
