@@ -30,8 +30,8 @@ pub struct Args {
     /// Seed of all randomness.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Particles of the particle filter `pf` in the table; 0 leaves it out. Default: 250 for the
-    /// noisy variant, 0 for the clean one (the filter takes about 10 s per 71 runs at 250).
+    /// Particles of the particle filter `pf` in the table; 0 leaves it out. Default: 1000 for the
+    /// noisy variant, 0 for the clean one (the filter takes about 8 s per 71 runs at 1000).
     #[arg(long, value_name = "N")]
     particles: Option<usize>,
     #[command(flatten)]

@@ -31,7 +31,7 @@ use crate::method::Method;
 
 /// Particles of `pf` when it is built by name (the experiments' tables); `vibrissa estimate
 /// --method pf --particles N` sets its own.
-pub const TABLE_PARTICLES: usize = 250;
+pub const TABLE_PARTICLES: usize = 1000;
 
 /// Names of all methods, in the order of [`all`].
 pub const NAMES: [&str; 9] = [
