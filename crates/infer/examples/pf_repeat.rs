@@ -1,33 +1,94 @@
-//! Filters one noisy `e2` run (d = 22 mm, v = 0.9 m/s) REPEATS times with PARTICLES particles (the run's noise seeded by SEED),
-//! for profiling the filter alone.
+//! Filters one noisy `e2` run REPEATS times with PARTICLES particles, one filter seed each, and
+//! prints each posterior (for profiling the filter alone and for studying single runs).
 //!
 //! ```sh
-//! cargo run --release -p vibrissa-infer --example pf_repeat -- PARTICLES REPEATS [SEED]
+//! cargo run --release -p vibrissa-infer --example pf_repeat -- PARTICLES REPEATS [SEED D V DELAY]
 //! ```
+//! The run: d = D m (22 mm), v = V m/s (0.9), its recording started DELAY s early (0; a delay
+//! makes the start unknown to the filter, on 0…50 ms), noise seeded by SEED (1). Environment:
+//! `PF_SEGMENTS`, `PF_DT`, `PF_TEMPER` override the filter's model and tempering; `PF_TRACE=1`
+//! prints the posterior every 5 samples; `PF_PRINT=A:B` prints samples A..B of the run.
 
-use vibrissa_infer::experiment::{simulate, Experiment, Noise, Variant};
-use vibrissa_infer::pf::{self, Config, Observations};
+use vibrissa_infer::experiment::{simulate_delayed, Experiment, Noise, Variant};
+use vibrissa_infer::pf::{self, Config, Observations, Prior};
+
+fn arg<T: std::str::FromStr>(args: &[String], k: usize, default: T) -> T {
+    args.get(k).and_then(|s| s.parse().ok()).unwrap_or(default)
+}
+
+fn env<T: std::str::FromStr>(name: &str) -> Option<T> {
+    std::env::var(name).ok().and_then(|s| s.parse().ok())
+}
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
-    let particles: usize = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(1000);
-    let repeats: usize = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(20);
+    let particles: usize = arg(&args, 1, 1000);
+    let repeats: usize = arg(&args, 2, 20);
+    let run_seed: u64 = arg(&args, 3, 1);
+    let (d, v, delay): (f64, f64, f64) =
+        (arg(&args, 4, 0.022), arg(&args, 5, 0.9), arg(&args, 6, 0.0));
     let noise = Noise::of(Variant::Noisy)?;
-    let run_seed: u64 = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(1);
-    let run = simulate(Experiment::E2, [0.022, 0.9], &noise, run_seed)?;
+    let run = simulate_delayed(Experiment::E2, [d, v], delay, &noise, run_seed)?;
     let model = noise.sensor.map(|s| s * pf::MODEL_ERROR);
-    let sigma = pf::observation_sigma(noise.sensor, model, pf::temper_for(particles));
+    let unknown = if delay > 0.0 {
+        pf::UNKNOWN_START_TEMPER
+    } else {
+        1.0
+    };
+    let temper = env("PF_TEMPER").unwrap_or(pf::temper_for(particles) * unknown);
+    let sigma = pf::observation_sigma(noise.sensor, model, temper);
     let obs = Observations::at_rate(run.series.clone(), 1000.0);
+    if let Some((a, b)) = env::<String>("PF_PRINT").and_then(|s| {
+        let (a, b) = s.split_once(':')?;
+        Some((a.parse::<usize>().ok()?, b.parse::<usize>().ok()?))
+    }) {
+        let clean = simulate_delayed(Experiment::E2, [d, v], delay, &Noise::NONE, run_seed)?;
+        for k in a..b.min(obs.t.len()) {
+            let row: Vec<String> = (0..5)
+                .map(|c| {
+                    format!(
+                        "{:+.2}/{:+.2}",
+                        run.series[c][k] / noise.sensor[c],
+                        clean.series[c][k] / noise.sensor[c]
+                    )
+                })
+                .collect();
+            println!(
+                "  sample {k}: noisy/clean in sensor sigmas {}",
+                row.join("  ")
+            );
+        }
+    }
     let start = std::time::Instant::now();
     for r in 0..repeats {
         let mut config = Config::e2(sigma, particles, r as u64);
-        if let Ok(n) = std::env::var("PF_SEGMENTS") {
-            config.segments = n.parse()?;
+        if delay > 0.0 {
+            config.priors[2] = Prior::uniform(0.0, 0.05);
         }
-        if let Ok(dt) = std::env::var("PF_DT") {
-            config.dt = dt.parse()?;
+        if let Some(n) = env("PF_SEGMENTS") {
+            config.segments = n;
+        }
+        if let Some(dt) = env("PF_DT") {
+            config.dt = dt;
         }
         let post = pf::run(&config, &obs, &mut |_| {})?;
+        if env::<u32>("PF_TRACE") == Some(1) {
+            for row in post.trace.iter().step_by(5) {
+                let e = &row.estimates;
+                println!(
+                    "  t = {:5.1} ms  ess {:6.0}  d {:6.2} ± {:5.2} mm  v {:.3} ± {:.3} m/s{}",
+                    row.t * 1e3,
+                    row.ess,
+                    e[0].mean * 1e3,
+                    e[0].std * 1e3,
+                    e[1].mean,
+                    e[1].std,
+                    e.get(2)
+                        .map(|t| format!("  t0 {:5.2} ± {:4.2} ms", t.mean * 1e3, t.std * 1e3))
+                        .unwrap_or_default()
+                );
+            }
+        }
         let e = post.last();
         println!(
             "filter seed {r}: d = {:.2} ± {:.2} mm, v = {:.3} ± {:.3} m/s, log evidence {:.1}",
@@ -39,9 +100,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         );
     }
     let wall = start.elapsed().as_secs_f64() / repeats as f64;
+    let data = (obs.t.len() - 1) as f64 * 1e-3;
     println!(
-        "{particles} particles: {wall:.4} s per run, real-time factor {:.2}",
-        0.15 / wall
+        "{particles} particles, tempering {temper:.2}: {wall:.4} s per run, real-time factor {:.2}",
+        data / wall
     );
     Ok(())
 }

@@ -414,6 +414,69 @@ pub fn map_joints(model: &Model, observed: &Model, q: &[f64]) -> [f64; 2] {
     })
 }
 
+/// The filter's transition model: the chain, its stepper, and the free-ringing model.
+struct Chain<'a> {
+    model: &'a Model,
+    stepper: &'a vibrissa_core::dynamics::Stepper,
+    ringing: &'a FreeModel,
+}
+
+/// Advances one particle by `steps` steps of the contact model (or `periods` steps of the
+/// free-ringing model once its box has gone for good), with process noise of intensity `noise`
+/// drawn once per sample period; marks the box gone when it has left for good by time `t`.
+#[allow(clippy::too_many_arguments)]
+fn advance(
+    chain: &Chain,
+    s: &mut State,
+    o: &ObjState,
+    gone: &mut bool,
+    steps: usize,
+    periods: usize,
+    noise: f64,
+    t: f64,
+    ws: &mut Workspace,
+) -> std::result::Result<(), ()> {
+    let ringing = chain.ringing;
+    if *gone {
+        // Free ringing: one step per period of the free model.
+        let inputs = Inputs {
+            base: Default::default(),
+            loads: &[],
+            noise,
+            objects: &[],
+        };
+        for _ in 0..periods {
+            step(&ringing.model, &ringing.stepper, s, &inputs, ws).map_err(|_| ())?;
+        }
+        return Ok(());
+    }
+    let object = [object_of(o)];
+    // Process noise drawn once per period (on its first step, with the intensity that gives the
+    // period's impulse its full variance).
+    let per_period = (steps / periods.max(1)).max(1);
+    let lumped = noise * (per_period as f64).sqrt();
+    for j in 0..steps {
+        let inputs = Inputs {
+            base: Default::default(),
+            loads: &[],
+            noise: if j % per_period == 0 { lumped } else { 0.0 },
+            objects: &object,
+        };
+        step(chain.model, chain.stepper, s, &inputs, ws).map_err(|_| ())?;
+    }
+    if s.contact.is_none() && ringing.cleared(s, o, t, ws) {
+        let none = Inputs {
+            base: Default::default(),
+            loads: &[],
+            noise: 0.0,
+            objects: &[],
+        };
+        initialize(&ringing.model, s, &none, ws).map_err(|_| ())?;
+        *gone = true;
+    }
+    Ok(())
+}
+
 /// Stream indices: particles' process noise, their moves, the resampling draws, the prior.
 const STREAM_NOISE: u64 = 1 << 40;
 const STREAM_MOVE: u64 = 2 << 40;
@@ -499,6 +562,11 @@ pub fn run(
     };
     let mut ringing_samples = 0usize;
     let ringing = FreeModel::new(config, &model, period)?;
+    let chain = Chain {
+        model: &model,
+        stepper: &stepper,
+        ringing: &ringing,
+    };
     // Whether each particle's box has left for good (its whisker then rings free).
     let mut cleared = vec![false; np];
     let mut spare_cleared = cleared.clone();
@@ -539,7 +607,6 @@ pub fn run(
         } else {
             (((t - obs.t[k - 1]) / period) + 0.5).floor() as usize
         };
-        let per_period = steps / periods.max(1);
         // Weight mass the particles carry into this sample (for the evidence).
         let prior_mass: f64 = logw.iter().map(|l| l.exp()).sum();
         let ringing_before = cleared.iter().filter(|c| **c).count();
@@ -554,54 +621,10 @@ pub fn run(
                 if *lw == f64::NEG_INFINITY {
                     return 0;
                 }
-                if *gone {
-                    // Free ringing: one step per period of the free model.
-                    let inputs = Inputs {
-                        base: Default::default(),
-                        loads: &[],
-                        noise: config.process_noise,
-                        objects: &[],
-                    };
-                    for _ in 0..periods {
-                        if step(&ringing.model, &ringing.stepper, s, &inputs, ws).is_err() {
-                            *lw = f64::NEG_INFINITY;
-                            return 1;
-                        }
-                    }
-                } else {
-                    let object = [object_of(o)];
-                    // Process noise drawn once per period (on its first step, with the
-                    // intensity that gives the period's impulse its full variance).
-                    let lumped = config.process_noise * (per_period as f64).sqrt();
-                    for j in 0..steps {
-                        let inputs = Inputs {
-                            base: Default::default(),
-                            loads: &[],
-                            noise: if j % per_period.max(1) == 0 {
-                                lumped
-                            } else {
-                                0.0
-                            },
-                            objects: &object,
-                        };
-                        if step(&model, &stepper, s, &inputs, ws).is_err() {
-                            *lw = f64::NEG_INFINITY;
-                            return 1;
-                        }
-                    }
-                    if s.contact.is_none() && ringing.cleared(s, o, t, ws) {
-                        let none = Inputs {
-                            base: Default::default(),
-                            loads: &[],
-                            noise: 0.0,
-                            objects: &[],
-                        };
-                        if initialize(&ringing.model, s, &none, ws).is_err() {
-                            *lw = f64::NEG_INFINITY;
-                            return 1;
-                        }
-                        *gone = true;
-                    }
+                let noise = config.process_noise;
+                if advance(&chain, s, o, gone, steps, periods, noise, t, ws).is_err() {
+                    *lw = f64::NEG_INFINITY;
+                    return 1;
                 }
                 let mut pred = Sensors::read(s).to_array();
                 [pred[0], pred[1]] = map_joints(&model, &observed, s.q());
