@@ -15,6 +15,9 @@ use vibrissa_core::scenes::e2_box;
 use vibrissa_core::sim::{self, Scenario};
 use vibrissa_infer::experiment::{Experiment, Noise, Variant};
 
+/// A run's (d, v), its bound's σ with a known start (d, v) and with an unknown one (d, v, t0).
+type Row = ([f64; 2], [f64; 2], [f64; 3]);
+
 /// The five channels of a clean run with the box at (d, v), started `t0` earlier.
 fn run(d: f64, v: f64, t0: f64) -> Vec<[f64; 5]> {
     let mut object = e2_box(d, v);
@@ -40,7 +43,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .collect();
     // Steps of the central differences: d, v, t0.
     let h = [2e-5, 2e-3, 2e-5];
-    let rows: Vec<([f64; 2], [f64; 2], [f64; 3])> = grid
+    let rows: Vec<Row> = grid
         .par_iter()
         .map(|&[d, v]| {
             let t0 = 0.01;
@@ -60,9 +63,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             };
             let g: Vec<Vec<[f64; 5]>> = (0..3).map(diff).collect();
             let mut fisher = DMatrix::<f64>::zeros(3, 3);
-            for t in 0..g[0].len() {
+            for (t, _) in g[0].iter().enumerate() {
                 for c in 0..5 {
-                    let j = DVector::from_iterator(3, (0..3).map(|k| g[k][t][c] / sigma[c]));
+                    let j = DVector::from_iterator(3, g.iter().map(|gk| gk[t][c] / sigma[c]));
                     fisher += &j * j.transpose();
                 }
             }
