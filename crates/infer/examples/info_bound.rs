@@ -87,8 +87,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             p[0] * 1e3, p[1], k[0] * 1e3, k[1], u[0] * 1e3, u[1], u[2] * 1e3
         );
     }
-    let avg =
-        |f: &dyn Fn(&([f64; 2], [f64; 2], [f64; 3])) -> f64| rows.iter().map(f).sum::<f64>() / n;
+    let avg = |f: &dyn Fn(&Row) -> f64| rows.iter().map(f).sum::<f64>() / n;
     println!(
         "bound on the mean absolute error over {} runs: known start d {:.3} mm, v {:.4} m/s; unknown start d {:.3} mm, v {:.4} m/s",
         rows.len(),
