@@ -15,6 +15,9 @@
 //! - INJECT: share of the initial particles drawn around `krr`'s estimate (0: none);
 //! - VARIANT: `noisy` (default) or `clean`.
 //!
+//! Environment: `PF_SEGMENTS`, `PF_DT` (the transition model), `PF_SHRINK` (Liu–West), `PF_ESS`
+//! (resampling threshold) override the filter's defaults.
+//!
 //! Prints the runs whose error exceeds 0.5 mm or 0.03 m/s, then the mean absolute errors, the
 //! coverage of the 90% intervals and the real-time factor (under whatever else the machine runs).
 
@@ -79,6 +82,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     if let Ok(n) = std::env::var("PF_SEGMENTS") {
         pf.segments = n.parse()?;
+    }
+    if let Ok(a) = std::env::var("PF_SHRINK") {
+        pf.shrink = a.parse()?;
+    }
+    if let Ok(f) = std::env::var("PF_ESS") {
+        pf.ess_fraction = f.parse()?;
     }
     if let Ok(dt) = std::env::var("PF_DT") {
         pf.dt = dt.parse()?;

@@ -2,7 +2,8 @@
 //! the root-mean-square difference per channel between the data (20 segments, 0.1 ms steps) and
 //! a model of SEGMENTS segments stepped at DT with ITERATIONS geometric iterations, in units of the
 //! `noisy` variant's sensor noise. Joint channels of a coarser chain are mapped onto the data's
-//! joints (`pf::JointMap`).
+//! joints (`pf::map_joints`). Also prints how far the `noisy` variant's process noise alone moves
+//! the channels, in the same units.
 //!
 //! ```sh
 //! cargo run --release -p vibrissa-infer --example pf_fidelity -- SEGMENTS DT ITERATIONS
@@ -59,6 +60,46 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             }
         }
     }
+    // The data's own process noise, against its clean runs.
+    let mut pn = [0.0f64; 5];
+    let mut pcount = 0usize;
+    for (k, d) in [15.5e-3, 19.5e-3, 23.5e-3, 27.5e-3, 29.5e-3]
+        .iter()
+        .enumerate()
+    {
+        for v in [0.35, 0.85, 1.45] {
+            let process_only = Noise {
+                sensor: [0.0; 5],
+                process: vibrissa_infer::experiment::PROCESS_NOISE,
+            };
+            let a = vibrissa_infer::experiment::simulate(
+                vibrissa_infer::Experiment::E2,
+                [*d, v],
+                &Noise::NONE,
+                k as u64,
+            )?;
+            let b = vibrissa_infer::experiment::simulate(
+                vibrissa_infer::Experiment::E2,
+                [*d, v],
+                &process_only,
+                k as u64,
+            )?;
+            for c in 0..5 {
+                for (x, y) in a.series[c].iter().zip(&b.series[c]) {
+                    let z = (x - y) / sigma[c];
+                    pn[c] += z * z;
+                }
+            }
+            pcount += a.series[0].len();
+        }
+    }
+    println!(
+        "process noise alone, rms / sensor sigma: {}",
+        pn.iter()
+            .map(|s| format!("{:.3}", (s / pcount as f64).sqrt()))
+            .collect::<Vec<_>>()
+            .join(" ")
+    );
     let rms: Vec<String> = sum
         .iter()
         .map(|s| format!("{:.3}", (s / count as f64).sqrt()))

@@ -1425,6 +1425,10 @@ pub struct Pf {
     pub max_iterations: usize,
     /// Segments of the transition model's chain.
     pub segments: usize,
+    /// Liu–West shrinkage ([`Config::shrink`]).
+    pub shrink: f64,
+    /// Resampling threshold ([`Config::ess_fraction`]).
+    pub ess_fraction: f64,
     /// Hypothesis injection from another method's estimates (fraction of particles).
     pub inject: Option<(f64, std::sync::Arc<dyn crate::Method>)>,
     sigma: Option<[f64; 5]>,
@@ -1454,6 +1458,8 @@ impl Pf {
             dt: 1e-3 / 3.0,
             max_iterations: 1,
             segments: 5,
+            shrink: 0.98,
+            ess_fraction: 0.5,
             inject: None,
             sigma: None,
             experiment: None,
@@ -1471,6 +1477,8 @@ impl Pf {
         c.dt = self.dt;
         c.max_iterations = self.max_iterations;
         c.segments = self.segments;
+        c.shrink = self.shrink;
+        c.ess_fraction = self.ess_fraction;
         if experiment == crate::Experiment::E1 {
             c.priors[1] = Prior::fixed(crate::experiment::E1_SPEED);
         }
