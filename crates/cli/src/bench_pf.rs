@@ -89,8 +89,11 @@ pub fn run(particles: &[usize], quick: bool, format: &FormatArgs) -> Result<()> 
     let mut rows = Vec::new();
     for &n in particles {
         let temper = pf::temper_for(n);
-        let sigma =
-            pf::observation_sigma(noise.sensor, noise.sensor.map(|s| MODEL_ERROR * s), temper);
+        let sigma = pf::observation_sigma(
+            noise.sensor,
+            std::array::from_fn(|c| MODEL_ERROR[c] * noise.sensor[c]),
+            temper,
+        );
         let config = Config::e2(sigma, n, 1);
         // Fastest of a few repetitions (one for the largest counts).
         let reps = if quick || n >= 5000 { 1 } else { 3 };

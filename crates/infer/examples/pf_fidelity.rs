@@ -100,6 +100,50 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .collect::<Vec<_>>()
             .join(" ")
     );
+    // The model's process noise (same intensity), against its own clean runs.
+    let mut mn = [0.0f64; 5];
+    let mut mcount = 0usize;
+    for (k, d) in [15.5e-3, 19.5e-3, 23.5e-3, 27.5e-3, 29.5e-3]
+        .iter()
+        .enumerate()
+    {
+        for v in [0.35, 0.85, 1.45] {
+            let mut sc = Scenario {
+                objects: vec![e2_box(*d, v)],
+                segments,
+                integrator: Integrator {
+                    dt,
+                    max_iterations: iterations,
+                    ..Integrator::default()
+                },
+                seed: k as u64,
+                ..Scenario::default()
+            };
+            let a = sim::run(&sc, &mut |_| {})?;
+            sc.process_noise = vibrissa_infer::experiment::PROCESS_NOISE;
+            let b = sim::run(&sc, &mut |_| {})?;
+            for (x, y) in a.rows.iter().zip(&b.rows) {
+                let qa = vibrissa_infer::pf::map_joints(&coarse, &fine, &[x[1], x[2]]);
+                let qb = vibrissa_infer::pf::map_joints(&coarse, &fine, &[y[1], y[2]]);
+                let (pa, pb) = (
+                    [qa[0], qa[1], x[3], x[4], x[5]],
+                    [qb[0], qb[1], y[3], y[4], y[5]],
+                );
+                for c in 0..5 {
+                    let z = (pa[c] - pb[c]) / sigma[c];
+                    mn[c] += z * z;
+                }
+                mcount += 1;
+            }
+        }
+    }
+    println!(
+        "model's process noise alone, rms / sensor sigma: {}",
+        mn.iter()
+            .map(|s| format!("{:.3}", (s / mcount as f64).sqrt()))
+            .collect::<Vec<_>>()
+            .join(" ")
+    );
     let rms: Vec<String> = sum
         .iter()
         .map(|s| format!("{:.3}", (s / count as f64).sqrt()))

@@ -29,7 +29,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         (arg(&args, 4, 0.022), arg(&args, 5, 0.9), arg(&args, 6, 0.0));
     let noise = Noise::of(Variant::Noisy)?;
     let run = simulate_delayed(Experiment::E2, [d, v], delay, &noise, run_seed)?;
-    let model = noise.sensor.map(|s| s * pf::MODEL_ERROR);
+    let model: [f64; 5] = std::array::from_fn(|c| noise.sensor[c] * pf::MODEL_ERROR[c]);
     let unknown = if delay > 0.0 {
         pf::UNKNOWN_START_TEMPER
     } else {
