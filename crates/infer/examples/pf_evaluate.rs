@@ -15,7 +15,7 @@
 //! - INJECT: share of the initial particles drawn around `krr`'s estimate (0: none);
 //! - VARIANT: `noisy` (default) or `clean`.
 //!
-//! Environment: `PF_SEGMENTS`, `PF_DT` (the transition model), `PF_SHRINK` (Liu–West), `PF_ESS`
+//! Environment: `PF_SEED` (the filter's seed), `PF_SEGMENTS`, `PF_DT` (the transition model), `PF_SHRINK` (Liu–West), `PF_ESS`
 //! (resampling threshold) override the filter's defaults.
 //!
 //! Prints the runs whose error exceeds 0.5 mm or 0.03 m/s, then the mean absolute errors, the
@@ -82,6 +82,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     if let Ok(n) = std::env::var("PF_SEGMENTS") {
         pf.segments = n.parse()?;
+    }
+    if let Ok(seed) = std::env::var("PF_SEED") {
+        pf.seed = seed.parse()?;
     }
     if let Ok(a) = std::env::var("PF_SHRINK") {
         pf.shrink = a.parse()?;

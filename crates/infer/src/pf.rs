@@ -13,8 +13,9 @@
 //! Static unknowns get a Liu–West kernel move at every resampling: each resampled particle's
 //! object parameters are shrunk toward the weighted mean by `a` and jittered with covariance
 //! `(1 − a²)` times the weighted covariance, so the cloud's mean and spread are kept while its
-//! points become distinct again. While a box may still touch its whisker, a move of its speed
-//! keeps it where it is (the whisker state stays consistent with it). Boxes that have not come
+//! points become distinct again. While a box may still touch its whisker, its height stays where
+//! it is (the whisker state stays consistent with it): its speed moves, and its start delay
+//! follows instead of moving on its own. Boxes that have not come
 //! within reach yet are instead redrawn at every sample from the prior given that they have not
 //! arrived ([`run`] calls it the waiting group), with early arrivals favoured and weighted back.
 //! Resampling is systematic, when the effective sample size falls below a fraction of the
@@ -1039,8 +1040,8 @@ fn liu_west(
 ) -> Vec<ObjState> {
     // Moved coordinates: the free unknowns (d, v, t0, size, mu), summarised over the weighted
     // cloud. A particle whose box has gone takes the move as it is. One whose box may still touch
-    // its whisker keeps the box where it is when its speed moves (the whisker state stays
-    // consistent with it); a move of its start delay shifts the box along its path.
+    // its whisker keeps the box's height where it is (the whisker state stays consistent with
+    // it): its speed and distance move, its start delay follows from the height and the speed.
     let m = free.len();
     let a = config.shrink;
     let mut out: Vec<ObjState> = parents.iter().map(|&p| objs[p]).collect();
@@ -1117,7 +1118,11 @@ fn liu_west(
                 &config.priors[c],
             );
             if c == Y {
-                t0_new = x;
+                // While the box may still touch its whisker, its height is part of the contact
+                // state: it stays where it is, and t0 follows from it and the speed.
+                if cleared[parents[i]] {
+                    t0_new = x;
+                }
             } else {
                 o[c] = x;
             }
