@@ -226,7 +226,6 @@ fn parse_channels(names: &[String]) -> Result<Vec<usize>> {
     Ok(out)
 }
 
-/// Reads one file's sample times and the observed channels.
 /// Reads one observed series, with the segment count of the chain that recorded it when the file
 /// says (`vibrissa simulate` writes it as metadata; the experiments' chain has 20).
 fn read_series(file: &Path, channels: &[usize]) -> Result<(Observations, Option<usize>)> {

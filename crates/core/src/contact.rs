@@ -11,9 +11,11 @@
 //! The step is linear in these forces at fixed geometry: the articulated-body factorisation of
 //! `M + A` from the unconstrained solve is reused to apply `(M + A)⁻¹` to each contact's
 //! generalised force, which gives the small Delassus matrix of the contacts; a projected
-//! Gauss–Seidel iteration solves the resulting complementarity problem. The forces are then
-//! added to the segments' external forces and the step solved once more, so the accelerations,
-//! the base reaction and everything downstream include them. No penalty stiffness is involved,
+//! Gauss–Seidel iteration (or, without friction, exact pivoting) solves the resulting
+//! complementarity problem. The forces then enter the step by superposition on the unconstrained
+//! solve: the joint accelerations gain each force's response, and the base reaction its change of
+//! the articulated bias force at the base, so everything downstream includes them without a second
+//! articulated solve. No penalty stiffness is involved,
 //! so contact keeps the time step of the free whisker.
 //!
 //! A contact is active when the step would end in penetration without it, and its normal force
@@ -260,8 +262,8 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
-/// Stage: find contacts at the evaluation point, solve for their forces, and re-solve the step
-/// with them. `t0` is the time at the start of the step.
+/// Stage: find contacts at the evaluation point, solve for their forces, and add them to the step
+/// (by superposition on the unconstrained solve). `t0` is the time at the start of the step.
 pub(crate) fn solve(
     model: &Model,
     st: &Stepper,
@@ -582,8 +584,8 @@ pub(crate) fn solve(
     ws.contacts.resp = resp;
     ws.contacts.u = u;
 
-    // The contact forces' accelerations, then the step solved again with the forces applied (for
-    // the base reaction and the segments' accelerations).
+    // The contact forces' accelerations, split into impacts and lasting contacts (they are
+    // integrated differently).
     for k in 0..count {
         let c = ws.contacts.cand[k];
         for (r, lambda) in [(2 * k, c.lambda_n), (2 * k + 1, c.lambda_t)] {

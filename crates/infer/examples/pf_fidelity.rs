@@ -29,6 +29,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let w = base.whisker.check()?;
     let fine = Model::new(&w, base.segments, Discretisation::default())?;
     let coarse = Model::new(&w, segments, Discretisation::default())?;
+    // The rows carry only the model's first two joints, enough to map a chain no finer than the
+    // data's onto it.
+    if segments > base.segments {
+        return Err(format!("SEGMENTS must be at most {}", base.segments).into());
+    }
     let mut sum = [0.0f64; 5];
     let mut count = 0usize;
     let mut wall = 0.0;
