@@ -13,7 +13,10 @@ use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::Instant;
-use vibrissa_infer::{calibration, evaluate_with, Budget, Evaluation, Experiment, Variant};
+use vibrissa_infer::{
+    calibration, evaluate_unknown_start, evaluate_with, Budget, Evaluation, Experiment,
+    StartEvaluation, Variant,
+};
 
 /// Arguments of `vibrissa experiment`.
 #[derive(Debug, clap::Args)]
@@ -34,6 +37,11 @@ pub struct Args {
     /// noisy variant, 0 for the clean one (the filter takes about 8 s per 71 runs at 1000).
     #[arg(long, value_name = "N")]
     particles: Option<usize>,
+    /// Score only the particle filter, on recordings that start up to S seconds before the
+    /// approach (a whole number of milliseconds, drawn per run), so the start `t0` is a further
+    /// unknown. Default particles: 1000.
+    #[arg(long, value_name = "S")]
+    max_delay: Option<f64>,
     #[command(flatten)]
     format: FormatArgs,
 }
@@ -51,11 +59,24 @@ struct Report {
 pub fn run(args: &Args) -> Result<()> {
     let experiment = Experiment::parse(&args.experiment)?;
     let variant = Variant::parse(&args.variant)?;
+    if let Some(s) = args.max_delay {
+        if !(s.is_finite() && s > 0.0 && s <= 1.0) {
+            anyhow::bail!("--max-delay must be a delay in (0, 1] s (got {s})");
+        }
+        if args.particles == Some(0) {
+            anyhow::bail!("--particles must be at least 1 with --max-delay (got 0)");
+        }
+    }
     let out = args.out.clone().unwrap_or_else(|| {
         PathBuf::from(format!(
-            "experiment-{}-{}",
+            "experiment-{}-{}{}",
             experiment.name(),
-            variant.name()
+            variant.name(),
+            if args.max_delay.is_some() {
+                "-unknown-start"
+            } else {
+                ""
+            }
         ))
     });
     std::fs::create_dir_all(&out)
@@ -78,6 +99,23 @@ pub fn run(args: &Args) -> Result<()> {
             }
         }
     };
+    if let Some(max_delay) = args.max_delay {
+        let particles = args
+            .particles
+            .unwrap_or(vibrissa_infer::methods::TABLE_PARTICLES);
+        let ev = evaluate_unknown_start(
+            experiment, variant, args.seed, particles, max_delay, &progress,
+        )?;
+        let json = out.join("results.json");
+        crate::files::write_atomic(&json, serde_json::to_string_pretty(&ev)?.as_bytes())?;
+        eprintln!("[{:6.2} s] done", start.elapsed().as_secs_f64());
+        args.format.format().print(&StartReport {
+            evaluation: ev,
+            files: vec![json],
+            seconds: start.elapsed().as_secs_f64(),
+        })?;
+        return Ok(());
+    }
     let particles = args.particles.unwrap_or(match variant {
         Variant::Noisy => vibrissa_infer::methods::TABLE_PARTICLES,
         Variant::Clean => 0,
@@ -93,6 +131,65 @@ pub fn run(args: &Args) -> Result<()> {
     eprintln!("[{:6.2} s] done", start.elapsed().as_secs_f64());
     args.format.format().print(&Report { evaluation, files })?;
     Ok(())
+}
+
+/// The printed result of the unknown-start mode.
+#[derive(Debug, Serialize)]
+struct StartReport {
+    #[serde(flatten)]
+    evaluation: StartEvaluation,
+    /// Files written.
+    files: Vec<PathBuf>,
+    /// Wall time of the whole command, s.
+    seconds: f64,
+}
+
+impl Render for StartReport {
+    fn render(&self, out: &mut dyn Write) -> io::Result<()> {
+        let ev = &self.evaluation;
+        writeln!(
+            out,
+            "experiment {} ({}), seed {}: pf with {} particles on {} runs, each recorded from up to {} ms before the approach (t0 unknown)",
+            ev.experiment.name(),
+            ev.variant.name(),
+            ev.seed,
+            ev.particles,
+            ev.runs.len(),
+            ev.max_delay * 1e3
+        )?;
+        let mut t = Table::new(&[
+            ("unknown", Align::Left),
+            ("MAE", Align::Right),
+            ("unit", Align::Left),
+            ("90% cover", Align::Right),
+        ]);
+        for (k, u) in ev.unknowns.iter().enumerate() {
+            let (scale, unit) = match u.as_str() {
+                "d" => (1e3, "mm"),
+                "t0" => (1e3, "ms"),
+                _ => (1.0, "m/s"),
+            };
+            t.row(vec![
+                u.clone(),
+                format!("{:.4}", ev.mae[k] * scale),
+                unit.into(),
+                format!("{:.0}%", ev.coverage[k] * 100.0),
+            ]);
+        }
+        t.write(out, "  ")?;
+        writeln!(
+            out,
+            "filtered {:.2} s of data in {:.2} s: real-time factor {:.2}; wall time {:.2} s; files:",
+            ev.data_seconds,
+            ev.filter_seconds,
+            ev.real_time_factor(),
+            self.seconds
+        )?;
+        for f in &self.files {
+            writeln!(out, "  {}", f.display())?;
+        }
+        Ok(())
+    }
 }
 
 impl Render for Report {

@@ -302,3 +302,58 @@ fn pf_estimates_writes_a_trace_and_refuses_bad_settings() {
         assert!(err.contains(says), "{args:?}: {err}");
     }
 }
+
+#[test]
+fn unknown_start_scores_the_filter_with_t0_and_refuses_bad_delays() {
+    let dir = temp("unknown-start");
+    let out = dir.join("e1");
+    let run = vibrissa()
+        .args([
+            "experiment",
+            "e1",
+            "--max-delay",
+            "0.02",
+            "--particles",
+            "100",
+        ])
+        .args(["--json", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert_eq!(report["unknowns"], serde_json::json!(["d", "t0"]));
+    assert_eq!(report["runs"].as_array().unwrap().len(), 13);
+    // A filter that finds anything: distance within 2 mm, start within 5 ms, on average.
+    assert!(
+        report["mae"][0].as_f64().unwrap() < 2e-3,
+        "{}",
+        report["mae"]
+    );
+    assert!(
+        report["mae"][1].as_f64().unwrap() < 5e-3,
+        "{}",
+        report["mae"]
+    );
+    for run in report["runs"].as_array().unwrap() {
+        let t0 = run["truth"][1].as_f64().unwrap();
+        assert!((0.0..=0.02).contains(&t0) && (t0 * 1e3 - (t0 * 1e3).round()).abs() < 1e-9);
+    }
+    assert!(out.join("results.json").is_file());
+    for bad in ["0", "-0.01", "NaN", "2"] {
+        let folder = dir.join(format!("bad-{bad}"));
+        let r = vibrissa()
+            .args(["experiment", "e1", &format!("--max-delay={bad}"), "--out"])
+            .arg(&folder)
+            .output()
+            .unwrap();
+        assert!(!r.status.success(), "{bad}");
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(err.contains("--max-delay"), "{bad}: {err}");
+        assert!(!folder.exists(), "{bad}: output folder created");
+    }
+}

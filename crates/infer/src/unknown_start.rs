@@ -1,0 +1,182 @@
+//! The particle filter on recordings that do not start at the approach: each evaluated run of an
+//! experiment recorded from a random moment up to `max_delay` before its t = 0, so that the start
+//! of the approach `t0` is a further unknown (`vibrissa experiment --max-delay`).
+
+use crate::error::{Error, Result};
+use crate::evaluate::training_for;
+use crate::experiment::{simulate_delayed, Experiment, Noise, Variant};
+use crate::method::{Estimate, Method};
+use crate::pf::Pf;
+use serde::Serialize;
+use std::time::Instant;
+use vibrissa_core::rng::Rng;
+
+/// Stream of the runs' delays (apart from every other stream of `seed`).
+const STREAM_DELAY: u64 = 0xde1a_0000;
+
+/// One delayed run and the filter's estimate.
+#[derive(Debug, Clone, Serialize)]
+pub struct DelayedRun {
+    /// True values of the unknowns, in the order of [`StartEvaluation::unknowns`].
+    pub truth: Vec<f64>,
+    /// The filter's estimates, same order.
+    pub estimate: Vec<Estimate>,
+}
+
+/// The particle filter scored on delayed recordings of an experiment's evaluated runs.
+#[derive(Debug, Clone, Serialize)]
+pub struct StartEvaluation {
+    /// The experiment.
+    pub experiment: Experiment,
+    /// The variant.
+    pub variant: Variant,
+    /// Seed of the runs, their delays and the filter.
+    pub seed: u64,
+    /// Particles of the filter.
+    pub particles: usize,
+    /// Largest delay of a recording's start, s.
+    pub max_delay: f64,
+    /// Names of the unknowns: the experiment's, then `t0`.
+    pub unknowns: Vec<String>,
+    /// Mean absolute error per unknown, SI.
+    pub mae: Vec<f64>,
+    /// Share of runs whose 90% interval holds the truth, per unknown.
+    pub coverage: Vec<f64>,
+    /// Seconds of data filtered.
+    pub data_seconds: f64,
+    /// Wall time of the filtering, s.
+    pub filter_seconds: f64,
+    /// Every run.
+    pub runs: Vec<DelayedRun>,
+}
+
+impl StartEvaluation {
+    /// Simulated seconds of data filtered per wall second.
+    pub fn real_time_factor(&self) -> f64 {
+        self.data_seconds / self.filter_seconds
+    }
+}
+
+/// Scores the particle filter with `particles` particles on `experiment`'s evaluated runs in
+/// `variant`, each recorded from a whole number of milliseconds drawn uniformly from
+/// `[0, max_delay]` before the run's t = 0; the filter's prior on `t0` is `[0, max_delay]`.
+/// `progress(stage, done, total)` reports.
+pub fn evaluate_unknown_start(
+    experiment: Experiment,
+    variant: Variant,
+    seed: u64,
+    particles: usize,
+    max_delay: f64,
+    progress: &(dyn Fn(&str, usize, usize) + Sync),
+) -> Result<StartEvaluation> {
+    if particles == 0 {
+        return Err(Error::Setting(
+            "particles: expected at least 1 particle".into(),
+        ));
+    }
+    if !(max_delay.is_finite() && max_delay > 0.0 && max_delay <= 1.0) {
+        return Err(Error::Setting(format!(
+            "max_delay: expected a delay in (0, 1] s, got {max_delay}"
+        )));
+    }
+    if variant == Variant::Noisy {
+        progress("noise levels", 0, 1);
+    }
+    let noise = Noise::of(variant)?;
+    let mut filter = Pf::new(particles);
+    filter.seed = seed;
+    filter.max_delay = max_delay;
+    progress("training runs", 0, 1);
+    let training = training_for(experiment, variant, &filter, seed)?;
+    progress("training runs", 1, 1);
+    filter.fit(&training)?;
+
+    let params: Vec<[f64; 2]> = experiment
+        .grid()
+        .into_iter()
+        .filter(|p| !experiment.is_template(*p))
+        .collect();
+    let mut rng = Rng::stream(seed, STREAM_DELAY);
+    let steps = (max_delay * 1000.0).floor();
+    let delays: Vec<f64> = params
+        .iter()
+        .map(|_| (rng.uniform() * (steps + 1.0)).floor().min(steps) / 1000.0)
+        .collect();
+    let unknowns: Vec<String> = experiment
+        .unknowns()
+        .iter()
+        .map(|u| u.to_string())
+        .chain(std::iter::once("t0".to_string()))
+        .collect();
+    let mut runs = Vec::with_capacity(params.len());
+    let (mut data_seconds, mut filter_seconds) = (0.0, 0.0);
+    progress("filter", 0, params.len());
+    for (k, (p, &delay)) in params.iter().zip(&delays).enumerate() {
+        let run_seed = Rng::stream(seed, 7000 + k as u64).next_u64();
+        let sample = simulate_delayed(experiment, *p, delay, &noise, run_seed)?;
+        let start = Instant::now();
+        let post = filter.posterior(&sample.series)?;
+        filter_seconds += start.elapsed().as_secs_f64();
+        let estimate = unknowns
+            .iter()
+            .map(|u| {
+                post.unknowns
+                    .iter()
+                    .position(|name| name == u)
+                    .map(|i| post.last()[i])
+                    .ok_or_else(|| Error::Setting(format!("the filter does not estimate {u}")))
+            })
+            .collect::<Result<Vec<_>>>()?;
+        data_seconds += (sample.series[0].len() - 1) as f64 / crate::experiment::SAMPLE_RATE;
+        let mut truth = experiment.params(*p);
+        truth.push(delay);
+        runs.push(DelayedRun { truth, estimate });
+        progress("filter", k + 1, params.len());
+    }
+    let n = runs.len() as f64;
+    let mae = (0..unknowns.len())
+        .map(|u| {
+            runs.iter()
+                .map(|r| (r.estimate[u].mean - r.truth[u]).abs())
+                .sum::<f64>()
+                / n
+        })
+        .collect();
+    let coverage = (0..unknowns.len())
+        .map(|u| {
+            runs.iter()
+                .filter(|r| r.estimate[u].covers(r.truth[u]))
+                .count() as f64
+                / n
+        })
+        .collect();
+    Ok(StartEvaluation {
+        experiment,
+        variant,
+        seed,
+        particles,
+        max_delay,
+        unknowns,
+        mae,
+        coverage,
+        data_seconds,
+        filter_seconds,
+        runs,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bad_settings_are_refused_by_name() {
+        let none = |_: &str, _: usize, _: usize| {};
+        let e = evaluate_unknown_start(Experiment::E2, Variant::Clean, 1, 0, 0.05, &none);
+        assert!(e.unwrap_err().to_string().contains("particles"));
+        for bad in [0.0, -0.01, f64::NAN, 2.0] {
+            let e = evaluate_unknown_start(Experiment::E2, Variant::Clean, 1, 10, bad, &none);
+            assert!(e.unwrap_err().to_string().contains("max_delay"), "{bad}");
+        }
+    }
+}
