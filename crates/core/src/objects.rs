@@ -535,7 +535,6 @@ fn closest_box(width: f64, height: f64, a: [f64; 2], b: [f64; 2]) -> Closest {
         .max(b[0].abs())
         .max(b[1].abs());
     let tol = 1e-12 * size;
-    let len2 = dot(d, d);
     let mut best = None;
     for (u, p) in [(0.0, a), (1.0, b)] {
         let q = [p[0].clamp(-hw, hw), p[1].clamp(-hh, hh)];
@@ -551,20 +550,7 @@ fn closest_box(width: f64, height: f64, a: [f64; 2], b: [f64; 2]) -> Closest {
             tol,
         );
     }
-    for &q in &v {
-        let u = dot(sub(q, a), d) / len2;
-        if u > 0.0 && u < 1.0 {
-            let side = dot(m, sub(a, q));
-            let normal = if side >= 0.0 { m } else { [-m[0], -m[1]] };
-            let dist = side.abs();
-            better(
-                &mut best,
-                dist,
-                local_result(u, along(a, d, u), q, normal, dist),
-                tol,
-            );
-        }
-    }
+    vertices_against_interior(&v, a, b, tol, &mut best);
     best.expect("a segment has two endpoints").1
 }
 
@@ -600,9 +586,6 @@ fn closest_polygon(v: &[[f64; 2]], a: [f64; 2], b: [f64; 2]) -> Closest {
 
 fn polygon_apart(v: &[[f64; 2]], a: [f64; 2], b: [f64; 2], tol: f64) -> Closest {
     let n = v.len();
-    let d = sub(b, a);
-    let len2 = dot(d, d);
-    let m = left_normal(d);
     let mut best = None;
     // Each endpoint against each edge.
     for (u, p) in [(0.0, a), (1.0, b)] {
@@ -622,7 +605,22 @@ fn polygon_apart(v: &[[f64; 2]], a: [f64; 2], b: [f64; 2], tol: f64) -> Closest 
             better(&mut best, dist, local_result(u, p, q, normal, dist), tol);
         }
     }
-    // Each vertex against the segment's interior, pushed along the segment's perpendicular.
+    vertices_against_interior(v, a, b, tol, &mut best);
+    best.expect("a polygon has at least one edge").1
+}
+
+/// Candidates of a polygon clear of the segment `a → b`: each vertex against the segment's
+/// interior, pushed along the segment's perpendicular.
+fn vertices_against_interior(
+    v: &[[f64; 2]],
+    a: [f64; 2],
+    b: [f64; 2],
+    tol: f64,
+    best: &mut Option<(f64, Closest)>,
+) {
+    let d = sub(b, a);
+    let len2 = dot(d, d);
+    let m = left_normal(d);
     for &q in v {
         let u = dot(sub(q, a), d) / len2;
         if u > 0.0 && u < 1.0 {
@@ -630,14 +628,13 @@ fn polygon_apart(v: &[[f64; 2]], a: [f64; 2], b: [f64; 2], tol: f64) -> Closest 
             let normal = if side >= 0.0 { m } else { [-m[0], -m[1]] };
             let dist = side.abs();
             better(
-                &mut best,
+                best,
                 dist,
                 local_result(u, along(a, d, u), q, normal, dist),
                 tol,
             );
         }
     }
-    best.expect("a polygon has at least one edge").1
 }
 
 fn polygon_overlap(
