@@ -705,6 +705,26 @@ fn stability(quick: bool, out: &mut Vec<Check>) -> Result<()> {
     Ok(())
 }
 
+/// The three quasi-static peg checks: moment arm, Newton's third law at the base, shape.
+fn peg_checks(g: &mut Group, label: &str, r: &crate::scenes::PegWhisk) {
+    let checks = [
+        ("max |m0/(|f|·s) - 1|", r.moment_arm_error),
+        ("max |m0/(cx·fy - cy·fx) - 1|", r.third_law_error),
+        ("max shape error / tip deflection", r.shape_error),
+    ];
+    for (quantity, value) in checks {
+        g.add(
+            label,
+            quantity,
+            "1",
+            value,
+            0.0,
+            ErrorUnit::Absolute,
+            Some(0.01),
+        );
+    }
+}
+
 fn contact(out: &mut Vec<Check>) -> Result<()> {
     let mut g = Group {
         name: "contact",
@@ -716,33 +736,7 @@ fn contact(out: &mut Vec<Check>) -> Result<()> {
         "w30 N=20 whisked at 0.05 rad/s into a peg at 20 mm ({} samples)",
         r.samples
     );
-    g.add(
-        &label,
-        "max |m0/(|f|·s) - 1|",
-        "1",
-        r.moment_arm_error,
-        0.0,
-        ErrorUnit::Absolute,
-        Some(0.01),
-    );
-    g.add(
-        &label,
-        "max |m0/(cx·fy - cy·fx) - 1|",
-        "1",
-        r.third_law_error,
-        0.0,
-        ErrorUnit::Absolute,
-        Some(0.01),
-    );
-    g.add(
-        &label,
-        "max shape error / tip deflection",
-        "1",
-        r.shape_error,
-        0.0,
-        ErrorUnit::Absolute,
-        Some(0.01),
-    );
+    peg_checks(&mut g, &label, &r);
     // Nearer the base (read up to a 5% tip deflection: the part beyond the peg turns with the
     // base).
     for d in [0.005, 0.010] {
@@ -752,38 +746,7 @@ fn contact(out: &mut Vec<Check>) -> Result<()> {
             d * 1e3,
             r.samples
         );
-        let q = [
-            "max |m0/(|f|·s) - 1|",
-            "max |m0/(cx·fy - cy·fx) - 1|",
-            "max shape error / tip deflection",
-        ];
-        g.add(
-            &label,
-            q[0],
-            "1",
-            r.moment_arm_error,
-            0.0,
-            ErrorUnit::Absolute,
-            Some(0.01),
-        );
-        g.add(
-            &label,
-            q[1],
-            "1",
-            r.third_law_error,
-            0.0,
-            ErrorUnit::Absolute,
-            Some(0.01),
-        );
-        g.add(
-            &label,
-            q[2],
-            "1",
-            r.shape_error,
-            0.0,
-            ErrorUnit::Absolute,
-            Some(0.01),
-        );
+        peg_checks(&mut g, &label, &r);
     }
     // Ringing after release.
     let r = crate::scenes::ringing_after_release()?;

@@ -3,7 +3,7 @@
 //! a model of SEGMENTS segments stepped at DT with ITERATIONS geometric iterations, in units of the
 //! `noisy` variant's sensor noise. Joint channels of a coarser chain are mapped onto the data's
 //! joints (`pf::map_joints`). Also prints how far the `noisy` variant's process noise alone moves
-//! the channels, in the same units.
+//! the channels, in the same units, on the data's chain and on the model's.
 //!
 //! ```sh
 //! cargo run --release -p vibrissa-infer --example pf_fidelity -- SEGMENTS DT ITERATIONS
@@ -13,10 +13,93 @@ use vibrissa_core::chain::{Discretisation, Model};
 use vibrissa_core::dynamics::Integrator;
 use vibrissa_core::scenes::e2_box;
 use vibrissa_core::sim::{self, Scenario};
-use vibrissa_infer::experiment::{Noise, Variant};
+use vibrissa_infer::experiment::{Noise, Variant, PROCESS_NOISE};
+use vibrissa_infer::pf::map_joints;
+
+/// The runs compared: (d, v), off the evaluated grid.
+const RUNS: [(f64, f64); 15] = {
+    let d = [15.5e-3, 19.5e-3, 23.5e-3, 27.5e-3, 29.5e-3];
+    let v = [0.35, 0.85, 1.45];
+    let mut out = [(0.0, 0.0); 15];
+    let mut k = 0;
+    while k < 15 {
+        out[k] = (d[k / 3], v[k % 3]);
+        k += 1;
+    }
+    out
+};
 
 fn arg<T: std::str::FromStr>(args: &[String], k: usize, default: T) -> T {
     args.get(k).and_then(|s| s.parse().ok()).unwrap_or(default)
+}
+
+/// A chain and a time step to simulate the runs on.
+struct Chain {
+    model: Model,
+    integrator: Integrator,
+}
+
+/// The five channels of run `k` on `chain`, its joint angles mapped onto `observed`'s.
+fn channels(
+    chain: &Chain,
+    observed: &Model,
+    k: usize,
+    process_noise: f64,
+) -> Result<Vec<[f64; 5]>, Box<dyn std::error::Error>> {
+    let (d, v) = RUNS[k];
+    let sc = Scenario {
+        objects: vec![e2_box(d, v)],
+        segments: chain.model.n,
+        integrator: chain.integrator,
+        process_noise,
+        // One noise seed per distance.
+        seed: (k / 3) as u64,
+        ..Scenario::default()
+    };
+    let out = sim::run(&sc, &mut |_| {})?;
+    Ok(out
+        .rows
+        .iter()
+        .map(|r| {
+            let q = map_joints(&chain.model, observed, &[r[1], r[2]]);
+            [q[0], q[1], r[3], r[4], r[5]]
+        })
+        .collect())
+}
+
+/// Root-mean-square difference per channel over many pairs of series, in units of `sigma`.
+struct Rms {
+    sigma: [f64; 5],
+    sum: [f64; 5],
+    count: usize,
+}
+
+impl Rms {
+    fn new(sigma: [f64; 5]) -> Rms {
+        Rms {
+            sigma,
+            sum: [0.0; 5],
+            count: 0,
+        }
+    }
+
+    fn add(&mut self, a: &[[f64; 5]], b: &[[f64; 5]]) {
+        for (x, y) in a.iter().zip(b) {
+            for c in 0..5 {
+                let z = (x[c] - y[c]) / self.sigma[c];
+                self.sum[c] += z * z;
+            }
+            self.count += 1;
+        }
+    }
+
+    fn text(&self) -> String {
+        self.sum
+            .iter()
+            .map(|s| format!("{:.3}", (s / self.count as f64).sqrt()))
+            .collect::<Vec<_>>()
+            .join(" ")
+    }
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -26,137 +109,47 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let iterations: usize = arg(&args, 3, 1);
     let sigma = Noise::of(Variant::Noisy)?.sensor;
     let base = Scenario::default();
-    let w = base.whisker.check()?;
-    let fine = Model::new(&w, base.segments, Discretisation::default())?;
-    let coarse = Model::new(&w, segments, Discretisation::default())?;
     // The rows carry only the model's first two joints, enough to map a chain no finer than the
     // data's onto it.
     if segments > base.segments {
         return Err(format!("SEGMENTS must be at most {}", base.segments).into());
     }
-    let mut sum = [0.0f64; 5];
-    let mut count = 0usize;
+    let w = base.whisker.check()?;
+    let data = Chain {
+        model: Model::new(&w, base.segments, Discretisation::default())?,
+        integrator: base.integrator,
+    };
+    let model = Chain {
+        model: Model::new(&w, segments, Discretisation::default())?,
+        integrator: Integrator {
+            dt,
+            max_iterations: iterations,
+            ..Integrator::default()
+        },
+    };
+    let (mut fit, mut data_noise, mut model_noise) =
+        (Rms::new(sigma), Rms::new(sigma), Rms::new(sigma));
     let mut wall = 0.0;
-    for d in [15.5e-3, 19.5e-3, 23.5e-3, 27.5e-3, 29.5e-3] {
-        for v in [0.35, 0.85, 1.45] {
-            let mut sc = Scenario {
-                objects: vec![e2_box(d, v)],
-                ..Scenario::default()
-            };
-            let data = sim::run(&sc, &mut |_| {})?;
-            sc.segments = segments;
-            sc.integrator = Integrator {
-                dt,
-                max_iterations: iterations,
-                ..Integrator::default()
-            };
-            let t0 = std::time::Instant::now();
-            let out = sim::run(&sc, &mut |_| {})?;
-            wall += t0.elapsed().as_secs_f64();
-            for (a, b) in data.rows.iter().zip(&out.rows) {
-                let q = [b[1], b[2]];
-                let mapped = vibrissa_infer::pf::map_joints(&coarse, &fine, &q);
-                let pred = [mapped[0], mapped[1], b[3], b[4], b[5]];
-                for c in 0..5 {
-                    let z = (a[c + 1] - pred[c]) / sigma[c];
-                    sum[c] += z * z;
-                }
-                count += 1;
-            }
-        }
-    }
-    // The data's own process noise, against its clean runs.
-    let mut pn = [0.0f64; 5];
-    let mut pcount = 0usize;
-    for (k, d) in [15.5e-3, 19.5e-3, 23.5e-3, 27.5e-3, 29.5e-3]
-        .iter()
-        .enumerate()
-    {
-        for v in [0.35, 0.85, 1.45] {
-            let process_only = Noise {
-                sensor: [0.0; 5],
-                process: vibrissa_infer::experiment::PROCESS_NOISE,
-            };
-            let a = vibrissa_infer::experiment::simulate(
-                vibrissa_infer::Experiment::E2,
-                [*d, v],
-                &Noise::NONE,
-                k as u64,
-            )?;
-            let b = vibrissa_infer::experiment::simulate(
-                vibrissa_infer::Experiment::E2,
-                [*d, v],
-                &process_only,
-                k as u64,
-            )?;
-            for c in 0..5 {
-                for (x, y) in a.series[c].iter().zip(&b.series[c]) {
-                    let z = (x - y) / sigma[c];
-                    pn[c] += z * z;
-                }
-            }
-            pcount += a.series[0].len();
-        }
+    for k in 0..RUNS.len() {
+        let clean = channels(&data, &data.model, k, 0.0)?;
+        let t0 = std::time::Instant::now();
+        let coarse = channels(&model, &data.model, k, 0.0)?;
+        wall += t0.elapsed().as_secs_f64();
+        fit.add(&clean, &coarse);
+        data_noise.add(&clean, &channels(&data, &data.model, k, PROCESS_NOISE)?);
+        model_noise.add(&coarse, &channels(&model, &data.model, k, PROCESS_NOISE)?);
     }
     println!(
         "process noise alone, rms / sensor sigma: {}",
-        pn.iter()
-            .map(|s| format!("{:.3}", (s / pcount as f64).sqrt()))
-            .collect::<Vec<_>>()
-            .join(" ")
+        data_noise.text()
     );
-    // The model's process noise (same intensity), against its own clean runs.
-    let mut mn = [0.0f64; 5];
-    let mut mcount = 0usize;
-    for (k, d) in [15.5e-3, 19.5e-3, 23.5e-3, 27.5e-3, 29.5e-3]
-        .iter()
-        .enumerate()
-    {
-        for v in [0.35, 0.85, 1.45] {
-            let mut sc = Scenario {
-                objects: vec![e2_box(*d, v)],
-                segments,
-                integrator: Integrator {
-                    dt,
-                    max_iterations: iterations,
-                    ..Integrator::default()
-                },
-                seed: k as u64,
-                ..Scenario::default()
-            };
-            let a = sim::run(&sc, &mut |_| {})?;
-            sc.process_noise = vibrissa_infer::experiment::PROCESS_NOISE;
-            let b = sim::run(&sc, &mut |_| {})?;
-            for (x, y) in a.rows.iter().zip(&b.rows) {
-                let qa = vibrissa_infer::pf::map_joints(&coarse, &fine, &[x[1], x[2]]);
-                let qb = vibrissa_infer::pf::map_joints(&coarse, &fine, &[y[1], y[2]]);
-                let (pa, pb) = (
-                    [qa[0], qa[1], x[3], x[4], x[5]],
-                    [qb[0], qb[1], y[3], y[4], y[5]],
-                );
-                for c in 0..5 {
-                    let z = (pa[c] - pb[c]) / sigma[c];
-                    mn[c] += z * z;
-                }
-                mcount += 1;
-            }
-        }
-    }
     println!(
         "model's process noise alone, rms / sensor sigma: {}",
-        mn.iter()
-            .map(|s| format!("{:.3}", (s / mcount as f64).sqrt()))
-            .collect::<Vec<_>>()
-            .join(" ")
+        model_noise.text()
     );
-    let rms: Vec<String> = sum
-        .iter()
-        .map(|s| format!("{:.3}", (s / count as f64).sqrt()))
-        .collect();
     println!(
-        "N = {segments}, dt = {dt}, iterations {iterations}: rms / sensor sigma (theta01 theta12 m0 fx fy) = {}; model wall {:.3} s for 15 runs",
-        rms.join(" "),
-        wall
+        "N = {segments}, dt = {dt}, iterations {iterations}: rms / sensor sigma (theta01 theta12 m0 fx fy) = {}; model wall {wall:.3} s for 15 runs",
+        fit.text()
     );
     Ok(())
 }

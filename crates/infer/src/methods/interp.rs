@@ -263,15 +263,9 @@ impl Interp {
     /// Calibration pairs `(error, std)` per unknown for `samples`.
     fn pairs(&self, samples: &[Sample]) -> Result<Vec<Vec<(f64, f64)>>> {
         let channels: Vec<usize> = (0..CHANNELS.len()).collect();
-        let mut out = vec![Vec::new(); self.unknowns];
-        for s in samples {
-            let x = flatten(&s.series, &channels, &self.scales)?;
-            let (p, sd) = self.fit_raw(&x);
-            for u in 0..self.unknowns {
-                out[u].push((p[u] - s.params[u], sd[u]));
-            }
-        }
-        Ok(out)
+        super::residual_pairs(samples, self.unknowns, |s| {
+            Ok(self.fit_raw(&flatten(&s.series, &channels, &self.scales)?))
+        })
     }
 }
 

@@ -88,3 +88,20 @@ pub fn describe(name: &str) -> &'static str {
         _ => "",
     }
 }
+
+/// Per unknown, the (raw estimate − truth, raw std) pairs of `samples`, from a method's raw fit
+/// of each sample (`fit`): what its calibration scales the raw std against.
+pub(crate) fn residual_pairs(
+    samples: &[crate::Sample],
+    unknowns: usize,
+    fit: impl Fn(&crate::Sample) -> Result<(Vec<f64>, Vec<f64>)>,
+) -> Result<Vec<Vec<(f64, f64)>>> {
+    let mut out = vec![Vec::new(); unknowns];
+    for s in samples {
+        let (p, sd) = fit(s)?;
+        for u in 0..unknowns {
+            out[u].push((p[u] - s.params[u], sd[u]));
+        }
+    }
+    Ok(out)
+}

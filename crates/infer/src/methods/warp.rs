@@ -409,15 +409,9 @@ impl Warp {
 
     /// Calibration pairs `(error, std)` per unknown for `samples`.
     fn pairs(&self, samples: &[Sample]) -> Result<Vec<Vec<(f64, f64)>>> {
-        let mut out = vec![Vec::new(); self.unknowns];
-        for s in samples {
-            let x = self.normalised(&s.series)?;
-            let (p, sd) = self.fit_raw(&x);
-            for u in 0..self.unknowns {
-                out[u].push((p[u] - s.params[u], sd[u]));
-            }
-        }
-        Ok(out)
+        super::residual_pairs(samples, self.unknowns, |s| {
+            Ok(self.fit_raw(&self.normalised(&s.series)?))
+        })
     }
 }
 
