@@ -6,7 +6,8 @@
 //! ```
 //! The run: d = D m (22 mm), v = V m/s (0.9), its recording started DELAY s early (0; a delay
 //! makes the start unknown to the filter, on 0…50 ms), noise seeded by SEED (1). Environment:
-//! `PF_SEGMENTS`, `PF_DT`, `PF_TEMPER` override the filter's model and tempering; `PF_TRACE=1`
+//! `PF_SEGMENTS`, `PF_DT`, `PF_TEMPER` override the filter's model and tempering; `PF_CLEAN=1`
+//! filters the clean run instead (the filter's noise is then the model error alone); `PF_TRACE=1`
 //! prints the posterior every 5 samples; `PF_PRINT=A:B` prints samples A..B of the run.
 
 use vibrissa_infer::experiment::{simulate_delayed, Experiment, Noise, Variant};
@@ -28,7 +29,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let (d, v, delay): (f64, f64, f64) =
         (arg(&args, 4, 0.022), arg(&args, 5, 0.9), arg(&args, 6, 0.0));
     let noise = Noise::of(Variant::Noisy)?;
-    let run = simulate_delayed(Experiment::E2, [d, v], delay, &noise, run_seed)?;
+    let clean_run = env::<u32>("PF_CLEAN") == Some(1);
+    let run = if clean_run {
+        simulate_delayed(Experiment::E2, [d, v], delay, &Noise::NONE, run_seed)?
+    } else {
+        simulate_delayed(Experiment::E2, [d, v], delay, &noise, run_seed)?
+    };
     let model: [f64; 5] = std::array::from_fn(|c| noise.sensor[c] * pf::MODEL_ERROR[c]);
     let unknown = if delay > 0.0 {
         pf::UNKNOWN_START_TEMPER
@@ -36,7 +42,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         1.0
     };
     let temper = env("PF_TEMPER").unwrap_or(pf::temper_for(particles) * unknown);
-    let sigma = pf::observation_sigma(noise.sensor, model, temper);
+    let sensor = if clean_run { [0.0; 5] } else { noise.sensor };
+    let sigma = pf::observation_sigma(sensor, model, temper);
     let obs = Observations::at_rate(run.series.clone(), 1000.0);
     if let Some((a, b)) = env::<String>("PF_PRINT").and_then(|s| {
         let (a, b) = s.split_once(':')?;
