@@ -2,7 +2,8 @@
 //!
 //! Unlike the discriminative methods, the filter reads series of any length at a constant sample
 //! rate: whole missing periods are predicted across, and `NaN` values are skipped with a
-//! warning. `--trace` writes the posterior at every sample and plots it.
+//! warning. `--trace` writes the posterior at every sample and plots it. A run whose effective
+//! sample size fell below 1% of the particles gets a warning: its posterior may be too narrow.
 
 use crate::estimate::{print_json_rows, Args, FileEstimate};
 use crate::files;
@@ -20,6 +21,9 @@ const UNOBSERVABLE: [&str; 4] = ["contact", "cx", "cy", "s"];
 
 /// Share of the particles drawn from an injected method's estimate.
 const INJECT_FRACTION: f64 = 0.5;
+
+/// A least effective sample size below this share of the particles gets a warning.
+const COLLAPSE_SHARE: f64 = 0.01;
 
 /// Runs the filter on every `--obs` file and prints the contract's estimates.
 pub fn run(args: &Args, experiment: Experiment, variant: Variant) -> Result<()> {
@@ -123,6 +127,17 @@ pub fn run(args: &Args, experiment: Experiment, variant: Variant) -> Result<()> 
                 file.display(),
                 post.skipped
             );
+        }
+        if let Some((t, ess)) = post.least_ess() {
+            if ess < COLLAPSE_SHARE * config.particles as f64 {
+                eprintln!(
+                    "warning: `{}`: the effective sample size fell to {ess:.1} of {} particles at \
+                     t = {t} s; the posterior after it rests on very few particles and may be too \
+                     narrow: compare with more --particles or another --seed",
+                    file.display(),
+                    config.particles
+                );
+            }
         }
         if post.diverged > 0 {
             eprintln!(

@@ -304,6 +304,53 @@ fn pf_estimates_writes_a_trace_and_refuses_bad_settings() {
 }
 
 #[test]
+fn pf_warns_when_one_particle_takes_the_weight() {
+    // A wild value in one sample (a sensor glitch) gives all the weight to the particle whose
+    // prediction happens to be nearest: the run still succeeds, with a warning.
+    let dir = temp("pf-collapse");
+    let csv = dir.join("run.csv");
+    let sim = vibrissa()
+        .args(["simulate", "e1", "--set", "d=0.024", "--out"])
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert!(sim.status.success());
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let head = lines.iter().position(|l| !l.starts_with('#')).unwrap();
+    let m0 = lines[head].split(',').position(|h| h == "m0").unwrap();
+    let mut cells: Vec<String> = lines[head + 60].split(',').map(String::from).collect();
+    cells[m0] = "1.0".into();
+    lines[head + 60] = cells.join(",");
+    std::fs::write(&csv, lines.join("\n") + "\n").unwrap();
+    let out = vibrissa()
+        .args(["estimate", "--experiment", "e1", "--method", "pf"])
+        .args(["--particles", "200", "--obs"])
+        .arg(&csv)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("effective sample size fell to") && err.contains("of 200 particles"),
+        "{err}"
+    );
+
+    // The same run without the glitch keeps its particles and gets no warning.
+    let clean = dir.join("clean.csv");
+    std::fs::write(&clean, text).unwrap();
+    let out = vibrissa()
+        .args(["estimate", "--experiment", "e1", "--method", "pf"])
+        .args(["--particles", "200", "--obs"])
+        .arg(&clean)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(!err.contains("effective sample size fell"), "{err}");
+}
+
+#[test]
 fn unknown_start_scores_the_filter_with_t0_and_refuses_bad_delays() {
     let dir = temp("unknown-start");
     let out = dir.join("e1");

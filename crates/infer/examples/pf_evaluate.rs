@@ -111,7 +111,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         data += (s.series[0].len() - 1) as f64 * 1e-3;
         let post = pf.posterior(&s.series)?;
         let est = post.last();
-        let min_ess = post.trace.iter().map(|r| r.ess).fold(f64::INFINITY, f64::min);
+        let min_ess = post
+            .trace
+            .iter()
+            .map(|r| r.ess)
+            .fold(f64::INFINITY, f64::min);
         ed += (est[0].mean - p[0]).abs();
         ev += (est[1].mean - p[1]).abs();
         cd += usize::from(est[0].covers(p[0]));

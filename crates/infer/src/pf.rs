@@ -287,6 +287,17 @@ impl Posterior {
     pub fn last(&self) -> &[Estimate] {
         self.trace.last().map(|r| &r.estimates[..]).unwrap_or(&[])
     }
+
+    /// The sample time and effective sample size where the effective sample size was least (the
+    /// first such sample), if there is any sample. A value near 1 means that one particle carried
+    /// almost all the weight there: the cloud had lost the data, and the posterior after it
+    /// rests on the descendants of very few particles and is likely too narrow.
+    pub fn least_ess(&self) -> Option<(f64, f64)> {
+        self.trace
+            .iter()
+            .map(|r| (r.t, r.ess))
+            .reduce(|a, b| if b.1 < a.1 { b } else { a })
+    }
 }
 
 /// The object's state of one particle: `[d, v, y0, size, mu]` with `y0` the height of the top
@@ -1183,6 +1194,33 @@ fn summarise(vals: &[f64], w: &[f64]) -> Estimate {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn least_ess_finds_the_first_smallest_sample() {
+        let row = |t: f64, ess: f64| TraceRow {
+            t,
+            ess,
+            estimates: vec![],
+        };
+        let mut post = Posterior {
+            unknowns: vec![],
+            trace: vec![],
+            skipped: 0,
+            resamples: 0,
+            diverged: 0,
+            steps: 0,
+            ringing_share: 0.0,
+            log_evidence: 0.0,
+        };
+        assert_eq!(post.least_ess(), None);
+        post.trace = vec![
+            row(0.0, 100.0),
+            row(0.001, 3.0),
+            row(0.002, 3.0),
+            row(0.003, 50.0),
+        ];
+        assert_eq!(post.least_ess(), Some((0.001, 3.0)));
+    }
 
     #[test]
     fn tempering_follows_the_calibrated_points() {
