@@ -47,6 +47,10 @@ pub struct Args {
     /// `t0` becomes an unknown, uniform on [0, MAX]).
     #[arg(long, value_name = "SECONDS", default_value_t = 0.0)]
     pub(crate) max_delay: f64,
+    /// pf: transition model, `coarse` (5 segments at 1/3 ms, real time with 1000 particles) or
+    /// `fine` (the recording's chain at 0.1 ms: about 20 times the cost, for 4000 particles).
+    #[arg(long, value_name = "NAME", default_value = "coarse")]
+    pub(crate) pf_model: String,
     /// pf: a uniform prior NAME=LO:HI for an unknown of the object (d, v, t0, size, mu; SI), which
     /// makes a fixed parameter unknown (size: the box's side, default 0.01 m; mu: its friction
     /// coefficient, default 0) or narrows or widens a free one. Repeatable.

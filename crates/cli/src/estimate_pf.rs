@@ -13,7 +13,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
-use vibrissa_infer::pf::{self, Injection, Observations, Pf, Posterior};
+use vibrissa_infer::pf::{self, Injection, Observations, Pf, Posterior, TransitionModel};
 use vibrissa_infer::{methods, training_for, Experiment, Method, Variant, CHANNELS};
 
 /// Channels of the contract that the filter's model cannot produce.
@@ -61,6 +61,10 @@ pub fn run(args: &Args, experiment: Experiment, variant: Variant) -> Result<()> 
     // Fit: the sensor noise from the training runs (and the injected method, if any).
     let t0 = Instant::now();
     let mut filter = Pf::new(args.particles);
+    filter.set_model(
+        TransitionModel::from_name(&args.pf_model)
+            .map_err(|e| anyhow::anyhow!("--pf-model: {e}"))?,
+    );
     filter.seed = args.seed;
     filter.max_delay = args.max_delay;
     let mut inject: Option<Box<dyn Method>> = match &args.inject {
@@ -95,6 +99,9 @@ pub fn run(args: &Args, experiment: Experiment, variant: Variant) -> Result<()> 
         config.channels = channels.clone();
         if let Some(n) = segments {
             config.observed_segments = *n;
+            if filter.model == TransitionModel::Fine {
+                config.segments = *n;
+            }
         }
         for &(k, p) in &priors {
             config.priors[k] = p;

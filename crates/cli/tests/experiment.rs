@@ -304,6 +304,59 @@ fn pf_estimates_writes_a_trace_and_refuses_bad_settings() {
 }
 
 #[test]
+fn unknown_start_runs_on_the_fine_transition_model_and_refuses_unknown_models() {
+    let dir = temp("fine-model");
+    let out = dir.join("e1");
+    let run = vibrissa()
+        .args([
+            "experiment",
+            "e1",
+            "--variant",
+            "noisy",
+            "--max-delay",
+            "0.02",
+        ])
+        .args([
+            "--particles",
+            "100",
+            "--pf-model",
+            "fine",
+            "--json",
+            "--out",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert_eq!(report["model"], "fine");
+    eprintln!("fine model, e1 noisy, 100 particles: MAE {}", report["mae"]);
+    assert!(
+        report["mae"][0].as_f64().unwrap() < 2e-3,
+        "{}",
+        report["mae"]
+    );
+
+    let folder = dir.join("bogus");
+    let r = vibrissa()
+        .args(["experiment", "e1", "--pf-model", "bogus", "--out"])
+        .arg(&folder)
+        .output()
+        .unwrap();
+    assert!(!r.status.success());
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(
+        err.contains("--pf-model") && err.contains("coarse, fine"),
+        "{err}"
+    );
+    assert!(!folder.exists(), "output folder created");
+}
+
+#[test]
 fn pf_warns_when_one_particle_takes_the_weight() {
     // A wild value in one sample (a sensor glitch) gives all the weight to the particle whose
     // prediction happens to be nearest: the run still succeeds, with a warning.

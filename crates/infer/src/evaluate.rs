@@ -159,15 +159,24 @@ pub fn evaluate(
     seed: u64,
     progress: &(dyn Fn(&str, usize, usize) + Sync),
 ) -> Result<Evaluation> {
-    evaluate_with(experiment, variant, seed, 0, progress)
+    evaluate_with(
+        experiment,
+        variant,
+        seed,
+        0,
+        crate::pf::TransitionModel::Coarse,
+        progress,
+    )
 }
 
-/// [`evaluate`], with the particle filter `pf` in the table when `pf_particles > 0`.
+/// [`evaluate`], with the particle filter `pf` in the table when `pf_particles > 0`, on the
+/// transition model `pf_model`.
 pub fn evaluate_with(
     experiment: Experiment,
     variant: Variant,
     seed: u64,
     pf_particles: usize,
+    pf_model: crate::pf::TransitionModel,
     progress: &(dyn Fn(&str, usize, usize) + Sync),
 ) -> Result<Evaluation> {
     let start = Instant::now();
@@ -272,6 +281,7 @@ pub fn evaluate_with(
             "pf" if pf_particles == 0 => None,
             "pf" => {
                 let mut pf = crate::pf::Pf::new(pf_particles);
+                pf.set_model(pf_model);
                 pf.seed = seed;
                 Some(Box::new(pf) as Box<dyn Method>)
             }

@@ -6,7 +6,7 @@ use crate::error::{Error, Result};
 use crate::evaluate::training_for;
 use crate::experiment::{simulate_delayed, Experiment, Noise, Variant};
 use crate::method::{Estimate, Method};
-use crate::pf::Pf;
+use crate::pf::{Pf, TransitionModel};
 use serde::Serialize;
 use std::time::Instant;
 use vibrissa_core::rng::Rng;
@@ -34,6 +34,8 @@ pub struct StartEvaluation {
     pub seed: u64,
     /// Particles of the filter.
     pub particles: usize,
+    /// The filter's transition model.
+    pub model: TransitionModel,
     /// Largest delay of a recording's start, s.
     pub max_delay: f64,
     /// Names of the unknowns: the experiment's, then `t0`.
@@ -60,12 +62,13 @@ impl StartEvaluation {
 /// Scores the particle filter with `particles` particles on `experiment`'s evaluated runs in
 /// `variant`, each recorded from a whole number of milliseconds drawn uniformly from
 /// `[0, max_delay]` before the run's t = 0; the filter's prior on `t0` is `[0, max_delay]`.
-/// `progress(stage, done, total)` reports.
+/// `model` is the filter's transition model. `progress(stage, done, total)` reports.
 pub fn evaluate_unknown_start(
     experiment: Experiment,
     variant: Variant,
     seed: u64,
     particles: usize,
+    model: TransitionModel,
     max_delay: f64,
     progress: &(dyn Fn(&str, usize, usize) + Sync),
 ) -> Result<StartEvaluation> {
@@ -84,6 +87,7 @@ pub fn evaluate_unknown_start(
     }
     let noise = Noise::of(variant)?;
     let mut filter = Pf::new(particles);
+    filter.set_model(model);
     filter.seed = seed;
     filter.max_delay = max_delay;
     progress("training runs", 0, 1);
@@ -155,6 +159,7 @@ pub fn evaluate_unknown_start(
         variant,
         seed,
         particles,
+        model,
         max_delay,
         unknowns,
         mae,
@@ -172,10 +177,26 @@ mod tests {
     #[test]
     fn bad_settings_are_refused_by_name() {
         let none = |_: &str, _: usize, _: usize| {};
-        let e = evaluate_unknown_start(Experiment::E2, Variant::Clean, 1, 0, 0.05, &none);
+        let e = evaluate_unknown_start(
+            Experiment::E2,
+            Variant::Clean,
+            1,
+            0,
+            TransitionModel::Coarse,
+            0.05,
+            &none,
+        );
         assert!(e.unwrap_err().to_string().contains("particles"));
         for bad in [0.0, -0.01, f64::NAN, 2.0] {
-            let e = evaluate_unknown_start(Experiment::E2, Variant::Clean, 1, 10, bad, &none);
+            let e = evaluate_unknown_start(
+                Experiment::E2,
+                Variant::Clean,
+                1,
+                10,
+                TransitionModel::Coarse,
+                bad,
+                &none,
+            );
             assert!(e.unwrap_err().to_string().contains("max_delay"), "{bad}");
         }
     }
