@@ -1,6 +1,6 @@
 //! `vibrissa estimate`, `vibrissa experiment` and `vibrissa inverse` run as a user runs them.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn vibrissa() -> Command {
@@ -227,9 +227,8 @@ fn inverse_writes_results_and_figure() {
     assert_svg(&dir.join("inverse-error.svg"));
 }
 
-#[test]
-fn pf_estimates_writes_a_trace_and_refuses_bad_settings() {
-    let dir = temp("pf");
+/// Simulates the `e1` run at d = 24 mm into `dir/run.csv`; returns its path and text.
+fn simulated_e1(dir: &Path) -> (PathBuf, String) {
     let csv = dir.join("run.csv");
     let sim = vibrissa()
         .args(["simulate", "e1", "--set", "d=0.024", "--out"])
@@ -241,13 +240,27 @@ fn pf_estimates_writes_a_trace_and_refuses_bad_settings() {
         "{}",
         String::from_utf8_lossy(&sim.stderr)
     );
-    // A missing value: skipped with a warning.
     let text = std::fs::read_to_string(&csv).unwrap();
+    (csv, text)
+}
+
+/// The CSV `text` with `column` of data row `row` (0: the first after the header) set to `value`.
+fn with_value(text: &str, row: usize, column: &str, value: &str) -> String {
     let mut lines: Vec<String> = text.lines().map(String::from).collect();
-    let mut cells: Vec<String> = lines[40].split(',').map(String::from).collect();
-    cells[2] = "NaN".into();
-    lines[40] = cells.join(",");
-    std::fs::write(&csv, lines.join("\n") + "\n").unwrap();
+    let head = lines.iter().position(|l| !l.starts_with('#')).unwrap();
+    let c = lines[head].split(',').position(|h| h == column).unwrap();
+    let mut cells: Vec<String> = lines[head + 1 + row].split(',').map(String::from).collect();
+    cells[c] = value.into();
+    lines[head + 1 + row] = cells.join(",");
+    lines.join("\n") + "\n"
+}
+
+#[test]
+fn pf_estimates_writes_a_trace_and_refuses_bad_settings() {
+    let dir = temp("pf");
+    let (csv, text) = simulated_e1(&dir);
+    // A missing value: skipped with a warning.
+    std::fs::write(&csv, with_value(&text, 30, "theta12", "NaN")).unwrap();
     let trace = dir.join("trace.csv");
     let out = vibrissa()
         .args([
@@ -361,21 +374,8 @@ fn pf_warns_when_one_particle_takes_the_weight() {
     // A wild value in one sample (a sensor glitch) gives all the weight to the particle whose
     // prediction happens to be nearest: the run still succeeds, with a warning.
     let dir = temp("pf-collapse");
-    let csv = dir.join("run.csv");
-    let sim = vibrissa()
-        .args(["simulate", "e1", "--set", "d=0.024", "--out"])
-        .arg(&csv)
-        .output()
-        .unwrap();
-    assert!(sim.status.success());
-    let text = std::fs::read_to_string(&csv).unwrap();
-    let mut lines: Vec<String> = text.lines().map(String::from).collect();
-    let head = lines.iter().position(|l| !l.starts_with('#')).unwrap();
-    let m0 = lines[head].split(',').position(|h| h == "m0").unwrap();
-    let mut cells: Vec<String> = lines[head + 60].split(',').map(String::from).collect();
-    cells[m0] = "1.0".into();
-    lines[head + 60] = cells.join(",");
-    std::fs::write(&csv, lines.join("\n") + "\n").unwrap();
+    let (csv, text) = simulated_e1(&dir);
+    std::fs::write(&csv, with_value(&text, 59, "m0", "1.0")).unwrap();
     let out = vibrissa()
         .args(["estimate", "--experiment", "e1", "--method", "pf"])
         .args(["--particles", "200", "--obs"])

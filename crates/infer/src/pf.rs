@@ -283,6 +283,20 @@ pub struct Posterior {
 }
 
 impl Posterior {
+    /// A posterior over `unknowns` with no sample yet.
+    pub fn empty(unknowns: Vec<&'static str>) -> Posterior {
+        Posterior {
+            unknowns,
+            trace: Vec::new(),
+            skipped: 0,
+            resamples: 0,
+            diverged: 0,
+            steps: 0,
+            ringing_share: 0.0,
+            log_evidence: 0.0,
+        }
+    }
+
     /// The posterior at the last sample.
     pub fn last(&self) -> &[Estimate] {
         self.trace.last().map(|r| &r.estimates[..]).unwrap_or(&[])
@@ -563,16 +577,8 @@ pub fn run(
     let free: Vec<usize> = (0..PARAMS.len())
         .filter(|&k| config.priors[k].is_free())
         .collect();
-    let mut post = Posterior {
-        unknowns: config.unknowns(),
-        trace: Vec::with_capacity(obs.t.len()),
-        skipped: 0,
-        resamples: 0,
-        diverged: 0,
-        steps: 0,
-        ringing_share: 0.0,
-        log_evidence: 0.0,
-    };
+    let mut post = Posterior::empty(config.unknowns());
+    post.trace.reserve(obs.t.len());
     let mut ringing_samples = 0usize;
     let ringing = FreeModel::new(config, &model, period)?;
     let chain = Chain {
@@ -1222,16 +1228,7 @@ mod tests {
             ess,
             estimates: vec![],
         };
-        let mut post = Posterior {
-            unknowns: vec![],
-            trace: vec![],
-            skipped: 0,
-            resamples: 0,
-            diverged: 0,
-            steps: 0,
-            ringing_share: 0.0,
-            log_evidence: 0.0,
-        };
+        let mut post = Posterior::empty(vec![]);
         assert_eq!(post.least_ess(), None);
         post.trace = vec![
             row(0.0, 100.0),
