@@ -15,7 +15,8 @@
 //! - INJECT: share of the initial particles drawn around `krr`'s estimate (0: none);
 //! - VARIANT: `noisy` (default) or `clean`.
 //!
-//! Environment: `PF_SEED` (the filter's seed), `PF_SEGMENTS`, `PF_DT` (the transition model), `PF_SHRINK` (Liu–West), `PF_ESS`
+//! Environment: `PF_SEED` (the filter's seed), `PF_MODEL` (`coarse` or `fine`), `PF_SEGMENTS`,
+//! `PF_DT` (the coarse transition model), `PF_SHRINK` (Liu–West), `PF_ESS`
 //! (resampling threshold) override the filter's defaults; `PF_ALL` set prints every run.
 //!
 //! Prints the runs whose error exceeds 0.5 mm or 0.03 m/s (with the least effective sample size
@@ -26,7 +27,7 @@
 use std::sync::Arc;
 use vibrissa_core::rng::Rng;
 use vibrissa_infer::experiment::{simulate_all, simulate_delayed, Experiment, Noise, Variant};
-use vibrissa_infer::pf::Pf;
+use vibrissa_infer::pf::{Pf, TransitionModel};
 use vibrissa_infer::{methods, Method, Training};
 
 fn arg<T: std::str::FromStr>(args: &[String], k: usize, default: T) -> T {
@@ -72,11 +73,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let mut pf = Pf::new(particles);
     pf.max_delay = if max_delay > 0.0 { 0.05 } else { 0.0 };
-    // TEMPER is the tempering used, also with an unknown start.
-    pf.temper = if max_delay > 0.0 {
-        temper / vibrissa_infer::pf::UNKNOWN_START_TEMPER
-    } else {
-        temper
+    let model = TransitionModel::from_name(&std::env::var("PF_MODEL").unwrap_or("coarse".into()))?;
+    pf.set_model(model);
+    // TEMPER is the tempering used, also with an unknown start (the fine model's default is
+    // FINE_TEMPER whatever the start).
+    pf.temper = match (model, args.get(3)) {
+        (TransitionModel::Fine, None) => vibrissa_infer::pf::FINE_TEMPER,
+        (TransitionModel::Fine, Some(_)) => temper,
+        (TransitionModel::Coarse, _) if max_delay > 0.0 => {
+            temper / vibrissa_infer::pf::UNKNOWN_START_TEMPER
+        }
+        (TransitionModel::Coarse, _) => temper,
     };
     if inject > 0.0 {
         let m: Arc<dyn Method> = Arc::from(methods::by_name("krr")?);
@@ -152,10 +159,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     let n = params.len() as f64;
     let wall = start.elapsed().as_secs_f64();
+    let used_temper = match model {
+        TransitionModel::Fine => pf.temper,
+        TransitionModel::Coarse => temper,
+    };
     println!(
-        "{set}: {} runs, {particles} particles, tempering {temper}, delay <= {max_delay} s, injection {inject}: \
+        "{set}: {} runs, {particles} particles, {} model, tempering {}, delay <= {max_delay} s, injection {inject}: \
          MAE d {:.3} mm, v {:.4} m/s; 90% cover d {:.0}%, v {:.0}%; {wall:.1} s, real-time factor {:.2}",
         params.len(),
+        model.name(),
+        used_temper,
         ed / n * 1e3,
         ev / n,
         cd as f64 / n * 100.0,
