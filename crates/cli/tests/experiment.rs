@@ -227,6 +227,23 @@ fn inverse_writes_results_and_figure() {
     assert_svg(&dir.join("inverse-error.svg"));
 }
 
+/// Runs `vibrissa experiment ARGS --json --out OUT`, which must succeed; returns its report.
+fn experiment_json(args: &[&str], out: &Path) -> serde_json::Value {
+    let run = vibrissa()
+        .arg("experiment")
+        .args(args)
+        .args(["--json", "--out"])
+        .arg(out)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    serde_json::from_slice(&run.stdout).unwrap()
+}
+
 /// Simulates the `e1` run at d = 24 mm into `dir/run.csv`; returns its path and text.
 fn simulated_e1(dir: &Path) -> (PathBuf, String) {
     let csv = dir.join("run.csv");
@@ -320,32 +337,20 @@ fn pf_estimates_writes_a_trace_and_refuses_bad_settings() {
 fn unknown_start_runs_on_the_fine_transition_model_and_refuses_unknown_models() {
     let dir = temp("fine-model");
     let out = dir.join("e1");
-    let run = vibrissa()
-        .args([
-            "experiment",
+    let report = experiment_json(
+        &[
             "e1",
             "--variant",
             "noisy",
             "--max-delay",
             "0.02",
-        ])
-        .args([
             "--particles",
             "100",
             "--pf-model",
             "fine",
-            "--json",
-            "--out",
-        ])
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
+        ],
+        &out,
     );
-    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
     assert_eq!(report["model"], "fine");
     eprintln!("fine model, e1 noisy, 100 particles: MAE {}", report["mae"]);
     assert!(
@@ -407,25 +412,7 @@ fn pf_warns_when_one_particle_takes_the_weight() {
 fn unknown_start_scores_the_filter_with_t0_and_refuses_bad_delays() {
     let dir = temp("unknown-start");
     let out = dir.join("e1");
-    let run = vibrissa()
-        .args([
-            "experiment",
-            "e1",
-            "--max-delay",
-            "0.02",
-            "--particles",
-            "100",
-        ])
-        .args(["--json", "--out"])
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    let report = experiment_json(&["e1", "--max-delay", "0.02", "--particles", "100"], &out);
     assert_eq!(report["unknowns"], serde_json::json!(["d", "t0"]));
     assert_eq!(report["runs"].as_array().unwrap().len(), 13);
     // A filter that finds anything: distance within 2 mm, start within 5 ms, on average.
