@@ -69,11 +69,28 @@
 //! angular_velocity = 0.0     # rad/s, constant
 //! # or, instead of position, angle, velocity and angular_velocity:
 //! # waypoints = [[t, x, y, angle], ...]   # piecewise-linear path, times strictly increasing
+//!
+//! # A scenario family: the keys an estimator infers. Each key is any numeric key above,
+//! # dotted as for --set (quote it or nest it: whisker.youngs_modulus = [2.4e9, 3.6e9]).
+//! [unknowns]
+//! d = [0.015, 0.030]                                   # range [lo, hi], SI
+//! v = { range = [0.3, 1.5], margin = [0.1, 0.1] }      # and how far training may reach beyond it
+//!                                                      # ([below, above]; default 1/12 of the width)
+//! [templates]                # values per unknown; the runs under the paper's budget are every
+//! d = [0.015, 0.023, 0.030]  # combination (default: each range's ends and middle)
+//! v = [0.3, 0.9, 1.5]
+//! [grid]                     # values per unknown that `vibrissa experiment` scores, every
+//! d = [0.015, 0.020, 0.025]  # combination (default: 6 evenly spaced values per range)
+//! v = [0.3, 0.9, 1.5]
 //! ```
 //!
 //! With `experiment`, the box ([`experiment_box`]) is appended after the file's own objects, so
-//! those keep their indices. `e1` and `e2` generate the same box; they differ in which parameters
-//! an estimator treats as unknown ([`Experiment::unknowns`]).
+//! those keep their indices. `e1` and `e2` generate the same box; they differ in their
+//! `[unknowns]` (`d`; `d` and `v`).
+//!
+//! [`open`] also returns the parsed [`Document`], whose [`Document::with_values`] makes the run
+//! at any values of the family's unknowns: the file with those keys set, read by this same
+//! schema.
 //!
 //! # Errors
 //!
@@ -82,8 +99,11 @@
 //! of a line). A key given to a kind that does not take it names the key and the kind's keys; a
 //! value out of range is core's [`Scenario::check`] verdict, prefixed with the file's name.
 
+mod family;
 mod overrides;
 mod schema;
+
+pub use family::{Document, FamilySpec, UnknownSpec, DEFAULT_GRID_COUNT, DEFAULT_MARGIN_FRACTION};
 
 use crate::error::{Error, Result};
 use crate::series::parse_csv;
@@ -125,14 +145,6 @@ impl Experiment {
             Experiment::E2 => "e2",
         }
     }
-
-    /// The parameters an estimator of this family infers.
-    pub fn unknowns(self) -> &'static [&'static str] {
-        match self {
-            Experiment::E1 => &["d"],
-            Experiment::E2 => &["d", "v"],
-        }
-    }
 }
 
 /// An experiment family with its parameter values, as a scenario file set them.
@@ -153,6 +165,8 @@ pub struct Loaded {
     pub scenario: Scenario,
     /// The experiment family and parameters, if the file named one.
     pub experiment: Option<ExperimentRun>,
+    /// The file's unknowns, templates and grid, if it has an `[unknowns]` table.
+    pub family: Option<FamilySpec>,
     /// The file's path or the built-in's name, as used in messages.
     pub origin: String,
 }
@@ -170,6 +184,18 @@ segments = 20
 
 [whisker]
 preset = "w30"
+
+# What an estimator infers, with the range it covers and how far training runs may reach
+# beyond it ([below, above], m: above 30 mm the box misses the whisker).
+[unknowns]
+d = { range = [0.015, 0.030], margin = [0.001, 0.0] }
+
+# The paper's three templates, and the 16 runs the experiment scores.
+[templates]
+d = [0.015, 0.023, 0.030]
+
+[grid]
+d = [0.015, 0.016, 0.017, 0.018, 0.019, 0.020, 0.021, 0.022, 0.023, 0.024, 0.025, 0.026, 0.027, 0.028, 0.029, 0.030]
 "#;
 
 /// TOML text of the built-in `e2`.
@@ -185,6 +211,21 @@ segments = 20
 
 [whisker]
 preset = "w30"
+
+# What an estimator infers, with the range it covers and how far training runs may reach
+# beyond it ([below, above]; m and m/s: above 30 mm the box misses the whisker).
+[unknowns]
+d = { range = [0.015, 0.030], margin = [0.001, 0.0] }
+v = { range = [0.3, 1.5], margin = [0.1, 0.1] }
+
+# The paper's nine templates (every combination), and the 80 runs the experiment scores.
+[templates]
+d = [0.015, 0.023, 0.030]
+v = [0.3, 0.9, 1.5]
+
+[grid]
+d = [0.015, 0.016, 0.017, 0.018, 0.019, 0.020, 0.021, 0.022, 0.023, 0.024, 0.025, 0.026, 0.027, 0.028, 0.029, 0.030]
+v = [0.3, 0.6, 0.9, 1.2, 1.5]
 "#;
 
 /// The TOML text of a built-in scenario (see [`BUILTINS`]).
@@ -194,6 +235,13 @@ pub fn builtin(name: &str) -> Option<&'static str> {
         "e2" => Some(E2),
         _ => None,
     }
+}
+
+/// The unknowns, templates and grid of a built-in experiment, from its text.
+pub(crate) fn builtin_family(experiment: Experiment) -> Result<FamilySpec> {
+    let text = builtin(experiment.name()).unwrap_or_default();
+    let (_, loaded) = parse(text, experiment.name(), Path::new(""), &[])?;
+    Ok(loaded.family.unwrap_or_default())
 }
 
 /// The experiments' box: 10 mm × 10 mm, frictionless, its top-left corner at (d, −1 mm) at
@@ -223,6 +271,26 @@ pub fn load(spec: &str, sets: &[String]) -> Result<Scenario> {
 
 /// As [`load`], and also returns the experiment family and the scenario's origin.
 pub fn load_full(spec: &str, sets: &[String]) -> Result<Loaded> {
+    open(spec, sets).map(|(_, loaded)| loaded)
+}
+
+/// As [`load_full`], and also returns the parsed [`Document`], from which the scenario at any
+/// values of its unknowns is made. Every unknown's key is checked by setting it to the middle
+/// of its range.
+pub fn open(spec: &str, sets: &[String]) -> Result<(Document, Loaded)> {
+    let (doc, loaded) = open_unchecked(spec, sets)?;
+    if let Some(family) = &loaded.family {
+        let mid: Vec<(&str, f64)> = family
+            .unknowns
+            .iter()
+            .map(|u| (u.key.as_str(), 0.5 * (u.range[0] + u.range[1])))
+            .collect();
+        doc.with_values(&mid)?;
+    }
+    Ok((doc, loaded))
+}
+
+fn open_unchecked(spec: &str, sets: &[String]) -> Result<(Document, Loaded)> {
     // A built-in name wins over a file of the same name (write ./e1 for the file).
     if let Some(text) = builtin(spec) {
         return parse(
@@ -253,7 +321,7 @@ pub fn load_full(spec: &str, sets: &[String]) -> Result<Loaded> {
 /// (a base trajectory) are taken from `origin`'s folder.
 pub fn load_str(text: &str, origin: &str, sets: &[String]) -> Result<Scenario> {
     let dir = Path::new(origin).parent().unwrap_or(Path::new(""));
-    parse(text, origin, dir, sets).map(|l| l.scenario)
+    parse(text, origin, dir, sets).map(|(_, l)| l.scenario)
 }
 
 /// Reads a base trajectory CSV: the header `t,angle`, then rows of two finite numbers with t
@@ -304,20 +372,20 @@ pub fn read_trajectory(path: &Path) -> Result<(Vec<f64>, Vec<f64>)> {
 }
 
 /// Parses, applies the overrides, reads the schema and checks the result.
-fn parse(text: &str, origin: &str, base_dir: &Path, sets: &[String]) -> Result<Loaded> {
+fn parse(text: &str, origin: &str, base_dir: &Path, sets: &[String]) -> Result<(Document, Loaded)> {
     let toml_error = |origin: &str, e: toml::de::Error| Error::Toml {
         origin: origin.to_string(),
         message: e.to_string().trim_end().to_string(),
     };
+    let mut doc: toml::Table = toml::from_str(text).map_err(|e| toml_error(origin, e))?;
     let file: schema::FileTable = if sets.is_empty() {
         // Straight from the text, so that errors carry line and column.
         toml::from_str(text).map_err(|e| toml_error(origin, e))?
     } else {
-        let mut doc: toml::Table = toml::from_str(text).map_err(|e| toml_error(origin, e))?;
         for set in sets {
             overrides::apply(&mut doc, set)?;
         }
-        match schema::FileTable::deserialize(toml::Value::Table(doc)) {
+        match schema::FileTable::deserialize_table(doc.clone()) {
             Ok(file) => file,
             Err(e) => {
                 // An error the file has without the overrides is shown where it is in the file.
@@ -333,5 +401,7 @@ fn parse(text: &str, origin: &str, base_dir: &Path, sets: &[String]) -> Result<L
             }
         }
     };
-    file.into_loaded(&schema::Ctx { origin, base_dir })
+    let loaded = file.into_loaded(&schema::Ctx { origin, base_dir })?;
+    let document = Document::new(doc, origin.to_string(), base_dir.to_path_buf());
+    Ok((document, loaded))
 }

@@ -50,8 +50,121 @@ fn builtins_are_the_seed_experiments() {
         assert_eq!((run.d, run.v), (0.020, 0.6));
     }
     assert!(builtin("e3").is_none());
-    assert_eq!(Experiment::E1.unknowns(), ["d"]);
-    assert_eq!(Experiment::E2.unknowns(), ["d", "v"]);
+}
+
+#[test]
+fn builtins_are_families_with_the_seed_templates_and_grids() {
+    let e1 = load_full("e1", &[]).unwrap().family.unwrap();
+    assert_eq!(e1.keys(), ["d"]);
+    assert_eq!(e1.templates, [vec![0.015, 0.023, 0.030]]);
+    assert_eq!(e1.grid[0].len(), 16);
+    let e2 = load_full("e2", &[]).unwrap().family.unwrap();
+    assert_eq!(e2.keys(), ["d", "v"]);
+    assert_eq!(e2.unknowns[1].range, [0.3, 1.5]);
+    assert_eq!(e2.unknowns[0].margin, [0.001, 0.0]);
+    assert_eq!(e2.templates[1], [0.3, 0.9, 1.5]);
+    assert_eq!(e2.grid[0].len() * e2.grid[1].len(), 80);
+    assert_eq!(e2.grid[0][7], 0.022);
+    // A file that names an experiment and no unknowns is that experiment's family.
+    let nominal = load_str(
+        "experiment = \"e2\"\n[whisker]\nyoungs_modulus = 3.3e9\n",
+        "nominal.toml",
+        &[],
+    );
+    assert!(nominal.is_ok());
+    let dir = temp_dir("nominal-family");
+    let path = dir.join("nominal.toml");
+    fs::write(&path, "experiment = \"e2\"\n").unwrap();
+    let loaded = load_full(path.to_str().unwrap(), &[]).unwrap();
+    assert_eq!(loaded.family.unwrap(), e2);
+    assert_eq!(Experiment::E2.name(), "e2");
+}
+
+#[test]
+fn a_family_makes_the_run_at_any_values_of_its_unknowns() {
+    let dir = temp_dir("family-values");
+    let path = dir.join("stiff.toml");
+    fs::write(
+        &path,
+        "experiment = \"e1\"\n[unknowns]\nwhisker.youngs_modulus = [2e9, 4e9]\n\"objects.0.friction\" = { range = [0, 0.5] }\n[[objects]]\nshape = \"circle\"\nradius = 0.001\nposition = [0.01, 0.01]\n",
+    )
+    .unwrap();
+    let (doc, loaded) = scenario::open(path.to_str().unwrap(), &[]).unwrap();
+    let family = loaded.family.unwrap();
+    assert_eq!(
+        family.keys(),
+        ["whisker.youngs_modulus", "objects.0.friction"]
+    );
+    // Defaults: templates at the ends and middle, six grid values, margins of 1/12 the width.
+    assert_eq!(family.templates[0], [2e9, 3e9, 4e9]);
+    assert_eq!(family.grid[1], [0.0, 0.1, 0.2, 0.3, 0.4, 0.5]);
+    assert!((family.unknowns[0].margin[1] - 2e9 / 12.0).abs() < 1.0);
+    let run = doc
+        .with_values(&[
+            ("whisker.youngs_modulus", 2.5e9),
+            ("objects.0.friction", 0.25),
+        ])
+        .unwrap();
+    assert_eq!(run.scenario.whisker.youngs_modulus, 2.5e9);
+    assert_eq!(run.scenario.objects[0].friction, 0.25);
+    assert_eq!(
+        run.scenario.objects.len(),
+        2,
+        "the file's peg, then the experiment's box"
+    );
+    assert_eq!(
+        doc.digest(),
+        scenario::open(path.to_str().unwrap(), &[])
+            .unwrap()
+            .0
+            .digest()
+    );
+    // A value the schema refuses names the key and the values.
+    let err = doc
+        .with_values(&[("whisker.youngs_modulus", -1.0)])
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("youngs_modulus"), "{err}");
+}
+
+#[test]
+fn malformed_families_are_refused_by_name() {
+    let cases: [(&str, &str); 7] = [
+        ("[unknowns]\nd = [0.03, 0.015]\n", "lo < hi"),
+        ("[unknowns]\nd = [0.015]\n", "expected two"),
+        ("[unknowns]\nd = \"wide\"\n", "array of numbers"),
+        (
+            "[unknowns]\nd = [0.015, 0.03]\n[templates]\nv = [1]\n",
+            "names no unknown",
+        ),
+        (
+            "[unknowns]\nd = [0.015, 0.03]\n[grid]\nd = [0.04]\n",
+            "outside the unknown's range",
+        ),
+        ("[templates]\nd = [0.02]\n", "needs an [unknowns] table"),
+        (
+            "[unknowns]\nd = { range = [0.015, 0.03], step = 1 }\n",
+            "takes range and margin",
+        ),
+    ];
+    for (body, expected) in cases {
+        let text = format!("experiment = \"e2\"\n{body}");
+        let err = load_err(&text, &[]);
+        assert!(err.contains(expected), "{body}: {err}");
+        assert!(err.contains("test.toml"), "{err}");
+    }
+    // A key the schema does not know is refused when the family is opened.
+    let dir = temp_dir("family-bad-key");
+    let path = dir.join("bad.toml");
+    fs::write(
+        &path,
+        "experiment = \"e2\"\n[unknowns]\nwhisker.modulus = [1e9, 2e9]\n",
+    )
+    .unwrap();
+    let err = scenario::open(path.to_str().unwrap(), &[])
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("modulus"), "{err}");
 }
 
 #[test]

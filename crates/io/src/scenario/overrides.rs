@@ -1,6 +1,6 @@
 //! `key=value` overrides applied to a parsed TOML document before it is read into the schema.
 
-use crate::error::{Error, Result};
+use crate::error::Error;
 use toml::{Table, Value};
 
 /// Applies one override to `doc`.
@@ -11,7 +11,7 @@ use toml::{Table, Value};
 /// The value is read as a TOML value (`0.02`, `"w30"`, `[0, 0.6]`, `true`, `inf`), or taken as a
 /// bare string if it is not one (`w30`). Whether the key exists in the schema is decided later,
 /// when the document is read.
-pub(super) fn apply(doc: &mut Table, text: &str) -> Result<()> {
+pub(super) fn apply(doc: &mut Table, text: &str) -> crate::error::Result<()> {
     let fail = |message: String| Error::Override {
         text: text.to_string(),
         message,
@@ -19,14 +19,19 @@ pub(super) fn apply(doc: &mut Table, text: &str) -> Result<()> {
     let (key, raw) = text
         .split_once('=')
         .ok_or_else(|| fail("expected key=value, e.g. whisker.length=0.04".to_string()))?;
+    set_value(doc, key, parse_value(raw.trim())).map_err(fail)
+}
+
+/// Sets the dotted `key` of `doc` to `value`, as [`apply`] does; the error says what is wrong
+/// with the key.
+pub(super) fn set_value(doc: &mut Table, key: &str, value: Value) -> Result<(), String> {
     let parts: Vec<&str> = key.trim().split('.').map(str::trim).collect();
     if parts.iter().any(|p| p.is_empty()) {
-        return Err(fail(format!(
+        return Err(format!(
             "`{}` is not a dotted key such as whisker.length or objects.0.friction",
             key.trim()
-        )));
+        ));
     }
-    let value = parse_value(raw.trim());
 
     // Walk down from the root, creating tables as needed, and set the last part.
     let mut root = Value::Table(std::mem::take(doc));
@@ -34,7 +39,7 @@ pub(super) fn apply(doc: &mut Table, text: &str) -> Result<()> {
     if let Value::Table(t) = root {
         *doc = t;
     }
-    result.map_err(fail)
+    result
 }
 
 /// `raw` as a TOML value, or as a string if it is not one.

@@ -3,6 +3,7 @@
 //! Tables whose keys depend on a `kind` (or `shape`) are read as flat structs and sorted out here,
 //! so that a wrong type names its key and a key given to the wrong kind is reported by name.
 
+use super::family::FamilySpec;
 use super::{
     experiment_box, read_trajectory, Experiment, ExperimentRun, Loaded, DEFAULT_D, DEFAULT_V,
 };
@@ -40,6 +41,9 @@ pub(super) struct FileTable {
     sensor_noise: Option<SensorNoiseTable>,
     base: Option<BaseTable>,
     objects: Vec<ObjectTable>,
+    unknowns: Option<toml::Table>,
+    templates: Option<toml::Table>,
+    grid: Option<toml::Table>,
 }
 
 /// `[whisker]`: a preset, then overrides of its fields.
@@ -213,9 +217,22 @@ impl Ctx<'_> {
 }
 
 impl FileTable {
+    /// Reads a parsed document into the schema.
+    pub(super) fn deserialize_table(
+        table: toml::Table,
+    ) -> std::result::Result<FileTable, toml::de::Error> {
+        FileTable::deserialize(toml::Value::Table(table))
+    }
+
     /// Translates the file into a checked scenario.
     pub(super) fn into_loaded(self, ctx: &Ctx) -> Result<Loaded> {
         let defaults = Scenario::default();
+        // A file that names an experiment and no unknowns is that experiment's family.
+        let family =
+            match FamilySpec::from_tables(ctx.origin, self.unknowns, self.templates, self.grid)? {
+                None => self.experiment.map(super::builtin_family).transpose()?,
+                given => given,
+            };
 
         // Time stepping (core's own check of the integrator settings).
         let integrator = Integrator {
@@ -288,6 +305,7 @@ impl FileTable {
         Ok(Loaded {
             scenario,
             experiment,
+            family,
             origin: ctx.origin.to_string(),
         })
     }

@@ -1,0 +1,312 @@
+//! Scenario families: the `[unknowns]`, `[templates]` and `[grid]` tables of a scenario file, and
+//! a [`Document`] that makes the scenario for any values of its unknowns.
+//!
+//! A family is a scenario file plus the keys an estimator infers. Each unknown is a scenario key
+//! (`d`, `v`, `whisker.youngs_modulus`, `objects.0.position.1`, …) with the range of values a
+//! user expects; a run of the family at a parameter vector is the file with those keys set to
+//! those values, read by the same schema as any file.
+
+use super::Loaded;
+use crate::error::{Error, Result};
+use std::path::PathBuf;
+use toml::{Table, Value};
+
+/// Evenly spaced grid values per unknown when a family gives no `[grid]`.
+pub const DEFAULT_GRID_COUNT: usize = 6;
+
+/// Default training margin on each side of an unknown's range, as a fraction of its width.
+pub const DEFAULT_MARGIN_FRACTION: f64 = 1.0 / 12.0;
+
+/// One unknown of a family.
+#[derive(Debug, Clone, PartialEq)]
+pub struct UnknownSpec {
+    /// Its scenario key (dotted, as for `--set`).
+    pub key: String,
+    /// The range of values the family covers, `[lo, hi]` with `lo < hi`, SI.
+    pub range: [f64; 2],
+    /// How far training runs may reach beyond the range, `[below, above]`, SI (≥ 0).
+    pub margin: [f64; 2],
+}
+
+/// The estimation side of a scenario file.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct FamilySpec {
+    /// The unknowns, in the file's order.
+    pub unknowns: Vec<UnknownSpec>,
+    /// Template values per unknown (`[unknowns][values]`): the runs a method under the paper's
+    /// budget sees are their Cartesian product. Default: each range's ends and midpoint.
+    pub templates: Vec<Vec<f64>>,
+    /// Evaluation grid values per unknown (`[unknowns][values]`), the Cartesian product of
+    /// which `vibrissa experiment` scores. Default: [`DEFAULT_GRID_COUNT`] evenly spaced values
+    /// across each range.
+    pub grid: Vec<Vec<f64>>,
+}
+
+impl FamilySpec {
+    /// The unknowns' keys, in order.
+    pub fn keys(&self) -> Vec<&str> {
+        self.unknowns.iter().map(|u| u.key.as_str()).collect()
+    }
+
+    /// Reads the three tables; `origin` names the file in errors.
+    pub(super) fn from_tables(
+        origin: &str,
+        unknowns: Option<Table>,
+        templates: Option<Table>,
+        grid: Option<Table>,
+    ) -> Result<Option<FamilySpec>> {
+        let field = |f: String, m: String| Error::Field {
+            origin: origin.to_string(),
+            field: f,
+            message: m,
+        };
+        let Some(unknowns) = unknowns else {
+            if templates.is_some() || grid.is_some() {
+                let which = if templates.is_some() {
+                    "templates"
+                } else {
+                    "grid"
+                };
+                return Err(field(
+                    which.into(),
+                    "needs an [unknowns] table naming the keys it gives values for".into(),
+                ));
+            }
+            return Ok(None);
+        };
+        let mut spec = FamilySpec::default();
+        for (key, value) in flatten(&unknowns, "", true) {
+            let name = format!("unknowns.{key}");
+            let (range, margin) = match value {
+                Value::Table(t) => {
+                    for k in t.keys() {
+                        if k != "range" && k != "margin" {
+                            return Err(field(
+                                format!("{name}.{k}"),
+                                "is not a key of an unknown, which takes range and margin".into(),
+                            ));
+                        }
+                    }
+                    let range = t
+                        .get("range")
+                        .ok_or_else(|| field(format!("{name}.range"), "is required".into()))?;
+                    let range = pair(range).map_err(|m| field(format!("{name}.range"), m))?;
+                    let margin = match t.get("margin") {
+                        Some(m) => Some(pair(m).map_err(|e| field(format!("{name}.margin"), e))?),
+                        None => None,
+                    };
+                    (range, margin)
+                }
+                other => (pair(other).map_err(|m| field(name.clone(), m))?, None),
+            };
+            if !(range[0] < range[1]) {
+                return Err(field(
+                    name,
+                    format!(
+                        "is [{}, {}]: expected [lo, hi] with lo < hi",
+                        range[0], range[1]
+                    ),
+                ));
+            }
+            let width = range[1] - range[0];
+            let margin = margin.unwrap_or([DEFAULT_MARGIN_FRACTION * width; 2]);
+            if margin.iter().any(|m| *m < 0.0) {
+                return Err(field(
+                    format!("{name}.margin"),
+                    "expected [below, above], both >= 0".into(),
+                ));
+            }
+            spec.unknowns.push(UnknownSpec { key, range, margin });
+        }
+        if spec.unknowns.is_empty() {
+            return Err(field(
+                "unknowns".into(),
+                "is empty: name at least one key, e.g. d = [0.015, 0.030]".into(),
+            ));
+        }
+        spec.templates = values(origin, "templates", templates, &spec.unknowns, |u| {
+            vec![u.range[0], 0.5 * (u.range[0] + u.range[1]), u.range[1]]
+        })?;
+        spec.grid = values(origin, "grid", grid, &spec.unknowns, |u| {
+            let n = DEFAULT_GRID_COUNT;
+            (0..n)
+                .map(|k| u.range[0] + (u.range[1] - u.range[0]) * k as f64 / (n - 1) as f64)
+                .collect()
+        })?;
+        Ok(Some(spec))
+    }
+}
+
+/// The leaves of a table as dotted keys. With `specs`, a table holding `range` is a leaf (an
+/// unknown's long form), not a level.
+fn flatten<'a>(table: &'a Table, prefix: &str, specs: bool) -> Vec<(String, &'a Value)> {
+    let mut out = Vec::new();
+    for (k, v) in table {
+        let key = if prefix.is_empty() {
+            k.clone()
+        } else {
+            format!("{prefix}.{k}")
+        };
+        match v {
+            Value::Table(t) if !(specs && t.contains_key("range")) => {
+                out.extend(flatten(t, &key, specs))
+            }
+            _ => out.push((key, v)),
+        }
+    }
+    out
+}
+
+/// A number (integers too).
+fn number(v: &Value) -> Option<f64> {
+    match v {
+        Value::Float(x) => Some(*x),
+        Value::Integer(i) => Some(*i as f64),
+        _ => None,
+    }
+}
+
+/// `[a, b]` of finite numbers.
+fn pair(v: &Value) -> std::result::Result<[f64; 2], String> {
+    let list = list(v)?;
+    match list[..] {
+        [a, b] => Ok([a, b]),
+        _ => Err(format!("has {} values: expected two, [lo, hi]", list.len())),
+    }
+}
+
+/// An array of finite numbers.
+fn list(v: &Value) -> std::result::Result<Vec<f64>, String> {
+    let Value::Array(a) = v else {
+        return Err(format!(
+            "is a {}: expected an array of numbers",
+            v.type_str()
+        ));
+    };
+    a.iter()
+        .map(|x| match number(x) {
+            Some(x) if x.is_finite() => Ok(x),
+            _ => Err(format!("holds `{x}`: expected finite numbers")),
+        })
+        .collect()
+}
+
+/// Values per unknown from `table` (which must name every unknown and nothing else), or the
+/// defaults.
+fn values(
+    origin: &str,
+    name: &str,
+    table: Option<Table>,
+    unknowns: &[UnknownSpec],
+    default: impl Fn(&UnknownSpec) -> Vec<f64>,
+) -> Result<Vec<Vec<f64>>> {
+    let field = |f: String, m: String| Error::Field {
+        origin: origin.to_string(),
+        field: f,
+        message: m,
+    };
+    let Some(table) = table else {
+        return Ok(unknowns.iter().map(default).collect());
+    };
+    let given = flatten(&table, "", false);
+    for (key, _) in &given {
+        if !unknowns.iter().any(|u| &u.key == key) {
+            return Err(field(
+                format!("{name}.{key}"),
+                format!(
+                    "names no unknown; the unknowns are {}",
+                    unknowns
+                        .iter()
+                        .map(|u| u.key.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            ));
+        }
+    }
+    unknowns
+        .iter()
+        .map(|u| {
+            let f = format!("{name}.{}", u.key);
+            let Some((_, v)) = given.iter().find(|(k, _)| *k == u.key) else {
+                return Err(field(f, "is missing: give values for every unknown".into()));
+            };
+            let xs = list(v).map_err(|m| field(f.clone(), m))?;
+            if xs.is_empty() {
+                return Err(field(f, "is empty".into()));
+            }
+            if let Some(x) = xs.iter().find(|x| !(u.range[0]..=u.range[1]).contains(*x)) {
+                return Err(field(
+                    f,
+                    format!(
+                        "holds {x}, outside the unknown's range [{}, {}]",
+                        u.range[0], u.range[1]
+                    ),
+                ));
+            }
+            Ok(xs)
+        })
+        .collect()
+}
+
+/// A scenario file as parsed (overrides applied), from which runs at any values of its keys are
+/// made.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Document {
+    table: Table,
+    origin: String,
+    base_dir: PathBuf,
+}
+
+impl Document {
+    pub(super) fn new(table: Table, origin: String, base_dir: PathBuf) -> Document {
+        Document {
+            table,
+            origin,
+            base_dir,
+        }
+    }
+
+    /// The file's path or the built-in's name, as used in messages.
+    pub fn origin(&self) -> &str {
+        &self.origin
+    }
+
+    /// The scenario with `values` set (each a dotted key and a number), read and checked like a
+    /// file.
+    pub fn with_values<S: AsRef<str>>(&self, values: &[(S, f64)]) -> Result<Loaded> {
+        let mut table = self.table.clone();
+        for (key, x) in values {
+            let key = key.as_ref();
+            super::overrides::set_value(&mut table, key, Value::Float(*x)).map_err(|message| {
+                Error::Field {
+                    origin: self.origin.clone(),
+                    field: key.to_string(),
+                    message,
+                }
+            })?;
+        }
+        let file = super::schema::FileTable::deserialize_table(table).map_err(|e| {
+            let keys: Vec<String> = values
+                .iter()
+                .map(|(k, x)| format!("{}={x}", k.as_ref()))
+                .collect();
+            Error::Toml {
+                origin: format!("{} with {}", self.origin, keys.join(", ")),
+                message: e.to_string().trim_end().to_string(),
+            }
+        })?;
+        file.into_loaded(&super::schema::Ctx {
+            origin: &self.origin,
+            base_dir: &self.base_dir,
+        })
+    }
+
+    /// A stable digest of the document (FNV-1a over its canonical TOML text), for caches.
+    pub fn digest(&self) -> u64 {
+        let text = toml::to_string(&self.table).unwrap_or_default();
+        text.bytes().fold(0xcbf2_9ce4_8422_2325, |h, b| {
+            (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3)
+        })
+    }
+}
