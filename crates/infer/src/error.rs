@@ -14,6 +14,18 @@ pub enum Error {
         #[source]
         source: vibrissa_core::Error,
     },
+    /// A run of a scenario family failed.
+    #[error("simulation of {params} failed")]
+    Run {
+        /// The run's unknowns, `key = value, …`.
+        params: String,
+        /// The simulator's error.
+        #[source]
+        source: vibrissa_core::Error,
+    },
+    /// A scenario file could not be read or does not fit the schema.
+    #[error(transparent)]
+    Scenario(#[from] vibrissa_io::Error),
     /// An observation does not fit the experiment or the method.
     #[error("unusable observation: {0}")]
     Observation(String),

@@ -11,6 +11,7 @@
 pub mod error;
 pub mod evaluate;
 pub mod experiment;
+pub mod family;
 pub mod features;
 pub mod method;
 pub mod methods;
@@ -20,5 +21,6 @@ pub mod unknown_start;
 pub use error::{Error, Result};
 pub use evaluate::{calibration, evaluate, evaluate_with, training_for, Evaluation, MethodResult};
 pub use experiment::{Experiment, Sample, Variant, CHANNELS};
+pub use family::Family;
 pub use method::{Budget, Estimate, Method, Training};
 pub use unknown_start::{evaluate_unknown_start, StartEvaluation};

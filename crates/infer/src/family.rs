@@ -1,0 +1,444 @@
+//! Scenario families: what every estimator is given instead of an experiment's name.
+//!
+//! A [`Family`] is a scenario file with `[unknowns]` (see `vibrissa_io::scenario`): it knows its
+//! unknowns and their ranges, its templates and evaluation grid, how to simulate the run at a
+//! parameter vector, and the sample rate and length of its runs. The seed's experiments `e1` and
+//! `e2` are built-in families and nothing more. Estimators learn from runs of the family they are
+//! given; a family can be re-timed to the rate and length of a recording
+//! ([`Family::with_timing`]), so nothing assumes 1 kHz or 151 samples.
+
+use crate::error::{Error, Result};
+use crate::experiment::{Noise, Sample, Variant, CHANNELS, SENSOR_NOISE_FRACTION};
+use rayon::prelude::*;
+use std::collections::HashMap;
+use std::sync::{Mutex, OnceLock};
+use vibrissa_core::objects::Motion;
+use vibrissa_core::rng::Rng;
+use vibrissa_core::sim::{self, Scenario, SensorNoise};
+use vibrissa_core::whisker::WhiskerParams;
+use vibrissa_io::scenario::{self, Document, ExperimentRun, FamilySpec};
+
+/// A scenario family, checked: every unknown's key makes a valid scenario.
+#[derive(Debug, Clone)]
+pub struct Family {
+    /// The built-in's name or the file's path, as the user gave it.
+    name: String,
+    /// The file, from which runs at any values are made.
+    doc: Document,
+    /// Unknowns, templates and grid.
+    spec: FamilySpec,
+    /// The file's own scenario (its values of the unknowns), timing applied.
+    base: Scenario,
+    /// The experiment box the file names, if any.
+    experiment: Option<ExperimentRun>,
+    /// Samples per run.
+    samples: usize,
+}
+
+/// A small cache of values computed once per family (by digest): the noisy variant's levels.
+fn noise_cache() -> &'static Mutex<HashMap<u64, [f64; 5]>> {
+    static CACHE: OnceLock<Mutex<HashMap<u64, [f64; 5]>>> = OnceLock::new();
+    CACHE.get_or_init(|| Mutex::new(HashMap::new()))
+}
+
+impl Family {
+    /// Opens a family: `spec` is a built-in name (`e1`, `e2`) or the path of a scenario file,
+    /// `sets` are `key=value` overrides. The file must have `[unknowns]`, or name an experiment
+    /// (whose unknowns it then takes).
+    pub fn open(spec: &str, sets: &[String]) -> Result<Family> {
+        let (doc, loaded) = scenario::open(spec, sets)?;
+        let Some(family) = loaded.family else {
+            return Err(Error::Setting(format!(
+                "{}: a scenario for estimation needs an [unknowns] table (e.g. d = [0.015, 0.030]) \
+                 or an experiment (experiment = \"e2\")",
+                loaded.origin
+            )));
+        };
+        let base = loaded.scenario;
+        let samples = samples_of(&base);
+        Ok(Family {
+            name: spec.to_string(),
+            doc,
+            spec: family,
+            base,
+            experiment: loaded.experiment,
+            samples,
+        })
+    }
+
+    /// A built-in family by name (`e1`, `e2`).
+    pub fn builtin(name: &str) -> Result<Family> {
+        if scenario::builtin(name).is_none() {
+            return Err(Error::Unknown {
+                what: "experiment",
+                name: name.to_string(),
+                choices: scenario::BUILTINS.join(", "),
+            });
+        }
+        Family::open(name, &[])
+    }
+
+    /// The built-in's name or the file's path.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// The unknowns' scenario keys, in order.
+    pub fn unknowns(&self) -> Vec<&str> {
+        self.spec.keys()
+    }
+
+    /// The range of each unknown, `[unknowns][lo, hi]`.
+    pub fn ranges(&self) -> Vec<[f64; 2]> {
+        self.spec.unknowns.iter().map(|u| u.range).collect()
+    }
+
+    /// How far training runs may reach beyond each range, `[unknowns][below, above]`.
+    pub fn margins(&self) -> Vec<[f64; 2]> {
+        self.spec.unknowns.iter().map(|u| u.margin).collect()
+    }
+
+    /// Template values per unknown.
+    pub fn template_values(&self) -> &[Vec<f64>] {
+        &self.spec.templates
+    }
+
+    /// Grid values per unknown.
+    pub fn grid_values(&self) -> &[Vec<f64>] {
+        &self.spec.grid
+    }
+
+    /// The template runs' parameters: every combination of the template values, the first
+    /// unknown fastest.
+    pub fn templates(&self) -> Vec<Vec<f64>> {
+        product(&self.spec.templates)
+    }
+
+    /// The evaluation grid's parameters: every combination of the grid values, the first
+    /// unknown fastest.
+    pub fn grid(&self) -> Vec<Vec<f64>> {
+        product(&self.spec.grid)
+    }
+
+    /// Whether `p` is a template.
+    pub fn is_template(&self, p: &[f64]) -> bool {
+        p.iter()
+            .zip(&self.spec.templates)
+            .all(|(x, set)| set.iter().any(|s| (x - s).abs() < 1e-9))
+    }
+
+    /// `n` parameter draws, uniform in the ranges and never exactly on the grid.
+    pub fn random_params(&self, n: usize, seed: u64) -> Vec<Vec<f64>> {
+        let grid = self.grid();
+        let ranges = self.ranges();
+        let mut rng = Rng::stream(seed, 0x7261_6e64);
+        let mut out = Vec::with_capacity(n);
+        while out.len() < n {
+            let p: Vec<f64> = ranges
+                .iter()
+                .map(|[lo, hi]| lo + (hi - lo) * rng.uniform())
+                .collect();
+            let on_grid = grid
+                .iter()
+                .any(|g| g.iter().zip(&p).all(|(a, b)| (a - b).abs() < 1e-7));
+            if !on_grid {
+                out.push(p);
+            }
+        }
+        out
+    }
+
+    /// Output samples per second of its runs, Hz.
+    pub fn sample_rate(&self) -> f64 {
+        self.base.sample_rate
+    }
+
+    /// Samples per run.
+    pub fn samples(&self) -> usize {
+        self.samples
+    }
+
+    /// The file's own scenario (the unknowns at the file's values), timing applied.
+    pub fn base(&self) -> &Scenario {
+        &self.base
+    }
+
+    /// The whisker.
+    pub fn whisker(&self) -> &WhiskerParams {
+        &self.base.whisker
+    }
+
+    /// The experiment box the file names (`experiment = "e1" | "e2"`), with the file's `d` and
+    /// `v`, if any. Methods built on the box's geometry (the particle filter, the time-warping
+    /// emulator) need one.
+    pub fn experiment(&self) -> Option<ExperimentRun> {
+        self.experiment
+    }
+
+    /// The same family with runs of `samples` samples at `rate` Hz (e.g. a recording's).
+    pub fn with_timing(&self, rate: f64, samples: usize) -> Result<Family> {
+        if !(rate.is_finite() && rate > 0.0) || samples < 2 {
+            return Err(Error::Observation(format!(
+                "a recording needs a positive sample rate and at least 2 samples, not {rate} Hz \
+                 and {samples}"
+            )));
+        }
+        let mut f = self.clone();
+        f.base.sample_rate = rate;
+        f.base.duration = (samples - 1) as f64 / rate;
+        f.base.check().map_err(|e| {
+            Error::Observation(format!(
+                "{}: {e} (timing {rate} Hz, {samples} samples)",
+                self.name
+            ))
+        })?;
+        f.samples = samples_of(&f.base);
+        Ok(f)
+    }
+
+    /// A digest of the family and its timing, for caches of training runs.
+    pub fn digest(&self) -> u64 {
+        let mut h = self.doc.digest();
+        for x in [self.base.sample_rate, self.base.duration] {
+            h = (h ^ x.to_bits()).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+        h
+    }
+
+    /// The scenario of the run at `p` (one value per unknown), with this family's timing.
+    pub fn scenario(&self, p: &[f64]) -> Result<Scenario> {
+        if p.len() != self.spec.unknowns.len() {
+            return Err(Error::Setting(format!(
+                "{}: {} values for the unknowns {}",
+                self.name,
+                p.len(),
+                self.unknowns().join(", ")
+            )));
+        }
+        let values: Vec<(&str, f64)> = self.unknowns().into_iter().zip(p.iter().copied()).collect();
+        let mut s = self.doc.with_values(&values)?.scenario;
+        s.sample_rate = self.base.sample_rate;
+        s.duration = self.base.duration;
+        Ok(s)
+    }
+
+    /// Simulates the run at `p` with `noise`, seeded by `seed`.
+    pub fn simulate(&self, p: &[f64], noise: &Noise, seed: u64) -> Result<Sample> {
+        self.simulate_delayed(p, 0.0, noise, seed)
+    }
+
+    /// [`Family::simulate`] recorded from `delay` seconds before the run's t = 0: every object
+    /// starts where it was `delay` earlier on its path, and the series is `delay` longer.
+    pub fn simulate_delayed(
+        &self,
+        p: &[f64],
+        delay: f64,
+        noise: &Noise,
+        seed: u64,
+    ) -> Result<Sample> {
+        let mut s = self.scenario(p)?;
+        if delay != 0.0 {
+            for o in &mut s.objects {
+                match &mut o.motion {
+                    Motion::Constant {
+                        velocity,
+                        angular_velocity,
+                    } => {
+                        o.position[0] -= velocity[0] * delay;
+                        o.position[1] -= velocity[1] * delay;
+                        o.angle -= *angular_velocity * delay;
+                    }
+                    _ => {
+                        return Err(Error::Setting(format!(
+                            "{}: a delayed start needs objects that move at constant velocity",
+                            self.name
+                        )))
+                    }
+                }
+            }
+            s.duration += delay;
+        }
+        s.process_noise = noise.process;
+        let [theta01, theta12, m0, fx, fy] = noise.sensor;
+        s.sensor_noise = SensorNoise {
+            theta01,
+            theta12,
+            m0,
+            fx,
+            fy,
+        };
+        s.seed = seed;
+        let out = sim::run(&s, &mut |_| {}).map_err(|source| Error::Run {
+            params: self.describe(p),
+            source,
+        })?;
+        // Columns 1..=5 of the contract's rows are the observed channels.
+        let series = (0..CHANNELS.len())
+            .map(|c| out.rows.iter().map(|r| r[c + 1]).collect())
+            .collect();
+        Ok(Sample {
+            series,
+            params: p.to_vec(),
+        })
+    }
+
+    /// Simulates every run of `params` in parallel; run `k` is seeded by stream `k` of `seed`.
+    /// `tick` is called once per finished run (from any thread).
+    pub fn simulate_all(
+        &self,
+        params: &[Vec<f64>],
+        noise: &Noise,
+        seed: u64,
+        tick: &(dyn Fn() + Sync),
+    ) -> Result<Vec<Sample>> {
+        params
+            .par_iter()
+            .enumerate()
+            .map(|(k, p)| {
+                let run_seed = Rng::stream(seed, k as u64).next_u64();
+                let s = self.simulate(p, noise, run_seed);
+                tick();
+                s
+            })
+            .collect()
+    }
+
+    /// `key = value, …` of a parameter vector, for messages.
+    pub fn describe(&self, p: &[f64]) -> String {
+        self.unknowns()
+            .iter()
+            .zip(p)
+            .map(|(k, x)| format!("{k} = {x}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+
+    /// The noise of `variant` on this family. `noisy` is a sensor noise of 5% of each channel's
+    /// peak-to-peak range over the clean reference runs, plus [`crate::experiment::PROCESS_NOISE`].
+    /// The reference runs are the family's grid; for a family built on the experiment box they
+    /// are the `e2` grid of its own scenario (EXPERIMENTS.md defines `noisy` by the `e2` runs).
+    pub fn noise(&self, variant: Variant) -> Result<Noise> {
+        match variant {
+            Variant::Clean => Ok(Noise::NONE),
+            Variant::Noisy => {
+                let key = self.doc.digest();
+                let cached = noise_cache().lock().ok().and_then(|c| c.get(&key).copied());
+                let sensor = match cached {
+                    Some(l) => l,
+                    None => {
+                        let l = self.clean_ranges()?.map(|r| SENSOR_NOISE_FRACTION * r);
+                        if let Ok(mut c) = noise_cache().lock() {
+                            c.insert(key, l);
+                        }
+                        l
+                    }
+                };
+                Ok(Noise {
+                    sensor,
+                    process: crate::experiment::PROCESS_NOISE,
+                })
+            }
+        }
+    }
+
+    /// Peak-to-peak range of each channel over the clean reference runs (see
+    /// [`Family::noise`]), `[CHANNELS]`, SI.
+    pub fn clean_ranges(&self) -> Result<[f64; 5]> {
+        let runs = match self.experiment {
+            Some(_) => {
+                let e2 = Family::builtin("e2")?;
+                let reference = Family {
+                    spec: e2.spec,
+                    experiment: self.experiment,
+                    ..self.clone()
+                };
+                reference.simulate_all(&reference.grid(), &Noise::NONE, 0, &|| {})?
+            }
+            None => self.simulate_all(&self.grid(), &Noise::NONE, 0, &|| {})?,
+        };
+        let mut lo = [f64::INFINITY; 5];
+        let mut hi = [f64::NEG_INFINITY; 5];
+        for s in &runs {
+            for (c, ch) in s.series.iter().enumerate() {
+                for &x in ch {
+                    lo[c] = lo[c].min(x);
+                    hi[c] = hi[c].max(x);
+                }
+            }
+        }
+        Ok(std::array::from_fn(|c| hi[c] - lo[c]))
+    }
+}
+
+/// Samples of a run of `s`: t = 0, 1/rate, … up to its duration.
+fn samples_of(s: &Scenario) -> usize {
+    (s.duration * s.sample_rate + 1e-9).floor() as usize + 1
+}
+
+/// Every combination of `values` (one list per unknown), the first fastest.
+fn product(values: &[Vec<f64>]) -> Vec<Vec<f64>> {
+    let mut out = vec![Vec::new()];
+    for list in values {
+        out = list
+            .iter()
+            .flat_map(|x| {
+                out.iter().map(move |p| {
+                    let mut q = p.clone();
+                    q.push(*x);
+                    q
+                })
+            })
+            .collect();
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn grids_and_templates_match_the_restated_experiments() {
+        let e1 = Family::builtin("e1").unwrap();
+        assert_eq!(e1.grid().len(), 16);
+        assert_eq!(e1.grid().iter().filter(|p| e1.is_template(p)).count(), 3);
+        let e2 = Family::builtin("e2").unwrap();
+        let grid = e2.grid();
+        assert_eq!(grid.len(), 80);
+        assert_eq!(grid.iter().filter(|p| e2.is_template(p)).count(), 9);
+        // Distance fastest, as the seed's tables run.
+        assert_eq!(grid[0], [0.015, 0.3]);
+        assert_eq!(grid[1], [0.016, 0.3]);
+        assert_eq!(grid[16], [0.015, 0.6]);
+        assert_eq!(e2.templates().len(), 9);
+        assert_eq!((e2.samples(), e2.sample_rate()), (151, 1000.0));
+        assert!(Family::builtin("e3").is_err());
+    }
+
+    #[test]
+    fn random_draws_stay_in_range_and_off_the_grid() {
+        let e2 = Family::builtin("e2").unwrap();
+        for p in e2.random_params(200, 3) {
+            assert!((0.015..=0.030).contains(&p[0]));
+            assert!((0.3..=1.5).contains(&p[1]));
+        }
+        assert_eq!(e2.random_params(5, 3), e2.random_params(5, 3));
+    }
+
+    #[test]
+    fn a_retimed_family_samples_its_runs_at_the_new_rate() {
+        let e2 = Family::builtin("e2").unwrap();
+        let fast = e2.with_timing(2000.0, 301).unwrap();
+        assert_eq!(fast.samples(), 301);
+        assert_ne!(fast.digest(), e2.digest());
+        let run = fast.simulate(&[0.02, 0.6], &Noise::NONE, 1).unwrap();
+        assert_eq!(run.series[1].len(), 301);
+        // Every second sample of the 2 kHz run is the 1 kHz run's (same physics, same dt).
+        let slow = e2.simulate(&[0.02, 0.6], &Noise::NONE, 1).unwrap();
+        for k in 0..151 {
+            assert!((run.series[1][2 * k] - slow.series[1][k]).abs() < 1e-12);
+        }
+        assert!(e2.with_timing(0.0, 10).is_err());
+        assert!(e2.with_timing(1000.0, 1).is_err());
+    }
+}
