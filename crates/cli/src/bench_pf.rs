@@ -11,8 +11,9 @@ use anyhow::{bail, Result};
 use serde::Serialize;
 use std::io::{self, Write};
 use std::time::Instant;
-use vibrissa_infer::experiment::{simulate, Experiment, Noise, Variant};
+use vibrissa_infer::experiment::Variant;
 use vibrissa_infer::pf::{self, Config, Observations, MODEL_ERROR};
+use vibrissa_infer::Family;
 
 /// One particle count's figures.
 #[derive(Debug, Clone, Serialize)]
@@ -82,9 +83,10 @@ pub fn run(particles: &[usize], quick: bool, format: &FormatArgs) -> Result<()> 
         bail!("--particles takes counts of at least 1 (e.g. 100,1000,10000)");
     }
     let truth = [0.022, 0.9];
-    let noise = Noise::of(Variant::Noisy)?;
-    let run = simulate(Experiment::E2, truth, &noise, 1)?;
-    let obs = Observations::at_rate(run.series, vibrissa_infer::experiment::SAMPLE_RATE);
+    let e2 = Family::builtin("e2")?;
+    let noise = e2.noise(Variant::Noisy)?;
+    let run = e2.simulate(&truth, &noise, 1)?;
+    let obs = Observations::at_rate(run.series, e2.sample_rate());
     let data_seconds = obs.t[obs.t.len() - 1] - obs.t[0];
     let mut rows = Vec::new();
     for &n in particles {

@@ -1,8 +1,9 @@
 //! `vibrissa estimate`: distance (and speed) of the object from recorded time series.
 //!
-//! Reads one or more contract CSV files, checks them against the experiment (151 samples at
-//! 1 kHz), trains the chosen method once (on the templates, or on its simulated training runs),
-//! and prints one estimate per file in the contract's JSON form.
+//! Reads one or more contract CSV files at any constant sample rate and length, trains the chosen
+//! method on runs of the scenario family (`--scenario FILE.toml`, or the built-in `--experiment
+//! e1|e2`) simulated at the files' rate and length (once per distinct timing), and prints one
+//! estimate per file in the contract's JSON form, named by the family's unknowns.
 
 use crate::output::{sig, FormatArgs, Render};
 use anyhow::{bail, Context, Result};
@@ -11,16 +12,22 @@ use serde_json::{json, Map, Value};
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use vibrissa_infer::experiment::{SAMPLES, SAMPLE_RATE};
-use vibrissa_infer::{methods, training_for, Estimate, Experiment, Variant, CHANNELS};
+use vibrissa_infer::{methods, training_for, Estimate, Family, Method, Variant, CHANNELS};
 
 /// Arguments of `vibrissa estimate`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     // Fields are read by the pf path too (crate::estimate_pf).
-    /// The experiment the series come from: e1 or e2.
-    #[arg(long, value_name = "EXPERIMENT", required_unless_present = "list")]
+    /// The built-in experiment the series come from: e1 or e2 (shorthand for --scenario e1|e2).
+    #[arg(long, value_name = "EXPERIMENT", conflicts_with = "scenario")]
     pub(crate) experiment: Option<String>,
+    /// The scenario family the series come from: a TOML scenario file with an [unknowns] table
+    /// (or naming an experiment), e.g. the output of `vibrissa calibrate`.
+    #[arg(long, value_name = "FILE.toml")]
+    pub(crate) scenario: Option<String>,
+    /// Overrides of the scenario's keys (key=value), applied before anything is trained.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub(crate) sets: Vec<String>,
     /// The estimator (see --list).
     #[arg(long, value_name = "NAME", required_unless_present = "list")]
     pub(crate) method: Option<String>,
@@ -164,10 +171,10 @@ pub fn run(args: &Args) -> Result<()> {
         };
         return Ok(format.print(&list)?);
     }
-    let experiment = Experiment::parse(args.experiment.as_deref().unwrap_or_default())?;
+    let family = family_of(args)?;
     let variant = Variant::parse(&args.variant)?;
     if args.method.as_deref() == Some("pf") {
-        return crate::estimate_pf::run(args, experiment, variant);
+        return crate::estimate_pf::run(args, &family, variant);
     }
     if args.trace.is_some()
         || args.inject.is_some()
@@ -176,40 +183,28 @@ pub fn run(args: &Args) -> Result<()> {
     {
         bail!("--trace, --inject, --channels and --prior apply to --method pf only");
     }
-    let mut method = methods::by_name(args.method.as_deref().unwrap_or_default())?;
+    let name = args.method.as_deref().unwrap_or_default();
+    let probe = methods::by_name(name)?;
 
     // Read and check every file before training.
-    let needs = method.channels();
-    let obs = args
+    let needs = probe.channels();
+    let recordings = args
         .obs
         .iter()
-        .map(|f| read_obs(f, &needs, method.name()))
+        .map(|f| read_recording(f, &needs, Some(probe.name())))
         .collect::<Result<Vec<_>>>()?;
 
-    // Train once.
-    let t0 = Instant::now();
-    eprintln!(
-        "training {} ({} budget)…",
-        method.name(),
-        method.budget().name()
-    );
-    let training = training_for(experiment, variant, method.as_ref(), args.seed)?;
-    method.fit(&training)?;
-    let train_seconds = t0.elapsed().as_secs_f64();
-    eprintln!(
-        "trained on {} simulated runs in {:.2} s",
-        training.samples.len() + training.calibration.len(),
-        train_seconds
-    );
-
+    // Train once per distinct timing, on the family's runs at that rate and length.
+    let mut trained = Trained::default();
     let mut rows = Vec::new();
-    for (file, o) in args.obs.iter().zip(&obs) {
+    for (file, rec) in args.obs.iter().zip(&recordings) {
+        let method = trained.get(&family, rec, name, variant, args.seed)?;
         let t = Instant::now();
         let est = method
-            .predict(o)
+            .predict(&rec.values)
             .with_context(|| format!("estimating from `{}`", file.display()))?;
         let secs = t.elapsed().as_secs_f64();
-        let named = experiment
+        let named = family
             .unknowns()
             .iter()
             .map(|n| n.to_string())
@@ -219,9 +214,9 @@ pub fn run(args: &Args) -> Result<()> {
     }
     let report = Report {
         rows,
-        method: method.name().into(),
-        train_seconds,
-        train_runs: training.samples.len() + training.calibration.len(),
+        method: probe.name().into(),
+        train_seconds: trained.seconds,
+        train_runs: trained.runs,
     };
     match format {
         crate::output::Format::Human => format.print(&report)?,
@@ -272,45 +267,183 @@ fn print_json(report: &Report, lines: bool) -> Result<()> {
     Ok(())
 }
 
-/// Reads one observation file as channel-major `[CHANNELS][SAMPLES]` (missing channels empty).
-fn read_obs(file: &Path, needs: &[usize], method: &str) -> Result<Vec<Vec<f64>>> {
+/// The scenario family of `--scenario` or `--experiment` (one of them is required).
+pub(crate) fn family_of(args: &Args) -> Result<Family> {
+    let spec = match (&args.scenario, &args.experiment) {
+        (Some(s), _) => s.as_str(),
+        (None, Some(e)) => {
+            if vibrissa_io::scenario::builtin(e).is_none() {
+                bail!(
+                    "unknown experiment `{e}`: choose one of {} (or give a scenario file with \
+                     --scenario)",
+                    vibrissa_io::scenario::BUILTINS.join(", ")
+                );
+            }
+            e.as_str()
+        }
+        (None, None) => bail!(
+            "say what the recordings are: --scenario FILE.toml (a scenario with [unknowns]) or \
+             --experiment e1|e2"
+        ),
+    };
+    Ok(Family::open(spec, &args.sets)?)
+}
+
+/// Methods trained per timing (sample rate and length) of the recordings.
+#[derive(Default)]
+pub(crate) struct Trained {
+    /// `(rate, samples)` → the fitted method.
+    fitted: Vec<((f64, usize), Box<dyn Method>)>,
+    /// Wall time of all training, s.
+    pub seconds: f64,
+    /// Simulated runs trained on, over all timings.
+    pub runs: usize,
+}
+
+impl Trained {
+    /// The method `name` fitted on `family`'s runs at `rec`'s timing (trained on first use).
+    pub(crate) fn get(
+        &mut self,
+        family: &Family,
+        rec: &Recording,
+        name: &str,
+        variant: Variant,
+        seed: u64,
+    ) -> Result<&dyn Method> {
+        let key = (rec.rate, rec.t.len());
+        let found = self
+            .fitted
+            .iter()
+            .position(|(k, _)| (k.0 - key.0).abs() <= 1e-9 * key.0 && k.1 == key.1);
+        let k = match found {
+            Some(k) => k,
+            None => {
+                let timed = family.with_timing(rec.rate, rec.t.len())?;
+                let mut method = methods::by_name(name)?;
+                let t0 = Instant::now();
+                eprintln!(
+                    "training {} ({} budget) on {}-sample runs at {} Hz…",
+                    method.name(),
+                    method.budget().name(),
+                    key.1,
+                    sig(key.0, 6)
+                );
+                let training = training_for(&timed, variant, method.as_ref(), seed)?;
+                method.fit(&training)?;
+                let secs = t0.elapsed().as_secs_f64();
+                let runs = training.samples.len() + training.calibration.len();
+                eprintln!("trained on {runs} simulated runs in {secs:.2} s");
+                self.seconds += secs;
+                self.runs += runs;
+                self.fitted.push((key, method));
+                self.fitted.len() - 1
+            }
+        };
+        Ok(self.fitted[k].1.as_ref())
+    }
+}
+
+/// A recording: its sample times, channel-major values (`[CHANNELS][samples]`, missing channels
+/// empty) and its sample rate.
+#[derive(Debug, Clone)]
+pub(crate) struct Recording {
+    /// Sample times, s, strictly increasing at a constant step.
+    pub t: Vec<f64>,
+    /// `[CHANNELS][samples]`.
+    pub values: Vec<Vec<f64>>,
+    /// Samples per second, Hz.
+    pub rate: f64,
+    /// The segment count of the chain that recorded it, when its metadata says.
+    pub segments: Option<usize>,
+}
+
+/// Reads one recording: `t` (any start, any constant step: a step that varies by more than 1%
+/// is refused with its row) and the channels `needs` (required and finite when `method` is
+/// given; the filter instead skips `NaN` values).
+pub(crate) fn read_recording(
+    file: &Path,
+    needs: &[usize],
+    method: Option<&str>,
+) -> Result<Recording> {
     let series = vibrissa_io::series::read_csv(file)
         .with_context(|| format!("cannot read `{}`", file.display()))?;
     let name = file.display();
-    let required = series
+    let t = series
         .require(&["t", "theta01", "theta12"])
-        .with_context(|| format!("`{name}` lacks a required column (t, theta01, theta12)"))?;
-    let t = required[0];
-    if t.len() != SAMPLES {
-        bail!(
-            "`{name}` has {} samples; the experiments' runs have {SAMPLES} (150 ms at 1 kHz)",
-            t.len()
-        );
+        .with_context(|| {
+            format!("`{name}` lacks a required column (every recording has t, theta01, theta12)")
+        })?[0]
+        .to_vec();
+    if t.len() < 2 {
+        bail!("`{name}` has {} samples; at least 2 are needed", t.len());
     }
-    let period = 1.0 / SAMPLE_RATE;
-    let regular = t
-        .iter()
-        .enumerate()
-        .all(|(k, &x)| (x - k as f64 * period).abs() < 1e-6);
-    if !regular {
-        bail!("`{name}`: t must run from 0 in steps of 1 ms (1 kHz), as in the experiments");
+    if let Some(k) = t.iter().position(|x| !x.is_finite()) {
+        bail!("`{name}`: t is not a finite number in data row {}", k + 1);
     }
-    let mut obs = Vec::with_capacity(CHANNELS.len());
+    // Every step against the first (the contract allows 1%), then the mean step sets the rate.
+    let first = t[1] - t[0];
+    for k in 1..t.len() {
+        let dt = t[k] - t[k - 1];
+        if dt <= 0.0 {
+            bail!(
+                "`{name}`: t does not increase at data row {} ({} after {})",
+                k + 1,
+                t[k],
+                t[k - 1]
+            );
+        }
+        if (dt - first).abs() > 0.01 * first {
+            bail!(
+                "`{name}`: the sample step before data row {} is {} s, not the first step's {} s \
+                 (a gap or an irregular clock; resample it to a constant rate first)",
+                k + 1,
+                sig(dt, 4),
+                sig(first, 4)
+            );
+        }
+    }
+    let step = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
+    let mut values = Vec::with_capacity(CHANNELS.len());
     for (c, ch) in CHANNELS.iter().enumerate() {
         match series.column(ch) {
             Some(v) => {
-                if needs.contains(&c) {
+                if method.is_some() && needs.contains(&c) {
                     if let Some(k) = v.iter().position(|x| !x.is_finite()) {
-                        bail!("`{name}`: column {ch} has a non-finite value in row {}", k + 1);
+                        bail!(
+                            "`{name}`: column {ch} has a non-finite value in data row {}",
+                            k + 1
+                        );
                     }
                 }
-                obs.push(v.to_vec());
+                values.push(v.to_vec());
             }
-            None if needs.contains(&c) => bail!(
-                "method {method} needs column {ch}, which `{name}` lacks (the template method uses theta12 alone)"
-            ),
-            None => obs.push(Vec::new()),
+            None if needs.contains(&c) => match method {
+                Some(m) => bail!(
+                    "method {m} needs column {ch}, which `{name}` lacks (the template method uses \
+                     theta12 alone)"
+                ),
+                None => bail!(
+                    "`{name}` lacks column {ch}, which the filter observes (choose others with \
+                     --channels)"
+                ),
+            },
+            None => values.push(Vec::new()),
         }
     }
-    Ok(obs)
+    let segments = match series.meta_value("segments") {
+        None => None,
+        Some(s) => match s.trim().parse::<usize>() {
+            Ok(n) if (2..=vibrissa_core::chain::MAX_SEGMENTS).contains(&n) => Some(n),
+            _ => bail!(
+                "`{name}`: metadata `segments` is `{s}`; expected a segment count from 2 to {}",
+                vibrissa_core::chain::MAX_SEGMENTS
+            ),
+        },
+    };
+    Ok(Recording {
+        t,
+        values,
+        rate: 1.0 / step,
+        segments,
+    })
 }

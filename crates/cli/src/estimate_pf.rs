@@ -5,16 +5,16 @@
 //! warning. `--trace` writes the posterior at every sample and plots it. A run whose effective
 //! sample size fell below 1% of the particles gets a warning: its posterior may be too narrow.
 
-use crate::estimate::{print_json_rows, Args, FileEstimate};
+use crate::estimate::{print_json_rows, read_recording, Args, FileEstimate, Trained};
 use crate::files;
 use crate::plot::{render_series, Axis, Curve, Panel};
 use anyhow::{bail, Context, Result};
 use std::fmt::Write as _;
 use std::path::Path;
-use std::sync::Arc;
 use std::time::Instant;
 use vibrissa_infer::pf::{self, Injection, Observations, Pf, Posterior, TransitionModel};
-use vibrissa_infer::{methods, training_for, Experiment, Method, Variant, CHANNELS};
+use vibrissa_infer::Method;
+use vibrissa_infer::{methods, training_for, Family, Variant, CHANNELS};
 
 /// Channels of the contract that the filter's model cannot produce.
 const UNOBSERVABLE: [&str; 4] = ["contact", "cx", "cy", "s"];
@@ -26,7 +26,7 @@ const INJECT_FRACTION: f64 = 0.5;
 const COLLAPSE_SHARE: f64 = 0.01;
 
 /// Runs the filter on every `--obs` file and prints the contract's estimates.
-pub fn run(args: &Args, experiment: Experiment, variant: Variant) -> Result<()> {
+pub fn run(args: &Args, family: &Family, variant: Variant) -> Result<()> {
     if args.particles == 0 {
         bail!("--particles must be at least 1 (got 0)");
     }
@@ -55,7 +55,19 @@ pub fn run(args: &Args, experiment: Experiment, variant: Variant) -> Result<()> 
     let obs = args
         .obs
         .iter()
-        .map(|f| read_series(f, &channels))
+        .map(|f| {
+            let rec = read_recording(f, &channels, None)?;
+            // The filter's clock starts at the recording's first sample.
+            let t = rec.t.iter().map(|t| t - rec.t[0]).collect();
+            Ok((
+                Observations {
+                    t,
+                    values: rec.values.clone(),
+                },
+                rec.segments,
+                rec,
+            ))
+        })
         .collect::<Result<Vec<_>>>()?;
 
     // Fit: the sensor noise from the training runs (and the injected method, if any).
@@ -67,18 +79,16 @@ pub fn run(args: &Args, experiment: Experiment, variant: Variant) -> Result<()> 
     );
     filter.seed = args.seed;
     filter.max_delay = args.max_delay;
-    let mut inject: Option<Box<dyn Method>> = match &args.inject {
-        Some(name) if name == "pf" => bail!("--inject takes a discriminative method, not pf"),
-        Some(name) => Some(methods::by_name(name)?),
-        None => None,
-    };
-    eprintln!("training pf ({} particles)…", args.particles);
-    let training = training_for(experiment, variant, &filter, args.seed)?;
-    filter.fit(&training)?;
-    if let Some(m) = inject.as_mut() {
-        let t = training_for(experiment, variant, m.as_ref(), args.seed)?;
-        m.fit(&t)?;
+    if let Some(name) = &args.inject {
+        if name == "pf" {
+            bail!("--inject takes a discriminative method, not pf");
+        }
+        methods::by_name(name)?;
     }
+    let mut inject = Trained::default();
+    eprintln!("training pf ({} particles)…", args.particles);
+    let training = training_for(family, variant, &filter, args.seed)?;
+    filter.fit(&training)?;
     let sigma = filter.sigma().context("the filter was not fitted")?;
     eprintln!(
         "trained in {:.2} s; observation noise {}",
@@ -89,13 +99,12 @@ pub fn run(args: &Args, experiment: Experiment, variant: Variant) -> Result<()> 
             .collect::<Vec<_>>()
             .join(", ")
     );
-    let inject: Option<Arc<dyn Method>> = inject.map(Arc::from);
 
     let mut rows: Vec<FileEstimate> = Vec::new();
     let mut posteriors = Vec::new();
-    for (file, (o, segments)) in args.obs.iter().zip(&obs) {
+    for (file, (o, segments, rec)) in args.obs.iter().zip(&obs) {
         let start = Instant::now();
-        let mut config = filter.config(experiment, sigma);
+        let mut config = filter.config(family, sigma)?;
         config.channels = channels.clone();
         if let Some(n) = segments {
             config.observed_segments = *n;
@@ -107,10 +116,11 @@ pub fn run(args: &Args, experiment: Experiment, variant: Variant) -> Result<()> 
             config.priors[k] = p;
         }
         config.check().context("--prior")?;
-        if let Some(m) = &inject {
+        if let Some(name) = &args.inject {
+            let m = inject.get(family, rec, name, variant, args.seed)?;
             let e = m.predict(&o.values).with_context(|| {
                 format!(
-                    "--inject {}: cannot estimate from `{}` (it needs the experiment's 151 samples)",
+                    "--inject {}: cannot estimate from `{}`",
                     m.name(),
                     file.display()
                 )
@@ -118,7 +128,7 @@ pub fn run(args: &Args, experiment: Experiment, variant: Variant) -> Result<()> 
             let v = e
                 .get(1)
                 .copied()
-                .unwrap_or(vibrissa_infer::Estimate::normal(0.6, 1.0));
+                .unwrap_or(vibrissa_infer::Estimate::normal(config.priors[1].lo, 1.0));
             config.injection = Some(Injection {
                 fraction: INJECT_FRACTION,
                 mean: [e[0].mean, v.mean],
@@ -246,48 +256,6 @@ fn parse_channels(names: &[String]) -> Result<Vec<usize>> {
         }
     }
     Ok(out)
-}
-
-/// Reads one observed series, with the segment count of the chain that recorded it when the file
-/// says (`vibrissa simulate` writes it as metadata; the experiments' chain has 20).
-fn read_series(file: &Path, channels: &[usize]) -> Result<(Observations, Option<usize>)> {
-    let name = file.display();
-    let series =
-        vibrissa_io::series::read_csv(file).with_context(|| format!("cannot read `{name}`"))?;
-    let t = series
-        .require(&["t"])
-        .with_context(|| format!("`{name}` lacks the column t"))?[0]
-        .to_vec();
-    let mut values = vec![Vec::new(); CHANNELS.len()];
-    for &c in channels {
-        match series.column(CHANNELS[c]) {
-            Some(v) => values[c] = v.to_vec(),
-            None => bail!(
-                "`{name}` lacks column {}, which the filter observes (choose others with --channels)",
-                CHANNELS[c]
-            ),
-        }
-    }
-    if t.len() < 2 {
-        bail!(
-            "`{name}` has {} samples; the filter needs at least 2",
-            t.len()
-        );
-    }
-    if let Some(k) = t.iter().position(|x| !x.is_finite()) {
-        bail!("`{name}`: t is not finite in row {}", k + 1);
-    }
-    let segments = match series.meta_value("segments") {
-        None => None,
-        Some(s) => match s.trim().parse::<usize>() {
-            Ok(n) if (2..=vibrissa_core::chain::MAX_SEGMENTS).contains(&n) => Some(n),
-            _ => bail!(
-                "`{name}`: metadata `segments` is `{s}`; expected a segment count from 2 to {}",
-                vibrissa_core::chain::MAX_SEGMENTS
-            ),
-        },
-    };
-    Ok((Observations { t, values }, segments))
 }
 
 /// Writes the posterior at every sample as CSV, and its plot beside it (.png).

@@ -15,16 +15,23 @@ use std::sync::Mutex;
 use std::time::Instant;
 use vibrissa_infer::pf::TransitionModel;
 use vibrissa_infer::{
-    calibration, evaluate_unknown_start, evaluate_with, Budget, Evaluation, Experiment,
+    calibration, evaluate_unknown_start, evaluate_with, Budget, Evaluation, Family,
     StartEvaluation, Variant,
 };
 
 /// Arguments of `vibrissa experiment`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The experiment: e1 (distance only) or e2 (distance and speed).
-    #[arg(value_name = "EXPERIMENT")]
-    experiment: String,
+    /// The built-in experiment: e1 (distance only) or e2 (distance and speed).
+    #[arg(value_name = "EXPERIMENT", required_unless_present = "scenario")]
+    experiment: Option<String>,
+    /// Run the experiment on a scenario family instead: a TOML file with an [unknowns] table
+    /// (its [templates] and [grid] set the runs), e.g. "the e2 box on my whisker".
+    #[arg(long, value_name = "FILE.toml", conflicts_with = "experiment")]
+    scenario: Option<String>,
+    /// Overrides of the scenario's keys (key=value).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    sets: Vec<String>,
     /// clean, or noisy (sensor noise of 5% of each channel's range, plus process noise).
     #[arg(long, default_value = "clean")]
     variant: String,
@@ -63,7 +70,17 @@ struct Report {
 
 /// Runs the experiment, writes its files and prints the table.
 pub fn run(args: &Args) -> Result<()> {
-    let experiment = Experiment::parse(&args.experiment)?;
+    let family = match (&args.scenario, &args.experiment) {
+        (Some(file), _) => Family::open(file, &args.sets)?,
+        (None, Some(name)) => {
+            Family::builtin(name)?;
+            Family::open(name, &args.sets)?
+        }
+        (None, None) => anyhow::bail!("name an experiment (e1, e2) or give --scenario FILE.toml"),
+    };
+    let label = Path::new(family.name())
+        .file_stem()
+        .map_or("scenario".into(), |s| s.to_string_lossy().to_string());
     let variant = Variant::parse(&args.variant)?;
     let pf_model = TransitionModel::from_name(&args.pf_model)
         .map_err(|e| anyhow::anyhow!("--pf-model: {e}"))?;
@@ -78,7 +95,7 @@ pub fn run(args: &Args) -> Result<()> {
     let out = args.out.clone().unwrap_or_else(|| {
         PathBuf::from(format!(
             "experiment-{}-{}{}",
-            experiment.name(),
+            label,
             variant.name(),
             if args.max_delay.is_some() {
                 "-unknown-start"
@@ -112,7 +129,7 @@ pub fn run(args: &Args) -> Result<()> {
             .particles
             .unwrap_or(vibrissa_infer::methods::TABLE_PARTICLES);
         let ev = evaluate_unknown_start(
-            experiment, variant, args.seed, particles, pf_model, max_delay, &progress,
+            &family, variant, args.seed, particles, pf_model, max_delay, &progress,
         )?;
         let json = out.join("results.json");
         crate::files::write_atomic(&json, serde_json::to_string_pretty(&ev)?.as_bytes())?;
@@ -128,9 +145,7 @@ pub fn run(args: &Args) -> Result<()> {
         Variant::Noisy => vibrissa_infer::methods::TABLE_PARTICLES,
         Variant::Clean => 0,
     });
-    let evaluation = evaluate_with(
-        experiment, variant, args.seed, particles, pf_model, &progress,
-    )?;
+    let evaluation = evaluate_with(&family, variant, args.seed, particles, pf_model, &progress)?;
 
     // Files: results.json and the figures.
     let mut files = Vec::new();
@@ -160,7 +175,7 @@ impl Render for StartReport {
         writeln!(
             out,
             "experiment {} ({}), seed {}: pf ({} model) with {} particles on {} runs, each recorded from up to {} ms before the approach (t0 unknown)",
-            ev.experiment.name(),
+            ev.family,
             ev.variant.name(),
             ev.seed,
             ev.model.name(),
@@ -210,7 +225,7 @@ impl Render for Report {
         writeln!(
             out,
             "experiment {} ({}), seed {}: {} runs, {} evaluated; template σ² = {} rad²",
-            ev.experiment.name(),
+            ev.family,
             ev.variant.name(),
             ev.seed,
             ev.grid.len(),
@@ -407,7 +422,7 @@ fn figures(ev: &Evaluation, dir: &Path) -> Result<Vec<PathBuf>> {
                 colour: Some(i),
             })
             .collect();
-        let r = ev.experiment.ranges()[u];
+        let r = ev.ranges[u];
         sets.push(XySet {
             label: "truth".into(),
             points: vec![(r[0] * f, r[0] * f), (r[1] * f, r[1] * f)],
@@ -463,7 +478,7 @@ fn figures(ev: &Evaluation, dir: &Path) -> Result<Vec<PathBuf>> {
             XyFigure {
                 title: format!(
                     "pf calibration, {} {} ({} runs)",
-                    ev.experiment.name(),
+                    ev.family,
                     ev.variant.name(),
                     pf.predictions.len()
                 ),

@@ -77,7 +77,20 @@ fn krr_recovers_distance_and_speed_of_a_simulated_run() {
 fn bad_inputs_fail_with_a_clear_message() {
     let dir = temp("bad");
     let short = dir.join("short.csv");
-    std::fs::write(&short, "t,theta01,theta12\n0,0,0\n0.001,0,0\n").unwrap();
+    std::fs::write(&short, "t,theta01,theta12\n0,0,0\n").unwrap();
+    // A gap: the step from the fourth row on is twice the others.
+    let gap = dir.join("gap.csv");
+    let mut body = String::from("t,theta01,theta12\n");
+    for t in [0.0, 0.001, 0.002, 0.004, 0.005, 0.006] {
+        body += &format!("{t},0,0\n");
+    }
+    std::fs::write(&gap, body).unwrap();
+    let backwards = dir.join("backwards.csv");
+    std::fs::write(
+        &backwards,
+        "t,theta01,theta12\n0,0,0\n0.002,0,0\n0.001,0,0\n",
+    )
+    .unwrap();
     let text = dir.join("text.csv");
     let mut body = String::from("t,theta01,theta12\n");
     for k in 0..151 {
@@ -90,11 +103,27 @@ fn bad_inputs_fail_with_a_clear_message() {
     std::fs::write(&text, body).unwrap();
     let nocol = dir.join("nocol.csv");
     std::fs::write(&nocol, "t,theta01\n0,0\n").unwrap();
-    let cases: [(&[&str], &std::path::Path, &str); 5] = [
+    let cases: [(&[&str], &std::path::Path, &str); 9] = [
         (
             &["--experiment", "e2", "--method", "template"],
             &short,
-            "151",
+            "at least 2",
+        ),
+        (
+            &["--experiment", "e2", "--method", "knn"],
+            &gap,
+            "data row 4",
+        ),
+        (
+            &["--experiment", "e2", "--method", "pf"],
+            &backwards,
+            "does not increase at data row 3",
+        ),
+        (&["--method", "knn"], &short, "--scenario"),
+        (
+            &["--scenario", "no-such-file.toml", "--method", "knn"],
+            &short,
+            "no-such-file.toml",
         ),
         (&["--experiment", "e2", "--method", "template"], &text, ""),
         (

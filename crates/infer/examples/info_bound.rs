@@ -13,7 +13,8 @@ use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use vibrissa_core::scenes::e2_box;
 use vibrissa_core::sim::{self, Scenario};
-use vibrissa_infer::experiment::{Experiment, Noise, Variant};
+use vibrissa_infer::experiment::Variant;
+use vibrissa_infer::Family;
 
 /// A run's (d, v), its bound's σ with a known start (d, v) and with an unknown one (d, v, t0).
 type Row = ([f64; 2], [f64; 2], [f64; 3]);
@@ -34,12 +35,13 @@ fn run(d: f64, v: f64, t0: f64) -> Vec<[f64; 5]> {
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let sigma = Noise::of(Variant::Noisy)?.sensor;
-    let e = Experiment::E2;
+    let e = Family::builtin("e2")?;
+    let sigma = e.noise(Variant::Noisy)?.sensor;
     let grid: Vec<[f64; 2]> = e
         .grid()
         .into_iter()
-        .filter(|p| !e.is_template(*p))
+        .filter(|p| !e.is_template(p))
+        .map(|p| [p[0], p[1]])
         .collect();
     // Steps of the central differences: d, v, t0.
     let h = [2e-5, 2e-3, 2e-5];

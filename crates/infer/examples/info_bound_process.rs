@@ -19,7 +19,8 @@ use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use vibrissa_core::scenes::e2_box;
 use vibrissa_core::sim::{self, Scenario};
-use vibrissa_infer::experiment::{Experiment, Noise, Variant};
+use vibrissa_infer::experiment::Variant;
+use vibrissa_infer::Family;
 
 /// Start of the approach before the recording's t = 0 (the bound needs a t0 inside its prior).
 const T0: f64 = 0.01;
@@ -76,17 +77,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         })
         .collect();
     if runs.is_empty() {
-        let e = Experiment::E2;
+        let e = Family::builtin("e2")?;
         runs = e
             .grid()
             .into_iter()
-            .filter(|p| !e.is_template(*p))
+            .filter(|p| !e.is_template(p))
+            .map(|p| [p[0], p[1]])
             .collect();
     }
     // Per run: σv with a known and an unknown start, sensor noise only and with process noise,
     // then σd with process noise and an unknown start.
     let mut table: Vec<[f64; 5]> = Vec::with_capacity(runs.len());
-    let noise = Noise::of(Variant::Noisy)?;
+    let noise = Family::builtin("e2")?.noise(Variant::Noisy)?;
     let sigma = noise.sensor;
     let h = [2e-5, 2e-3, 2e-5];
     for [d, v] in runs {

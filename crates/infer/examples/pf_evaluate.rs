@@ -26,8 +26,9 @@
 
 use std::sync::Arc;
 use vibrissa_core::rng::Rng;
-use vibrissa_infer::experiment::{simulate_all, simulate_delayed, Experiment, Noise, Variant};
+use vibrissa_infer::experiment::Variant;
 use vibrissa_infer::pf::{Pf, TransitionModel};
+use vibrissa_infer::Family;
 use vibrissa_infer::{methods, Method, Training};
 
 fn arg<T: std::str::FromStr>(args: &[String], k: usize, default: T) -> T {
@@ -48,14 +49,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let temper: f64 = arg(&args, 3, default_temper);
     let inject: f64 = arg(&args, 5, 0.0);
     let variant = Variant::parse(args.get(6).map_or("noisy", |s| s.as_str()))?;
-    let e = Experiment::E2;
-    let noise = Noise::of(variant)?;
+    let e = Family::builtin("e2")?;
+    let noise = e.noise(variant)?;
     let params: Vec<[f64; 2]> = match set.as_str() {
-        "train" => e.random_params(24, 4242),
+        "train" => e
+            .random_params(24, 4242)
+            .into_iter()
+            .map(|p| [p[0], p[1]])
+            .collect(),
         "grid" => e
             .grid()
             .into_iter()
-            .filter(|p| !e.is_template(*p))
+            .filter(|p| !e.is_template(p))
+            .map(|p| [p[0], p[1]])
             .collect(),
         // Off the evaluated grid in d, reaching the range's edges in v.
         "cal" => [15.5, 18.5, 21.5, 24.5, 27.5, 29.5]
@@ -67,8 +73,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // The filter's training runs, as `vibrissa experiment` makes them.
     let train_p = e.random_params(400, 1 ^ 0x5eed);
     let training = Training {
-        experiment: e,
-        samples: simulate_all(e, &train_p, &noise, 2, &|| {})?,
+        family: e.clone(),
+        samples: e.simulate_all(&train_p, &noise, 2, &|| {})?,
         calibration: vec![],
     };
     let mut pf = Pf::new(particles);
@@ -114,7 +120,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut by_speed: Vec<(f64, f64, usize)> = Vec::new();
     for (k, p) in params.iter().enumerate() {
         let delay = (rng.uniform() * max_delay * 1000.0).round() / 1000.0;
-        let s = simulate_delayed(e, *p, delay, &noise, 5000 + k as u64)?;
+        let s = e.simulate_delayed(p, delay, &noise, 5000 + k as u64)?;
         data += (s.series[0].len() - 1) as f64 * 1e-3;
         let post = pf.posterior(&s.series)?;
         let est = post.last();

@@ -13,8 +13,9 @@ use vibrissa_core::chain::{Discretisation, Model};
 use vibrissa_core::dynamics::Integrator;
 use vibrissa_core::scenes::e2_box;
 use vibrissa_core::sim::{self, Scenario};
-use vibrissa_infer::experiment::{Noise, Variant, PROCESS_NOISE};
+use vibrissa_infer::experiment::{Variant, PROCESS_NOISE};
 use vibrissa_infer::pf::map_joints;
+use vibrissa_infer::Family;
 
 /// The runs compared: (d, v), off the evaluated grid.
 const RUNS: [(f64, f64); 15] = {
@@ -107,7 +108,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let segments: usize = arg(&args, 1, 20);
     let dt: f64 = arg(&args, 2, 2.5e-4);
     let iterations: usize = arg(&args, 3, 1);
-    let sigma = Noise::of(Variant::Noisy)?.sensor;
+    let sigma = Family::builtin("e2")?.noise(Variant::Noisy)?.sensor;
     let base = Scenario::default();
     // The rows carry only the model's first two joints, enough to map a chain no finer than the
     // data's onto it.

@@ -10,8 +10,9 @@
 //! filters the clean run instead (the filter's noise is then the model error alone); `PF_TRACE=1`
 //! prints the posterior every 5 samples; `PF_PRINT=A:B` prints samples A..B of the run.
 
-use vibrissa_infer::experiment::{simulate_delayed, Experiment, Noise, Variant};
+use vibrissa_infer::experiment::{Noise, Variant};
 use vibrissa_infer::pf::{self, Config, Observations, Prior};
+use vibrissa_infer::Family;
 
 fn arg<T: std::str::FromStr>(args: &[String], k: usize, default: T) -> T {
     args.get(k).and_then(|s| s.parse().ok()).unwrap_or(default)
@@ -28,12 +29,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let run_seed: u64 = arg(&args, 3, 1);
     let (d, v, delay): (f64, f64, f64) =
         (arg(&args, 4, 0.022), arg(&args, 5, 0.9), arg(&args, 6, 0.0));
-    let noise = Noise::of(Variant::Noisy)?;
+    let e2 = Family::builtin("e2")?;
+    let noise = e2.noise(Variant::Noisy)?;
     let clean_run = env::<u32>("PF_CLEAN") == Some(1);
     let run = if clean_run {
-        simulate_delayed(Experiment::E2, [d, v], delay, &Noise::NONE, run_seed)?
+        e2.simulate_delayed(&[d, v], delay, &Noise::NONE, run_seed)?
     } else {
-        simulate_delayed(Experiment::E2, [d, v], delay, &noise, run_seed)?
+        e2.simulate_delayed(&[d, v], delay, &noise, run_seed)?
     };
     let model: [f64; 5] = std::array::from_fn(|c| noise.sensor[c] * pf::MODEL_ERROR[c]);
     let unknown = if delay > 0.0 {
@@ -49,7 +51,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let (a, b) = s.split_once(':')?;
         Some((a.parse::<usize>().ok()?, b.parse::<usize>().ok()?))
     }) {
-        let clean = simulate_delayed(Experiment::E2, [d, v], delay, &Noise::NONE, run_seed)?;
+        let clean = e2.simulate_delayed(&[d, v], delay, &Noise::NONE, run_seed)?;
         for k in a..b.min(obs.t.len()) {
             let row: Vec<String> = (0..5)
                 .map(|c| {

@@ -2,7 +2,8 @@
 //! budget allows, estimate every evaluated run, and score.
 
 use crate::error::Result;
-use crate::experiment::{simulate_all, Experiment, Noise, Sample, Variant, E1_SPEED, THETA12};
+use crate::experiment::{Noise, Sample, Variant, THETA12};
+use crate::family::Family;
 use crate::method::{Budget, Estimate, Method, Training};
 use crate::methods::{self, Interp, Template};
 use serde::Serialize;
@@ -10,28 +11,33 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 use vibrissa_core::rng::Rng;
 
-/// Random training runs of the free-budget methods, per experiment.
-pub fn random_runs(experiment: Experiment) -> usize {
-    match experiment {
-        Experiment::E1 => 150,
-        Experiment::E2 => 400,
+/// Random training runs of the free-budget methods: 150 for one unknown, 400 for two, and 200
+/// more per further unknown.
+pub fn random_runs(family: &Family) -> usize {
+    match family.unknowns().len() {
+        0 | 1 => 150,
+        n => 400 + 200 * (n - 2),
     }
 }
 
-/// How far the kernel regressions' training runs reach beyond the experiment's range, per side:
-/// `[d below, d above]` in m and `[v below, v above]` in m/s. Runs just outside the range keep a
-/// regression's estimates at the range's edges from being pulled inward (they are clipped back
-/// to the range). Above d = 30 mm the box misses the whisker, so the distance is not widened
-/// upward.
-pub const EDGE_MARGINS: [[f64; 2]; 2] = [[1.0e-3, 0.0], [0.1, 0.1]];
+/// The seed paper's mean absolute errors for its experiments, SI (empty for other families).
+pub fn paper_errors(family: &Family) -> Vec<f64> {
+    match family.name() {
+        "e1" => vec![1.2e-3],
+        "e2" => vec![2.0e-3, 0.28],
+        _ => Vec::new(),
+    }
+}
 
-/// `n` draws uniform in the experiment's range widened by [`EDGE_MARGINS`] but outside the range
-/// itself (the band around it), so never on the evaluated grid.
-pub fn edge_params(experiment: Experiment, n: usize, seed: u64) -> Vec<[f64; 2]> {
-    let ranges = experiment.ranges();
+/// `n` draws uniform in the family's ranges widened by their margins (runs just outside the
+/// range keep a regression's estimates at the range's edges from being pulled inward; they are
+/// clipped back to the range) but outside the ranges themselves (the band around them), so
+/// never on the evaluated grid.
+pub fn edge_params(family: &Family, n: usize, seed: u64) -> Vec<Vec<f64>> {
+    let ranges = family.ranges();
     let wide: Vec<[f64; 2]> = ranges
         .iter()
-        .zip(EDGE_MARGINS)
+        .zip(family.margins())
         .map(|([lo, hi], [below, above])| [lo - below, hi + above])
         .collect();
     let mut rng = Rng::stream(seed, 0x6564_6765);
@@ -46,7 +52,7 @@ pub fn edge_params(experiment: Experiment, n: usize, seed: u64) -> Vec<[f64; 2]>
             .zip(&ranges)
             .all(|(x, [lo, hi])| (*lo..=*hi).contains(x));
         if !inside {
-            out.push([p[0], p.get(1).copied().unwrap_or(E1_SPEED)]);
+            out.push(p);
         }
     }
     out
@@ -54,13 +60,13 @@ pub fn edge_params(experiment: Experiment, n: usize, seed: u64) -> Vec<[f64; 2]>
 
 /// Edge runs of the kernel regressions: as many as give the band around the range the density
 /// of the [`random_runs`] inside it.
-pub fn edge_runs(experiment: Experiment) -> usize {
+pub fn edge_runs(family: &Family) -> usize {
     let (mut inner, mut outer) = (1.0, 1.0);
-    for ([lo, hi], [below, above]) in experiment.ranges().iter().zip(EDGE_MARGINS) {
+    for ([lo, hi], [below, above]) in family.ranges().iter().zip(family.margins()) {
         inner *= hi - lo;
         outer *= hi - lo + below + above;
     }
-    (random_runs(experiment) as f64 * (outer - inner) / inner).round() as usize
+    (random_runs(family) as f64 * (outer - inner) / inner).round() as usize
 }
 
 /// One evaluated run: truth and estimate.
@@ -100,8 +106,8 @@ pub struct MethodResult {
 /// A whole experiment's results.
 #[derive(Debug, Clone, Serialize)]
 pub struct Evaluation {
-    /// The experiment.
-    pub experiment: Experiment,
+    /// The family: a built-in's name or a scenario file's path.
+    pub family: String,
     /// The variant.
     pub variant: Variant,
     /// Seed of all randomness.
@@ -112,8 +118,10 @@ pub struct Evaluation {
     pub unknowns: Vec<String>,
     /// The paper's mean absolute errors, SI.
     pub paper_mae: Vec<f64>,
-    /// Grid parameters `[runs][d, v]`.
-    pub grid: Vec<[f64; 2]>,
+    /// Grid parameters `[runs][unknowns]`.
+    pub grid: Vec<Vec<f64>>,
+    /// Ranges of the unknowns, `[unknowns][lo, hi]`.
+    pub ranges: Vec<[f64; 2]>,
     /// Which grid runs are templates.
     pub is_template: Vec<bool>,
     /// theta12 of every grid run, rad: `[runs][samples]`.
@@ -136,11 +144,11 @@ impl Evaluation {
     /// The paper-budget and free-budget methods with the least mean absolute error (summed over
     /// unknowns in fractions of their ranges).
     pub fn best(&self, budget: Budget) -> Option<&MethodResult> {
-        let ranges = self.experiment.ranges();
+        let ranges = &self.ranges;
         let score = |m: &MethodResult| -> f64 {
             m.mae
                 .iter()
-                .zip(&ranges)
+                .zip(ranges)
                 .map(|(e, r)| e / (r[1] - r[0]))
                 .sum()
         };
@@ -151,16 +159,16 @@ impl Evaluation {
     }
 }
 
-/// Runs `experiment` in `variant`, seeded by `seed`, without the particle filter;
+/// Runs the experiment of `family` in `variant`, seeded by `seed`, without the particle filter;
 /// `progress(stage, done, total)` reports.
 pub fn evaluate(
-    experiment: Experiment,
+    family: &Family,
     variant: Variant,
     seed: u64,
     progress: &(dyn Fn(&str, usize, usize) + Sync),
 ) -> Result<Evaluation> {
     evaluate_with(
-        experiment,
+        family,
         variant,
         seed,
         0,
@@ -172,7 +180,7 @@ pub fn evaluate(
 /// [`evaluate`], with the particle filter `pf` in the table when `pf_particles > 0`, on the
 /// transition model `pf_model`.
 pub fn evaluate_with(
-    experiment: Experiment,
+    family: &Family,
     variant: Variant,
     seed: u64,
     pf_particles: usize,
@@ -189,15 +197,15 @@ pub fn evaluate_with(
         }
     };
 
-    // Noise levels (from the clean e2 runs) and the experiment's grid.
+    // Noise levels (from the clean reference runs) and the family's grid.
     if variant == Variant::Noisy {
         progress("noise levels", 0, 1);
     }
-    let noise = Noise::of(variant)?;
-    let grid = experiment.grid();
-    let grid_runs = simulate_all(experiment, &grid, &noise, seed, &stage("grid", grid.len()))?;
+    let noise = family.noise(variant)?;
+    let grid = family.grid();
+    let grid_runs = family.simulate_all(&grid, &noise, seed, &stage("grid", grid.len()))?;
     let grid_seconds = start.elapsed().as_secs_f64();
-    let is_template: Vec<bool> = grid.iter().map(|p| experiment.is_template(*p)).collect();
+    let is_template: Vec<bool> = grid.iter().map(|p| family.is_template(p)).collect();
     let templates: Vec<Sample> = grid_runs
         .iter()
         .zip(&is_template)
@@ -213,9 +221,8 @@ pub fn evaluate_with(
 
     // Free-budget training runs: random draws, and the emulator's grid.
     let t0 = Instant::now();
-    let random_p = experiment.random_params(random_runs(experiment), seed ^ 0x5eed);
-    let random = simulate_all(
-        experiment,
+    let random_p = family.random_params(random_runs(family), seed ^ 0x5eed);
+    let random = family.simulate_all(
         &random_p,
         &noise,
         seed.wrapping_add(1),
@@ -223,9 +230,8 @@ pub fn evaluate_with(
     )?;
     let random_seconds = t0.elapsed().as_secs_f64();
     let t0 = Instant::now();
-    let design = Interp::design(experiment);
-    let dense = simulate_all(
-        experiment,
+    let design = Interp::design(family);
+    let dense = family.simulate_all(
         &design,
         &noise,
         seed.wrapping_add(2),
@@ -233,9 +239,8 @@ pub fn evaluate_with(
     )?;
     let dense_seconds = t0.elapsed().as_secs_f64();
     let t0 = Instant::now();
-    let edge_p = edge_params(experiment, edge_runs(experiment), seed ^ 0xed9e);
-    let edge = simulate_all(
-        experiment,
+    let edge_p = edge_params(family, edge_runs(family), seed ^ 0xed9e);
+    let edge = family.simulate_all(
         &edge_p,
         &noise,
         seed.wrapping_add(3),
@@ -244,24 +249,24 @@ pub fn evaluate_with(
     let edge_seconds = t0.elapsed().as_secs_f64();
 
     let paper = Training {
-        experiment,
+        family: family.clone(),
         samples: templates,
         calibration: Vec::new(),
     };
     let free_random = Training {
-        experiment,
+        family: family.clone(),
         samples: random.clone(),
         calibration: Vec::new(),
     };
     // Kernel ridge regression learns from all three sets (the grid covers the range's edges,
     // the edge runs the band just outside it).
     let free_pooled = Training {
-        experiment,
+        family: family.clone(),
         samples: random.iter().chain(&dense).chain(&edge).cloned().collect(),
         calibration: Vec::new(),
     };
     let free_dense = Training {
-        experiment,
+        family: family.clone(),
         samples: dense,
         calibration: random,
     };
@@ -325,16 +330,13 @@ pub fn evaluate_with(
     progress("methods", total, total);
 
     Ok(Evaluation {
-        experiment,
+        family: family.name().to_string(),
         variant,
         seed,
         noise,
-        unknowns: experiment
-            .unknowns()
-            .iter()
-            .map(|s| s.to_string())
-            .collect(),
-        paper_mae: experiment.paper_errors(),
+        unknowns: family.unknowns().iter().map(|s| s.to_string()).collect(),
+        paper_mae: paper_errors(family),
+        ranges: family.ranges(),
         theta12: grid_runs
             .iter()
             .map(|s| s.series[THETA12].clone())
@@ -437,7 +439,7 @@ fn score(
     predict_seconds: f64,
     predictions: Vec<Prediction>,
 ) -> MethodResult {
-    let unknowns = training.experiment.unknowns().len();
+    let unknowns = training.family.unknowns().len();
     let n = predictions.len() as f64;
     let mae = (0..unknowns)
         .map(|u| {
@@ -471,76 +473,48 @@ fn score(
     }
 }
 
-/// The training data that `method` may use in `experiment` and `variant`, simulated afresh:
+/// The training data that `method` may use in `family` and `variant`, simulated afresh:
 /// the templates under the paper's budget, the emulator's grid (calibrated on random runs),
 /// random runs followed by the emulator's grid and the edge runs (`krr`, `krr-local`) or random
 /// runs under a free budget.
 pub fn training_for(
-    experiment: Experiment,
+    family: &Family,
     variant: Variant,
     method: &dyn Method,
     seed: u64,
 ) -> Result<Training> {
-    let noise = Noise::of(variant)?;
+    let noise = family.noise(variant)?;
     let none = || {};
+    let training = |samples, calibration| Training {
+        family: family.clone(),
+        samples,
+        calibration,
+    };
     Ok(match (method.budget(), method.name()) {
         (Budget::Paper, _) => {
-            let p: Vec<[f64; 2]> = experiment
+            let p: Vec<Vec<f64>> = family
                 .grid()
                 .into_iter()
-                .filter(|p| experiment.is_template(*p))
+                .filter(|p| family.is_template(p))
                 .collect();
-            Training {
-                experiment,
-                samples: simulate_all(experiment, &p, &noise, seed, &none)?,
-                calibration: Vec::new(),
-            }
+            let p = if p.is_empty() { family.templates() } else { p };
+            training(family.simulate_all(&p, &noise, seed, &none)?, Vec::new())
         }
         (Budget::Free, name) => {
-            let random_p = experiment.random_params(random_runs(experiment), seed ^ 0x5eed);
-            let mut random =
-                simulate_all(experiment, &random_p, &noise, seed.wrapping_add(1), &none)?;
+            let random_p = family.random_params(random_runs(family), seed ^ 0x5eed);
+            let mut random = family.simulate_all(&random_p, &noise, seed.wrapping_add(1), &none)?;
             if name == "krr" || name == "krr-local" {
-                let design = Interp::design(experiment);
-                random.extend(simulate_all(
-                    experiment,
-                    &design,
-                    &noise,
-                    seed.wrapping_add(2),
-                    &none,
-                )?);
-                let edge_p = edge_params(experiment, edge_runs(experiment), seed ^ 0xed9e);
-                random.extend(simulate_all(
-                    experiment,
-                    &edge_p,
-                    &noise,
-                    seed.wrapping_add(3),
-                    &none,
-                )?);
-                Training {
-                    experiment,
-                    samples: random,
-                    calibration: Vec::new(),
-                }
+                let design = Interp::design(family);
+                random.extend(family.simulate_all(&design, &noise, seed.wrapping_add(2), &none)?);
+                let edge_p = edge_params(family, edge_runs(family), seed ^ 0xed9e);
+                random.extend(family.simulate_all(&edge_p, &noise, seed.wrapping_add(3), &none)?);
+                training(random, Vec::new())
             } else if name == "emulator" {
-                let design = Interp::design(experiment);
-                Training {
-                    experiment,
-                    samples: simulate_all(
-                        experiment,
-                        &design,
-                        &noise,
-                        seed.wrapping_add(2),
-                        &none,
-                    )?,
-                    calibration: random,
-                }
+                let design = Interp::design(family);
+                let dense = family.simulate_all(&design, &noise, seed.wrapping_add(2), &none)?;
+                training(dense, random)
             } else {
-                Training {
-                    experiment,
-                    samples: random,
-                    calibration: Vec::new(),
-                }
+                training(random, Vec::new())
             }
         }
     })
@@ -560,25 +534,23 @@ mod tests {
 
     #[test]
     fn edge_runs_lie_in_the_band_around_the_range() {
-        for experiment in [Experiment::E1, Experiment::E2] {
-            let n = edge_runs(experiment);
-            assert!(n > 0 && n < random_runs(experiment));
-            let ranges = experiment.ranges();
-            for p in edge_params(experiment, 300, 7) {
-                let x = &p[..ranges.len()];
-                let inside = x
+        for name in ["e1", "e2"] {
+            let family = Family::builtin(name).unwrap();
+            let n = edge_runs(&family);
+            assert!(n > 0 && n < random_runs(&family));
+            let ranges = family.ranges();
+            for p in edge_params(&family, 300, 7) {
+                let inside = p
                     .iter()
                     .zip(&ranges)
                     .all(|(x, [lo, hi])| (*lo..=*hi).contains(x));
                 assert!(!inside, "{p:?} is inside the range");
-                for ((x, [lo, hi]), [below, above]) in x.iter().zip(&ranges).zip(EDGE_MARGINS) {
+                for ((x, [lo, hi]), [below, above]) in p.iter().zip(&ranges).zip(family.margins()) {
                     assert!(*x >= lo - below && *x <= hi + above, "{p:?}");
                 }
             }
         }
-        assert_eq!(
-            edge_params(Experiment::E2, 5, 3),
-            edge_params(Experiment::E2, 5, 3)
-        );
+        let e2 = Family::builtin("e2").unwrap();
+        assert_eq!(edge_params(&e2, 5, 3), edge_params(&e2, 5, 3));
     }
 }

@@ -175,6 +175,22 @@ impl Family {
         self.experiment
     }
 
+    /// The object's speed `v` (m/s) of the run at `p`: the unknown `v` if the family has one,
+    /// else the experiment box's fixed speed; `None` for families without an experiment box.
+    pub fn speed_of(&self, p: &[f64]) -> Option<f64> {
+        let i = self.unknowns().iter().position(|k| *k == "v");
+        match i.and_then(|i| p.get(i)) {
+            Some(v) => Some(*v),
+            None => self.experiment.map(|e| e.v),
+        }
+    }
+
+    /// Whether the family is the experiment box with unknowns `d` or `d, v` (in this order):
+    /// what methods built on the box's geometry need.
+    pub fn is_box_family(&self) -> bool {
+        self.experiment.is_some() && matches!(self.unknowns()[..], ["d"] | ["d", "v"])
+    }
+
     /// The same family with runs of `samples` samples at `rate` Hz (e.g. a recording's).
     pub fn with_timing(&self, rate: f64, samples: usize) -> Result<Family> {
         if !(rate.is_finite() && rate > 0.0) || samples < 2 {

@@ -2,7 +2,7 @@
 //! and interval calibration.
 
 use crate::error::{Error, Result};
-use crate::experiment::{Sample, SAMPLES, THETA12};
+use crate::experiment::{Sample, THETA12};
 use crate::method::Z90;
 
 /// Per-channel scale: the standard deviation of the channel's values over a set of runs.
@@ -28,16 +28,25 @@ pub fn channel_scales(samples: &[Sample], channels: &[usize]) -> Vec<f64> {
         .collect()
 }
 
-/// The chosen channels of `obs`, each divided by its scale, concatenated.
+/// The chosen channels of `obs`, each divided by its scale, concatenated. Every chosen channel
+/// must be present and as long as the first.
 pub fn flatten(obs: &[Vec<f64>], channels: &[usize], scales: &[f64]) -> Result<Vec<f64>> {
-    let mut out = Vec::with_capacity(channels.len() * SAMPLES);
+    let samples = channels
+        .first()
+        .and_then(|&c| obs.get(c))
+        .map_or(0, |ch| ch.len());
+    let mut out = Vec::with_capacity(channels.len() * samples);
     for (&c, &sc) in channels.iter().zip(scales) {
-        let ch = obs.get(c).filter(|ch| ch.len() == SAMPLES).ok_or_else(|| {
-            Error::Observation(format!(
-                "channel {} is missing or does not have {SAMPLES} samples",
-                crate::CHANNELS[c]
-            ))
-        })?;
+        let ch = obs
+            .get(c)
+            .filter(|ch| ch.len() == samples && samples > 0)
+            .ok_or_else(|| {
+                Error::Observation(format!(
+                    "channel {} is missing or does not have the {samples} samples of {}",
+                    crate::CHANNELS[c],
+                    crate::CHANNELS[channels[0]]
+                ))
+            })?;
         out.extend(ch.iter().map(|x| x / sc));
     }
     Ok(out)

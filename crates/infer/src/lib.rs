@@ -20,7 +20,7 @@ pub mod unknown_start;
 
 pub use error::{Error, Result};
 pub use evaluate::{calibration, evaluate, evaluate_with, training_for, Evaluation, MethodResult};
-pub use experiment::{Experiment, Sample, Variant, CHANNELS};
+pub use experiment::{Sample, Variant, CHANNELS};
 pub use family::Family;
 pub use method::{Budget, Estimate, Method, Training};
 pub use unknown_start::{evaluate_unknown_start, StartEvaluation};

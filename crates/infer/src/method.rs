@@ -1,7 +1,8 @@
 //! What an estimator is: the [`Method`] trait, its training data and its [`Estimate`]s.
 
 use crate::error::Result;
-use crate::experiment::{Experiment, Sample};
+use crate::experiment::Sample;
+use crate::family::Family;
 use serde::Serialize;
 
 /// z-value of a central 90% interval of a normal distribution.
@@ -57,8 +58,8 @@ impl Budget {
 /// The runs a method is fitted on.
 #[derive(Debug, Clone)]
 pub struct Training {
-    /// The experiment.
-    pub experiment: Experiment,
+    /// The scenario family the runs come from (its unknowns, ranges and timing).
+    pub family: Family,
     /// Runs to fit on (the templates, for the paper's budget).
     pub samples: Vec<Sample>,
     /// Further runs, held out of the fit, that calibrate the uncertainty (empty under the
@@ -76,8 +77,8 @@ pub trait Method: Send + Sync {
     fn channels(&self) -> Vec<usize>;
     /// Learns from `training`.
     fn fit(&mut self, training: &Training) -> Result<()>;
-    /// Estimates every unknown from `obs` (channel-major `[CHANNELS][SAMPLES]`; channels it
-    /// does not need may be empty).
+    /// Estimates every unknown from `obs` (channel-major `[CHANNELS][samples]`, sampled as the
+    /// training family's runs; channels it does not need may be empty).
     fn predict(&self, obs: &[Vec<f64>]) -> Result<Vec<Estimate>>;
     /// Fitted settings worth reporting (`sigma2`, `k`, …), SI.
     fn settings(&self) -> Vec<(String, f64)> {

@@ -93,6 +93,10 @@ pub struct Config {
     /// Segments of the chain that produced the observations (sets where `theta01` and `theta12`
     /// are measured).
     pub observed_segments: usize,
+    /// Stiffness rule of the observed chain, and of the transition model when it has the
+    /// observed chain's segments (a coarser model keeps the default, the most accurate at few
+    /// segments).
+    pub discretisation: Discretisation,
     /// Time step of the transition model, s (shortened to divide the sample period).
     pub dt: f64,
     /// Geometric iterations per step of the transition model.
@@ -127,6 +131,7 @@ impl Config {
             whisker: WhiskerParams::w30(),
             segments: 5,
             observed_segments: 20,
+            discretisation: Discretisation::default(),
             dt: 1e-3 / 3.0,
             max_iterations: 1,
             channels: (0..CHANNELS.len()).collect(),
@@ -145,6 +150,55 @@ impl Config {
             ],
             gap: 1e-3,
             injection: None,
+        }
+    }
+
+    /// The settings for a run of `family` (the experiment box with unknowns `d` or `d, v`):
+    /// its whisker, observed chain and box, priors on its ranges widened on both sides by the
+    /// larger of each unknown's margins (so that a value at a range's edge lies inside the
+    /// prior's support), and its fixed speed where `v` is not an unknown.
+    pub fn for_family(
+        family: &crate::Family,
+        sigma: [f64; 5],
+        particles: usize,
+        seed: u64,
+    ) -> Result<Config> {
+        if !family.is_box_family() {
+            return Err(Error::Setting(format!(
+                "the particle filter models the experiment box: it needs a family with \
+                 experiment = \"e1\" or \"e2\" and unknowns d or d, v (not {})",
+                family.unknowns().join(", ")
+            )));
+        }
+        let mut c = Config::e2(sigma, particles, seed);
+        let base = family.base();
+        c.whisker = base.whisker.clone();
+        c.observed_segments = base.segments;
+        c.discretisation = base.discretisation;
+        c.priors[3] = Prior::fixed(vibrissa_io::scenario::BOX_SIDE);
+        c.gap = vibrissa_io::scenario::BOX_GAP;
+        let mut ranges = family.ranges().into_iter().zip(family.margins());
+        if let Some(([lo, hi], [below, above])) = ranges.next() {
+            let m = below.max(above);
+            c.priors[0] = Prior::uniform(lo - m, hi + m);
+        }
+        c.priors[1] = match ranges.next() {
+            Some(([lo, hi], [below, above])) => {
+                let m = below.max(above);
+                Prior::uniform((lo - m).max(1e-6), hi + m)
+            }
+            None => Prior::fixed(family.speed_of(&[]).unwrap_or(0.6)),
+        };
+        Ok(c)
+    }
+
+    /// The stiffness rule of the transition model: the observed chain's at its segment count,
+    /// else the default.
+    pub fn model_discretisation(&self) -> Discretisation {
+        if self.segments == self.observed_segments {
+            self.discretisation
+        } else {
+            Discretisation::default()
         }
     }
 
@@ -378,7 +432,7 @@ impl FreeModel {
         let stiffer = params
             .check()
             .map_err(|e| Error::Observation(format!("filter free model: {e}")))?;
-        let free = Model::new(&stiffer, config.segments, Discretisation::default())
+        let free = Model::new(&stiffer, config.segments, config.model_discretisation())
             .map_err(|e| Error::Observation(format!("filter free model: {e}")))?;
         let stepper = Integrator {
             dt: period,
@@ -523,14 +577,10 @@ pub fn run(
         .whisker
         .check()
         .map_err(|e| Error::Observation(format!("filter whisker: {e}")))?;
-    let model = Model::new(&whisker, config.segments, Discretisation::default())
+    let model = Model::new(&whisker, config.segments, config.model_discretisation())
         .map_err(|e| Error::Observation(format!("filter model: {e}")))?;
-    let observed = Model::new(
-        &whisker,
-        config.observed_segments,
-        Discretisation::default(),
-    )
-    .map_err(|e| Error::Observation(format!("observed chain: {e}")))?;
+    let observed = Model::new(&whisker, config.observed_segments, config.discretisation)
+        .map_err(|e| Error::Observation(format!("observed chain: {e}")))?;
     let np = config.particles;
     let period = obs.t.get(1).map_or(1e-3, |t1| t1 - obs.t[0]);
     let per_sample = ((period / config.dt) * (1.0 - 1e-9)).ceil().max(1.0) as usize;
@@ -1211,12 +1261,22 @@ mod tests {
         assert!(e.contains("exact") && e.contains("coarse, fine"), "{e}");
         let mut pf = Pf::new(4000);
         pf.set_model(TransitionModel::Fine);
-        let c = pf.config(crate::Experiment::E2, [1.0; 5]);
+        let e2 = crate::Family::builtin("e2").unwrap();
+        let c = pf.config(&e2, [1.0; 5]).unwrap();
         assert_eq!(c.segments, c.observed_segments);
+        // The family's settings are the e2 filter's.
+        for (a, b) in c.priors.iter().zip(Config::e2([1.0; 5], 4000, 1).priors) {
+            assert!((a.lo - b.lo).abs() < 1e-15 && (a.hi - b.hi).abs() < 1e-15);
+        }
+        assert_eq!(c.whisker, Config::e2([1.0; 5], 4000, 1).whisker);
+        let e1 = pf
+            .config(&crate::Family::builtin("e1").unwrap(), [1.0; 5])
+            .unwrap();
+        assert_eq!(e1.priors[1], Prior::fixed(0.6));
         assert_eq!(c.dt, Integrator::default().dt);
         assert_eq!(pf.temper, FINE_TEMPER);
         pf.set_model(TransitionModel::Coarse);
-        let c = pf.config(crate::Experiment::E2, [1.0; 5]);
+        let c = pf.config(&e2, [1.0; 5]).unwrap();
         assert_eq!((c.segments, c.dt), (5, 1e-3 / 3.0));
         assert_eq!(pf.temper, temper_for(4000));
     }
@@ -1556,7 +1616,7 @@ pub struct Pf {
     /// and `temper`.
     pub model: TransitionModel,
     sigma: Option<[f64; 5]>,
-    experiment: Option<crate::Experiment>,
+    family: Option<crate::Family>,
 }
 
 impl std::fmt::Debug for dyn crate::Method {
@@ -1587,7 +1647,7 @@ impl Pf {
             inject: None,
             model: TransitionModel::Coarse,
             sigma: None,
-            experiment: None,
+            family: None,
         }
     }
 
@@ -1613,9 +1673,9 @@ impl Pf {
         self.sigma
     }
 
-    /// The filter's settings for one run of `experiment` with observation noise `sigma`.
-    pub fn config(&self, experiment: crate::Experiment, sigma: [f64; 5]) -> Config {
-        let mut c = Config::e2(sigma, self.particles, self.seed);
+    /// The filter's settings for one run of `family` with observation noise `sigma`.
+    pub fn config(&self, family: &crate::Family, sigma: [f64; 5]) -> Result<Config> {
+        let mut c = Config::for_family(family, sigma, self.particles, self.seed)?;
         c.dt = self.dt;
         c.max_iterations = self.max_iterations;
         c.segments = match self.model {
@@ -1624,30 +1684,27 @@ impl Pf {
         };
         c.shrink = self.shrink;
         c.ess_fraction = self.ess_fraction;
-        if experiment == crate::Experiment::E1 {
-            c.priors[1] = Prior::fixed(crate::experiment::E1_SPEED);
-        }
         if self.max_delay > 0.0 {
             c.priors[2] = Prior::uniform(0.0, self.max_delay);
         }
-        c
+        Ok(c)
     }
 
-    /// Runs the filter on one run's channel-major series at 1 kHz.
+    /// Runs the filter on one run's channel-major series, sampled as the family's runs.
     pub fn posterior(&self, obs: &[Vec<f64>]) -> Result<Posterior> {
-        let (Some(sigma), Some(experiment)) = (self.sigma, self.experiment) else {
+        let (Some(sigma), Some(family)) = (self.sigma, &self.family) else {
             return Err(Error::Fit {
                 method: "pf".into(),
                 detail: "used before fit".into(),
             });
         };
-        let mut config = self.config(experiment, sigma);
+        let mut config = self.config(family, sigma)?;
         if let Some((fraction, method)) = &self.inject {
             let e = method.predict(obs)?;
             let v = e
                 .get(1)
                 .copied()
-                .unwrap_or(crate::Estimate::normal(crate::experiment::E1_SPEED, 1.0));
+                .unwrap_or(crate::Estimate::normal(config.priors[1].lo, 1.0));
             config.injection = Some(Injection {
                 fraction: *fraction,
                 mean: [e[0].mean, v.mean],
@@ -1656,7 +1713,7 @@ impl Pf {
         }
         run(
             &config,
-            &Observations::at_rate(obs.to_vec(), crate::experiment::SAMPLE_RATE),
+            &Observations::at_rate(obs.to_vec(), family.sample_rate()),
             &mut |_| {},
         )
     }
@@ -1686,7 +1743,7 @@ impl crate::Method for Pf {
             });
         }
         let sensor = noise_from_series(&series);
-        let noisy = crate::experiment::Noise::of(crate::Variant::Noisy)?.sensor;
+        let noisy = training.family.noise(crate::Variant::Noisy)?.sensor;
         let model: [f64; 5] = match self.model {
             TransitionModel::Coarse => std::array::from_fn(|c| MODEL_ERROR[c] * noisy[c]),
             TransitionModel::Fine => [0.0; 5],
@@ -1697,7 +1754,7 @@ impl crate::Method for Pf {
             self.temper
         };
         self.sigma = Some(observation_sigma(sensor, model, temper));
-        self.experiment = Some(training.experiment);
+        self.family = Some(training.family.clone());
         if let Some((_, m)) = &mut self.inject {
             let m = std::sync::Arc::get_mut(m).ok_or_else(|| Error::Fit {
                 method: "pf".into(),
@@ -1711,7 +1768,7 @@ impl crate::Method for Pf {
         let post = self.posterior(obs)?;
         let last = post.last();
         // Unknowns of the experiment only (d, or d and v).
-        let n = self.experiment.map_or(2, |e| e.unknowns().len());
+        let n = self.family.as_ref().map_or(2, |f| f.unknowns().len());
         Ok(last.iter().take(n).copied().collect())
     }
     fn settings(&self) -> Vec<(String, f64)> {

@@ -4,7 +4,8 @@
 
 use crate::error::{Error, Result};
 use crate::evaluate::training_for;
-use crate::experiment::{simulate_delayed, Experiment, Noise, Variant};
+use crate::experiment::Variant;
+use crate::family::Family;
 use crate::method::{Estimate, Method};
 use crate::pf::{Pf, TransitionModel};
 use serde::Serialize;
@@ -26,8 +27,8 @@ pub struct DelayedRun {
 /// The particle filter scored on delayed recordings of an experiment's evaluated runs.
 #[derive(Debug, Clone, Serialize)]
 pub struct StartEvaluation {
-    /// The experiment.
-    pub experiment: Experiment,
+    /// The family: a built-in's name or a scenario file's path.
+    pub family: String,
     /// The variant.
     pub variant: Variant,
     /// Seed of the runs, their delays and the filter.
@@ -64,7 +65,7 @@ impl StartEvaluation {
 /// `[0, max_delay]` before the run's t = 0; the filter's prior on `t0` is `[0, max_delay]`.
 /// `model` is the filter's transition model. `progress(stage, done, total)` reports.
 pub fn evaluate_unknown_start(
-    experiment: Experiment,
+    family: &Family,
     variant: Variant,
     seed: u64,
     particles: usize,
@@ -85,28 +86,29 @@ pub fn evaluate_unknown_start(
     if variant == Variant::Noisy {
         progress("noise levels", 0, 1);
     }
-    let noise = Noise::of(variant)?;
+    let noise = family.noise(variant)?;
     let mut filter = Pf::new(particles);
     filter.set_model(model);
     filter.seed = seed;
     filter.max_delay = max_delay;
     progress("training runs", 0, 1);
-    let training = training_for(experiment, variant, &filter, seed)?;
+    let training = training_for(family, variant, &filter, seed)?;
     progress("training runs", 1, 1);
     filter.fit(&training)?;
 
-    let params: Vec<[f64; 2]> = experiment
+    let params: Vec<Vec<f64>> = family
         .grid()
         .into_iter()
-        .filter(|p| !experiment.is_template(*p))
+        .filter(|p| !family.is_template(p))
         .collect();
     let mut rng = Rng::stream(seed, STREAM_DELAY);
-    let steps = (max_delay * 1000.0).floor();
+    let rate = family.sample_rate();
+    let steps = (max_delay * rate).floor();
     let delays: Vec<f64> = params
         .iter()
-        .map(|_| (rng.uniform() * (steps + 1.0)).floor().min(steps) / 1000.0)
+        .map(|_| (rng.uniform() * (steps + 1.0)).floor().min(steps) / rate)
         .collect();
-    let unknowns: Vec<String> = experiment
+    let unknowns: Vec<String> = family
         .unknowns()
         .iter()
         .map(|u| u.to_string())
@@ -117,7 +119,7 @@ pub fn evaluate_unknown_start(
     progress("filter", 0, params.len());
     for (k, (p, &delay)) in params.iter().zip(&delays).enumerate() {
         let run_seed = Rng::stream(seed, 7000 + k as u64).next_u64();
-        let sample = simulate_delayed(experiment, *p, delay, &noise, run_seed)?;
+        let sample = family.simulate_delayed(p, delay, &noise, run_seed)?;
         let start = Instant::now();
         let post = filter.posterior(&sample.series)?;
         filter_seconds += start.elapsed().as_secs_f64();
@@ -131,8 +133,8 @@ pub fn evaluate_unknown_start(
                     .ok_or_else(|| Error::Setting(format!("the filter does not estimate {u}")))
             })
             .collect::<Result<Vec<_>>>()?;
-        data_seconds += (sample.series[0].len() - 1) as f64 / crate::experiment::SAMPLE_RATE;
-        let mut truth = experiment.params(*p);
+        data_seconds += (sample.series[0].len() - 1) as f64 / rate;
+        let mut truth = p.clone();
         truth.push(delay);
         runs.push(DelayedRun { truth, estimate });
         progress("filter", k + 1, params.len());
@@ -155,7 +157,7 @@ pub fn evaluate_unknown_start(
         })
         .collect();
     Ok(StartEvaluation {
-        experiment,
+        family: family.name().to_string(),
         variant,
         seed,
         particles,
@@ -178,7 +180,7 @@ mod tests {
     fn bad_settings_are_refused_by_name() {
         let none = |_: &str, _: usize, _: usize| {};
         let e = evaluate_unknown_start(
-            Experiment::E2,
+            &Family::builtin("e2").unwrap(),
             Variant::Clean,
             1,
             0,
@@ -189,7 +191,7 @@ mod tests {
         assert!(e.unwrap_err().to_string().contains("particles"));
         for bad in [0.0, -0.01, f64::NAN, 2.0] {
             let e = evaluate_unknown_start(
-                Experiment::E2,
+                &Family::builtin("e2").unwrap(),
                 Variant::Clean,
                 1,
                 10,

@@ -1,10 +1,11 @@
 //! The seed's experiments end to end.
 
-use vibrissa_infer::{evaluate, Budget, Experiment, Variant};
+use vibrissa_infer::{evaluate, Budget, Family, Variant};
 
 #[test]
 fn e1_clean_template_method_has_a_finite_error_and_is_beaten_under_the_same_budget() {
-    let ev = evaluate(Experiment::E1, Variant::Clean, 1, &|_, _, _| {}).unwrap();
+    let e1 = Family::builtin("e1").unwrap();
+    let ev = evaluate(&e1, Variant::Clean, 1, &|_, _, _| {}).unwrap();
     for m in &ev.methods {
         eprintln!(
             "{:16} {:5} mae {:?} cov {:?} fit {:.3}s pred {:.2e}s {:?}",

@@ -1,8 +1,9 @@
 //! The particle filter against runs of the simulator: recovery, tightening, determinism and
 //! bad input.
 
-use vibrissa_infer::experiment::{simulate, simulate_delayed, Experiment, Noise};
+use vibrissa_infer::experiment::Noise;
 use vibrissa_infer::pf::{self, Config, Observations, Prior};
+use vibrissa_infer::Family;
 
 /// The noisy variant's sensor noise (5% of the clean e2 ranges), tempered as `pf` does.
 const SIGMA: [f64; 5] = [
@@ -14,7 +15,8 @@ const SIGMA: [f64; 5] = [
 ];
 
 fn run_of(d: f64, v: f64) -> Observations {
-    let s = simulate(Experiment::E2, [d, v], &Noise::NONE, 3).unwrap();
+    let e2 = Family::builtin("e2").unwrap();
+    let s = e2.simulate(&[d, v], &Noise::NONE, 3).unwrap();
     Observations::at_rate(s.series, 1000.0)
 }
 
@@ -59,7 +61,10 @@ fn same_bits_on_one_and_two_threads() {
 
 #[test]
 fn unknown_start_is_estimated() {
-    let s = simulate_delayed(Experiment::E2, [0.025, 0.6], 0.02, &Noise::NONE, 4).unwrap();
+    let e2 = Family::builtin("e2").unwrap();
+    let s = e2
+        .simulate_delayed(&[0.025, 0.6], 0.02, &Noise::NONE, 4)
+        .unwrap();
     assert_eq!(s.series[0].len(), 171);
     let obs = Observations::at_rate(s.series, 1000.0);
     let mut config = Config::e2(SIGMA, 300, 6);

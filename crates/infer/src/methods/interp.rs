@@ -2,7 +2,8 @@
 //! of parameters: the template grid (`template-interp`) or a dense simulated grid (`emulator`).
 
 use crate::error::{Error, Result};
-use crate::experiment::{Experiment, Sample, CHANNELS};
+use crate::experiment::{Sample, CHANNELS};
+use crate::family::Family;
 use crate::features::{channel_scales, coverage_factor, dist2, flatten};
 use crate::method::{Budget, Estimate, Method, Training};
 
@@ -63,24 +64,45 @@ impl Interp {
         }
     }
 
-    /// The emulator's grid for `experiment`, `(d, v)`: d = 15, 15.5, 16.5, …, 29.5, 30 mm and
-    /// (e2) v = 0.3, 0.35, 0.45, …, 1.45, 1.5 m/s, so that no node is an evaluated run.
-    pub fn design(experiment: Experiment) -> Vec<[f64; 2]> {
-        let mut ds = vec![0.015];
-        ds.extend((0..15).map(|k| 0.0155 + 0.001 * k as f64));
-        ds.push(0.030);
-        let vs = match experiment {
-            Experiment::E1 => vec![crate::experiment::E1_SPEED],
-            Experiment::E2 => {
-                let mut v = vec![0.3];
-                v.extend((0..12).map(|k| 0.35 + 0.1 * k as f64));
-                v.push(1.5);
-                v
-            }
-        };
-        vs.iter()
-            .flat_map(|&v| ds.iter().map(move |&d| [d, v]))
-            .collect()
+    /// The emulator's grid for `family`, every combination of per-unknown nodes (the first
+    /// unknown fastest): each range's ends and the midpoints between the family's grid values,
+    /// each gap first cut into equal parts no wider than a twelfth of the range, so that no node
+    /// is an evaluated run. For `e2`: d = 15, 15.5, 16.5, …, 29.5, 30 mm and v = 0.3, 0.35,
+    /// 0.45, …, 1.45, 1.5 m/s.
+    pub fn design(family: &Family) -> Vec<Vec<f64>> {
+        let axes: Vec<Vec<f64>> = family
+            .ranges()
+            .iter()
+            .zip(family.grid_values())
+            .map(|(&[lo, hi], grid)| {
+                let mut g = grid.clone();
+                g.sort_by(f64::total_cmp);
+                g.dedup();
+                let widest = (hi - lo) / 12.0;
+                let mut nodes = vec![lo];
+                for w in g.windows(2) {
+                    let parts = ((w[1] - w[0]) / widest - 1e-9).ceil().max(1.0) as usize;
+                    let step = (w[1] - w[0]) / parts as f64;
+                    nodes.extend((0..parts).map(|k| w[0] + (k as f64 + 0.5) * step));
+                }
+                nodes.push(hi);
+                nodes
+            })
+            .collect();
+        let mut out = vec![Vec::new()];
+        for axis in &axes {
+            out = axis
+                .iter()
+                .flat_map(|x| {
+                    out.iter().map(move |p| {
+                        let mut q: Vec<f64> = p.clone();
+                        q.push(*x);
+                        q
+                    })
+                })
+                .collect();
+        }
+        out
     }
 
     /// Builds the grid from `samples` (which must fill a rectangle of parameters).
@@ -286,12 +308,18 @@ impl Method for Interp {
     }
 
     fn fit(&mut self, training: &Training) -> Result<()> {
-        let unknowns = training.experiment.unknowns().len();
+        let unknowns = training.family.unknowns().len();
+        if unknowns > 2 {
+            return Err(Error::Fit {
+                method: self.name().into(),
+                detail: format!("interpolates over one or two unknowns, not {unknowns}"),
+            });
+        }
         let pairs = match self.budget {
             // Held-out check under the paper's budget: the corner templates alone predict the
             // other templates (a coarser grid than the final one, so the factor is cautious).
             Budget::Paper => {
-                let ranges = training.experiment.ranges();
+                let ranges = training.family.ranges();
                 let corner = |s: &Sample| {
                     s.params
                         .iter()

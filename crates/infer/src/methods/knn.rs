@@ -133,7 +133,7 @@ impl Method for Knn {
         let cut = s.len() * 4 / 5;
         let (fit, held) = s.split_at(cut);
         self.learn(fit)?;
-        let ranges = training.experiment.ranges();
+        let ranges = training.family.ranges();
         let held_x: Vec<Vec<f64>> = held
             .iter()
             .map(|h| self.feature(&h.series))

@@ -1,7 +1,7 @@
 //! Kernel ridge regression (RBF kernel) on principal components of normalised series.
 
 use crate::error::{Error, Result};
-use crate::experiment::{Experiment, Sample, CHANNELS};
+use crate::experiment::{Sample, CHANNELS};
 use crate::features::{channel_scales, coverage_factor_at, dist2, flatten};
 use crate::method::{Budget, Estimate, Method, Training, Z90};
 use nalgebra::{DMatrix, DVector};
@@ -59,13 +59,13 @@ pub struct Krr {
 /// The latest fit and the runs it learnt from. Fitting is deterministic, so a second fit on the
 /// same runs (`krr-local`'s first stage learns from the same runs as `krr` in one evaluation)
 /// takes the first's result.
-static LATEST: Mutex<Option<(Experiment, Vec<Sample>, Krr)>> = Mutex::new(None);
+static LATEST: Mutex<Option<(u64, Vec<Sample>, Krr)>> = Mutex::new(None);
 
 /// The latest fit, if it learnt from exactly `training`'s runs.
 fn latest(training: &Training) -> Option<Krr> {
     let l = LATEST.lock().ok()?;
     let (e, s, k) = l.as_ref()?;
-    (*e == training.experiment && *s == training.samples).then(|| k.clone())
+    (*e == training.family.digest() && *s == training.samples).then(|| k.clone())
 }
 
 /// Kernel matrix of `z` with length scale `length`, without ridge.
@@ -215,7 +215,7 @@ impl Method for Krr {
         }
         let channels: Vec<usize> = (0..CHANNELS.len()).collect();
         self.scales = channel_scales(s, &channels);
-        self.ranges = training.experiment.ranges();
+        self.ranges = training.family.ranges();
         let x: Vec<Vec<f64>> = s
             .iter()
             .map(|r| flatten(&r.series, &channels, &self.scales))
@@ -349,7 +349,11 @@ impl Method for Krr {
         self.heads = heads.into_iter().collect::<Result<_>>()?;
         self.z = z;
         if let Ok(mut l) = LATEST.lock() {
-            *l = Some((training.experiment, training.samples.clone(), self.clone()));
+            *l = Some((
+                training.family.digest(),
+                training.samples.clone(),
+                self.clone(),
+            ));
         }
         Ok(())
     }
@@ -383,7 +387,6 @@ impl Method for Krr {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::experiment::SAMPLES;
 
     /// 40 synthetic runs whose series depend smoothly on (d, v), shifted by `shift`.
     fn runs(shift: f64) -> Training {
@@ -394,7 +397,7 @@ mod tests {
                 Sample {
                     series: (0..CHANNELS.len())
                         .map(|c| {
-                            (0..SAMPLES)
+                            (0..151)
                                 .map(|t| {
                                     let t = t as f64 * 1e-3;
                                     (c as f64 + 1.0) * (t * (30.0 + 900.0 * d) * v + shift).sin()
@@ -407,7 +410,7 @@ mod tests {
             })
             .collect();
         Training {
-            experiment: Experiment::E2,
+            family: crate::Family::builtin("e2").unwrap(),
             samples,
             calibration: Vec::new(),
         }

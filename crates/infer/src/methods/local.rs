@@ -5,7 +5,7 @@
 
 use super::krr::Krr;
 use crate::error::{Error, Result};
-use crate::experiment::{Sample, CHANNELS, E1_SPEED, SAMPLES};
+use crate::experiment::{Sample, CHANNELS};
 use crate::features::{channel_scales, coverage_factor_at, flatten};
 use crate::method::{Budget, Estimate, Method, Training};
 use nalgebra::DMatrix;
@@ -69,26 +69,26 @@ pub struct LocalKrr {
     series: Vec<Vec<Vec<f64>>>,
     /// Training runs' unknowns scaled to [0, 1], `[runs][unknowns]`.
     y: Vec<Vec<f64>>,
-    /// Training runs' speeds, m/s.
+    /// Training runs' speeds, m/s (1 where the family has no speed).
     speeds: Vec<f64>,
+    /// Which unknown is the object's speed `v`, if one is.
+    v_index: Option<usize>,
+    /// The speed when it is not an unknown (the family's fixed `v`, else 1).
+    fixed_speed: f64,
     /// Unknowns' ranges.
     ranges: Vec<[f64; 2]>,
     /// Per unknown.
     heads: Vec<Head>,
 }
 
-/// The run's speed (the unknown's second entry, or the fixed speed of `e1`).
-fn speed(p: &[f64]) -> f64 {
-    p.get(1).copied().unwrap_or(E1_SPEED)
-}
-
 /// `series` (channel-major, normalised) sampled at times scaled by `r` (held at the last sample).
 fn register(series: &[Vec<f64>], r: f64) -> Vec<f64> {
-    let mut out = Vec::with_capacity(series.len() * SAMPLES);
+    let samples = series.first().map_or(0, |ch| ch.len());
+    let mut out = Vec::with_capacity(series.len() * samples);
     for ch in series {
-        for k in 0..SAMPLES {
-            let t = (k as f64 * r).min((SAMPLES - 1) as f64);
-            let i = (t.floor() as usize).min(SAMPLES - 2);
+        for k in 0..samples {
+            let t = (k as f64 * r).min((samples - 1) as f64);
+            let i = (t.floor() as usize).min(samples.saturating_sub(2));
             let f = t - i as f64;
             out.push(ch[i] * (1.0 - f) + ch[i + 1] * f);
         }
@@ -227,7 +227,11 @@ impl LocalKrr {
                     .zip(p0)
                     .enumerate()
                     .map(|(q, (a, b))| {
-                        let w = if q == 1 { speed_weight } else { 1.0 };
+                        let w = if Some(q) == self.v_index {
+                            speed_weight
+                        } else {
+                            1.0
+                        };
                         (w * (a - b)).powi(2)
                     })
                     .sum();
@@ -268,9 +272,9 @@ impl LocalKrr {
             );
             out = l.out[c][d][q];
             p[q] = out.0.clamp(0.0, 1.0);
-            if q == 1 {
-                let [lo, hi] = self.ranges[1];
-                v = lo + (hi - lo) * p[1];
+            if Some(q) == self.v_index {
+                let [lo, hi] = self.ranges[q];
+                v = lo + (hi - lo) * p[q];
             }
         }
         out
@@ -331,7 +335,7 @@ impl Method for LocalKrr {
         self.global.fit(training)?;
         let channels: Vec<usize> = (0..CHANNELS.len()).collect();
         self.scales = channel_scales(s, &channels);
-        self.ranges = training.experiment.ranges();
+        self.ranges = training.family.ranges();
         self.series = s
             .iter()
             .map(|r| {
@@ -352,7 +356,12 @@ impl Method for LocalKrr {
                     .collect()
             })
             .collect();
-        self.speeds = s.iter().map(|r| speed(&r.params)).collect();
+        self.v_index = training.family.unknowns().iter().position(|k| *k == "v");
+        self.fixed_speed = training.family.speed_of(&[]).unwrap_or(1.0);
+        self.speeds = s
+            .iter()
+            .map(|r| training.family.speed_of(&r.params).unwrap_or(1.0))
+            .collect();
         let unknowns = self.ranges.len();
 
         // Both stages fitted on the rest, scored on every HOLD-th run.
@@ -364,18 +373,22 @@ impl Method for LocalKrr {
             .collect();
         let mut first = Krr::new();
         first.fit(&Training {
-            experiment: training.experiment,
+            family: training.family.clone(),
             samples: fit_i.iter().map(|&i| s[i].clone()).collect(),
             calibration: Vec::new(),
         })?;
-        let regs: &[(bool, f64)] = if unknowns > 1 { &SHAPES } else { &SHAPES[..1] };
+        let regs: &[(bool, f64)] = if self.v_index.is_some() {
+            &SHAPES
+        } else {
+            &SHAPES[..1]
+        };
         // `[held][neighbours][registration]` → Local.
         let scored: Vec<(Vec<Estimate>, Vec<Vec<Local>>)> = held_i
             .par_iter()
             .map(|&h| -> Result<(Vec<Estimate>, Vec<Vec<Local>>)> {
                 let est = first.predict(&s[h].series)?;
                 let p0 = self.scaled(&est);
-                let v0 = est.get(1).map_or(E1_SPEED, |e| e.mean);
+                let v0 = self.v_index.map_or(self.fixed_speed, |i| est[i].mean);
                 let obs = flatten(&s[h].series, &channels, &self.scales)?;
                 let l = NEIGHBOURS
                     .iter()
@@ -464,7 +477,7 @@ impl Method for LocalKrr {
                     .zip(&obs)
                     .map(|((&i, (e, _)), x)| {
                         let p0 = self.scaled(e);
-                        let v0 = e.get(1).map_or(E1_SPEED, |e| e.mean);
+                        let v0 = self.v_index.map_or(self.fixed_speed, |i| e[i].mean);
                         let (m, sd) = self.refined(&fit_i, &p0, v0, x, q, &h);
                         (m.clamp(0.0, 1.0) - self.y[i][q], sd)
                     })
@@ -492,7 +505,7 @@ impl Method for LocalKrr {
         let channels: Vec<usize> = (0..CHANNELS.len()).collect();
         let est = self.global.predict(obs)?;
         let p0 = self.scaled(&est);
-        let v0 = est.get(1).map_or(E1_SPEED, |e| e.mean);
+        let v0 = self.v_index.map_or(self.fixed_speed, |i| est[i].mean);
         let x = flatten(obs, &channels, &self.scales)?;
         let pool: Vec<usize> = (0..self.series.len()).collect();
         Ok(self
@@ -544,6 +557,7 @@ mod tests {
             .collect();
         let m = LocalKrr {
             y,
+            v_index: Some(1),
             ..LocalKrr::default()
         };
         let pool: Vec<usize> = (0..25).collect();

@@ -107,7 +107,7 @@ impl Method for Template {
         }
         self.series = t.iter().map(|s| s.series[THETA12].clone()).collect();
         self.params = t.iter().map(|s| s.params.clone()).collect();
-        let ranges = training.experiment.ranges();
+        let ranges = training.family.ranges();
         // Only templates that the others surround take part: a weighted mean of the others
         // cannot reach one outside their range, whatever the width.
         let surrounded: Vec<usize> = (0..t.len())

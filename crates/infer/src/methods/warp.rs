@@ -3,12 +3,10 @@
 //! are mixed, so that a candidate's series is one moved bump rather than two half bumps.
 
 use crate::error::{Error, Result};
-use crate::experiment::{Sample, CHANNELS, SAMPLES, SAMPLE_RATE, THETA12};
+use crate::experiment::{Sample, CHANNELS, THETA12};
 use crate::features::{channel_scales, coverage_factor, flatten};
 use crate::method::{Budget, Estimate, Method, Training};
 
-/// Whisker length of `w30`, m: distances are interpolated in `√(L − d)`.
-const WHISKER_LENGTH: f64 = 0.030;
 /// First landmark: |theta12| (smoothed) first reaches this fraction of its peak.
 const RISE_FRACTION: f64 = 0.2;
 /// Time unit of the registered axis after the last landmark, s (the ringing runs in real time).
@@ -62,6 +60,14 @@ pub struct Warp {
     factors: Vec<f64>,
     /// Weight of each channel's squared residuals, `[CHANNELS]`.
     channel_weights: Vec<f64>,
+    /// Timing of the runs: sample rate (Hz) and samples per run.
+    rate: f64,
+    /// Samples per run.
+    samples: usize,
+    /// The object's speed when it is not an unknown, m/s.
+    speed: f64,
+    /// The whisker's length, m (distances are interpolated in `√(L − d)`).
+    length: f64,
 }
 
 impl Default for Warp {
@@ -106,13 +112,13 @@ fn quadratic_weights(nodes: &[f64], x: f64) -> Vec<(usize, f64)> {
         .collect()
 }
 
-/// The distance coordinate the weights are linear in.
-fn d_coord(d: f64) -> f64 {
-    (WHISKER_LENGTH - d).max(0.0).sqrt()
+/// The distance coordinate the weights are linear in, for a whisker of length `length`.
+fn d_coord(d: f64, length: f64) -> f64 {
+    (length - d).max(0.0).sqrt()
 }
 
-/// Landmarks `[t₁, t₂]` of one run, s.
-fn landmarks(series: &[Vec<f64>]) -> [f64; 2] {
+/// Landmarks `[t₁, t₂]` of one run sampled at `rate` Hz, s.
+fn landmarks(series: &[Vec<f64>], rate: f64) -> [f64; 2] {
     let th = &series[THETA12];
     let n = th.len();
     let sm: Vec<f64> = (0..n)
@@ -126,7 +132,7 @@ fn landmarks(series: &[Vec<f64>]) -> [f64; 2] {
         .iter()
         .copied()
         .fold(0.0, |a: f64, x| if x.abs() > a.abs() { x } else { a });
-    let dt = 1.0 / SAMPLE_RATE;
+    let dt = 1.0 / rate;
     if peak == 0.0 {
         return [dt, 2.0 * dt];
     }
@@ -189,7 +195,31 @@ impl Warp {
             unknowns: 0,
             factors: Vec::new(),
             channel_weights: vec![1.0; CHANNELS.len()],
+            rate: 1000.0,
+            samples: 151,
+            speed: 0.6,
+            length: 0.030,
         }
+    }
+
+    /// Unfitted, for runs of `family` (the experiment box with unknowns `d` or `d, v`).
+    fn for_family(family: &crate::Family) -> Result<Warp> {
+        if !family.is_box_family() {
+            return Err(Error::Fit {
+                method: "template-warp".into(),
+                detail: format!(
+                    "warps time by the experiment box's speed: it needs a family with                      experiment = \"e1\" or \"e2\" and unknowns d or d, v (not {})",
+                    family.unknowns().join(", ")
+                ),
+            });
+        }
+        Ok(Warp {
+            rate: family.sample_rate(),
+            samples: family.samples(),
+            speed: family.speed_of(&[]).unwrap_or(0.6),
+            length: family.whisker().length,
+            ..Warp::new()
+        })
     }
 
     /// Builds the grid from `samples` (which must fill a rectangle of parameters).
@@ -198,12 +228,7 @@ impl Warp {
             method: "template-warp".into(),
             detail,
         };
-        let (ds, vs) = super::interp::grid_axes(
-            samples,
-            unknowns,
-            crate::experiment::E1_SPEED,
-            "template-warp",
-        )?;
+        let (ds, vs) = super::interp::grid_axes(samples, unknowns, self.speed, "template-warp")?;
         let channels: Vec<usize> = (0..CHANNELS.len()).collect();
         self.scales = channel_scales(samples, &channels);
         let mut nodes = vec![vec![Vec::new(); ds.len()]; vs.len()];
@@ -219,8 +244,8 @@ impl Warp {
                 return Err(fail("a run off the grid".into()));
             };
             let x = flatten(&s.series, &channels, &self.scales)?;
-            nodes[j][i] = x.chunks(SAMPLES).map(|c| c.to_vec()).collect();
-            let lm = landmarks(&s.series);
+            nodes[j][i] = x.chunks(self.samples).map(|c| c.to_vec()).collect();
+            let lm = landmarks(&s.series, self.rate);
             travel[j][i] = [vs[j] * lm[0], vs[j] * lm[1]];
         }
         if nodes.iter().flatten().any(|n| n.is_empty()) {
@@ -237,10 +262,14 @@ impl Warp {
 
     /// Interpolation weights `(j, i, w)` at `(d, v)`.
     fn weights(&self, d: f64, v: f64) -> Vec<(usize, usize, f64)> {
-        let dc: Vec<f64> = self.d_nodes.iter().map(|&x| d_coord(x)).collect();
+        let dc: Vec<f64> = self
+            .d_nodes
+            .iter()
+            .map(|&x| d_coord(x, self.length))
+            .collect();
         // d_coord decreases with d: interpolate over the reversed nodes.
         let rev: Vec<f64> = dc.iter().rev().copied().collect();
-        let wd = hat_weights(&rev, d_coord(d));
+        let wd = hat_weights(&rev, d_coord(d, self.length));
         let wv = quadratic_weights(&self.v_nodes, v);
         let nd = self.d_nodes.len();
         let mut out = Vec::with_capacity(4);
@@ -273,16 +302,17 @@ impl Warp {
             s[1] += wt * self.travel[j][i][1];
         }
         let lm = [s[0] / v, s[1] / v];
-        let dt = 1.0 / SAMPLE_RATE;
+        let (rate, samples) = (self.rate, self.samples);
+        let dt = 1.0 / rate;
         let mut total = vec![0.0; x.len()];
         let mut pos: Vec<(usize, f64)> = Vec::with_capacity(w.len());
-        for k in 0..SAMPLES {
+        for k in 0..samples {
             let tau = to_reg(k as f64 * dt, lm);
             pos.clear();
             for &(j, i, _) in &w {
                 let t = from_reg(tau, self.node_landmarks(j, i));
-                let p = (t * SAMPLE_RATE).clamp(0.0, (SAMPLES - 1) as f64);
-                let ii = (p.floor() as usize).min(SAMPLES - 2);
+                let p = (t * rate).clamp(0.0, (samples - 1) as f64);
+                let ii = (p.floor() as usize).min(samples - 2);
                 pos.push((ii, p - ii as f64));
             }
             for (c, xc) in x.iter().enumerate() {
@@ -355,7 +385,7 @@ impl Warp {
             }
         }
         // Laplace: cov = σ̂²·(JᵀJ)⁻¹ = 2σ̂²·H⁻¹ with H the Hessian of the sum of squares.
-        let n = (CHANNELS.len() * SAMPLES) as f64;
+        let n = (CHANNELS.len() * self.samples) as f64;
         let s2 = e / (n - self.unknowns as f64).max(1.0);
         let hd = 2e-4;
         let dd2 = |f: &dyn Fn(f64) -> f64, x0: f64, h: f64| {
@@ -384,7 +414,14 @@ impl Warp {
     fn normalised(&self, obs: &[Vec<f64>]) -> Result<Vec<Vec<f64>>> {
         let channels: Vec<usize> = (0..CHANNELS.len()).collect();
         let x = flatten(obs, &channels, &self.scales)?;
-        Ok(x.chunks(SAMPLES).map(|c| c.to_vec()).collect())
+        if x.len() != CHANNELS.len() * self.samples {
+            return Err(Error::Observation(format!(
+                "template-warp: a series of {} samples; it was fitted on runs of {}",
+                x.len() / CHANNELS.len(),
+                self.samples
+            )));
+        }
+        Ok(x.chunks(self.samples).map(|c| c.to_vec()).collect())
     }
 
     /// Channel weights from how well the model predicts `samples` at their own parameters: the
@@ -429,10 +466,11 @@ impl Method for Warp {
     }
 
     fn fit(&mut self, training: &Training) -> Result<()> {
-        let unknowns = training.experiment.unknowns().len();
+        let unknowns = training.family.unknowns().len();
+        let fresh = Warp::for_family(&training.family)?;
         // Held-out check: the corner templates alone predict the other templates (a coarser
         // grid than the final one, so the factor is cautious).
-        let ranges = training.experiment.ranges();
+        let ranges = training.family.ranges();
         let corner = |s: &Sample| {
             s.params
                 .iter()
@@ -441,13 +479,14 @@ impl Method for Warp {
         };
         let (corners, rest): (Vec<Sample>, Vec<Sample>) =
             training.samples.iter().cloned().partition(|s| corner(s));
-        let mut coarse = Warp::new();
+        let mut coarse = fresh.clone();
         coarse.build(&corners, unknowns)?;
         // Channels that the interpolation predicts poorly (the corner model at the other
         // templates' parameters) weigh less.
         let channel_weights = coarse.model_weights(&rest)?;
         coarse.channel_weights = channel_weights.clone();
         let pairs = coarse.pairs(&rest)?;
+        *self = fresh;
         self.build(&training.samples, unknowns)?;
         self.channel_weights = channel_weights;
         self.factors = pairs.iter().map(|p| coverage_factor(p)).collect();
@@ -484,8 +523,8 @@ mod tests {
     #[test]
     fn registration_inverts_and_weights_sum_to_one() {
         let lm = [0.004, 0.031];
-        for k in 0..SAMPLES {
-            let t = k as f64 / SAMPLE_RATE;
+        for k in 0..151 {
+            let t = k as f64 / 1000.0;
             assert!((from_reg(to_reg(t, lm), lm) - t).abs() < 1e-12);
         }
         for x in [0.0, 0.2, 0.9, 1.3, 2.0] {
@@ -500,7 +539,7 @@ mod tests {
         let run = |d: f64, v: f64, offset: f64| Sample {
             series: (0..CHANNELS.len())
                 .map(|c| {
-                    (0..SAMPLES)
+                    (0..151)
                         .map(|k| {
                             let t = k as f64 - 20.0;
                             let bump = (1.0 + d * 10.0 + v) * (-t * t / 50.0).exp();
@@ -547,7 +586,7 @@ mod tests {
     #[test]
     fn landmarks_find_the_rise_and_the_zero_crossing() {
         // A ramp to 1 from 5 ms, held to 40 ms, then a cosine from +1 through zero at 45 ms.
-        let th: Vec<f64> = (0..SAMPLES)
+        let th: Vec<f64> = (0..151)
             .map(|k| {
                 let t = k as f64;
                 if t < 5.0 {
@@ -561,9 +600,9 @@ mod tests {
                 }
             })
             .collect();
-        let mut series = vec![vec![0.0; SAMPLES]; CHANNELS.len()];
+        let mut series = vec![vec![0.0; 151]; CHANNELS.len()];
         series[THETA12] = th;
-        let [t1, t2] = landmarks(&series);
+        let [t1, t2] = landmarks(&series, 1000.0);
         assert!((t1 - 0.007).abs() < 5e-4, "{t1}");
         assert!((t2 - 0.045).abs() < 5e-4, "{t2}");
     }

@@ -99,7 +99,7 @@ impl FamilySpec {
                 }
                 other => (pair(other).map_err(|m| field(name.clone(), m))?, None),
             };
-            if !(range[0] < range[1]) {
+            if range[0] >= range[1] {
                 return Err(field(
                     name,
                     format!(
