@@ -473,3 +473,105 @@ fn unknown_start_scores_the_filter_with_t0_and_refuses_bad_delays() {
         assert!(!folder.exists(), "{bad}: output folder created");
     }
 }
+
+/// `estimate --json` on `files` with `args`: one JSON object per file.
+fn estimates(args: &[&str], files: &[&std::path::Path]) -> Vec<serde_json::Value> {
+    let mut cmd = vibrissa();
+    cmd.arg("estimate").args(args).arg("--json").arg("--obs");
+    for f in files {
+        cmd.arg(f);
+    }
+    let out = cmd.output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    // One file: one (pretty) object; several: JSON Lines.
+    if files.len() == 1 {
+        return vec![serde_json::from_str(&text).unwrap()];
+    }
+    text.lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}
+
+#[test]
+fn a_recording_at_2_khz_gives_the_estimate_of_its_1_khz_decimation() {
+    let dir = temp("rates");
+    let (fast, slow) = (dir.join("fast.csv"), dir.join("slow.csv"));
+    for (file, rate) in [(&fast, "2000"), (&slow, "1000")] {
+        let out = vibrissa()
+            .args(["simulate", "e2", "--set", "d=0.0215", "--set", "v=0.8"])
+            .args(["--set", &format!("sample_rate={rate}"), "--out"])
+            .arg(file)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    // One batch: the method trains once per timing.
+    let est = estimates(&["--experiment", "e2", "--method", "knn"], &[&fast, &slow]);
+    assert_eq!(est.len(), 2);
+    for key in ["d", "v"] {
+        let (a, b) = (&est[0][key], &est[1][key]);
+        let (ma, mb) = (a["mean"].as_f64().unwrap(), b["mean"].as_f64().unwrap());
+        for (m, other) in [(ma, b), (mb, a)] {
+            let ci = other["ci90"].as_array().unwrap();
+            let (lo, hi) = (ci[0].as_f64().unwrap(), ci[1].as_f64().unwrap());
+            assert!(lo <= m && m <= hi, "{key}: {ma} vs {mb} ({lo}..{hi})");
+        }
+    }
+    assert!((est[0]["d"]["mean"].as_f64().unwrap() - 0.0215).abs() < 2e-3);
+}
+
+#[test]
+fn a_scenario_file_names_its_unknowns_in_the_estimate() {
+    let dir = temp("family");
+    let scenario = dir.join("stiff_e1.toml");
+    // The e1 box on a stiffer whisker, its distance the one unknown over a narrower range.
+    std::fs::write(
+        &scenario,
+        "experiment = \"e1\"\nv = 0.6\n[whisker]\nyoungs_modulus = 3.6e9\n[unknowns]\nd = [0.016, 0.028]\n",
+    )
+    .unwrap();
+    let run = dir.join("run.csv");
+    let out = vibrissa()
+        .args(["simulate"])
+        .arg(&scenario)
+        .args(["--set", "d=0.021", "--out"])
+        .arg(&run)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let scenario = scenario.to_str().unwrap();
+    let est = estimates(&["--scenario", scenario, "--method", "knn"], &[&run]);
+    let obj = est[0].as_object().unwrap();
+    assert!(obj.contains_key("d") && !obj.contains_key("v"), "{obj:?}");
+    let d = obj["d"]["mean"].as_f64().unwrap();
+    assert!((d - 0.021).abs() < 1.5e-3, "{d}");
+    // A family whose unknown is not a scenario key is refused by name.
+    let bad = dir.join("bad.toml");
+    std::fs::write(
+        &bad,
+        "experiment = \"e2\"\n[unknowns]\nwhisker.modulus = [1e9, 2e9]\n",
+    )
+    .unwrap();
+    let out = vibrissa()
+        .args(["estimate", "--method", "knn", "--scenario"])
+        .arg(&bad)
+        .arg("--obs")
+        .arg(&run)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("modulus"));
+}
