@@ -251,16 +251,19 @@ impl Render for Report {
             ("estimate (ms)", Align::Right),
         ]);
         let mut t = Table::new(&cols);
-        let mut paper = vec![
-            "paper (seed)".to_string(),
-            "paper".into(),
-            "".into(),
-            format!("{:.2}", ev.paper_mae[0] * 1e3),
-        ];
-        if two {
-            paper.push(format!("{:.3}", ev.paper_mae[1]));
+        // The seed paper's figures, for its own experiments only.
+        if let [d, rest @ ..] = &ev.paper_mae[..] {
+            let mut paper = vec![
+                "paper (seed)".to_string(),
+                "paper".into(),
+                "".into(),
+                format!("{:.2}", d * 1e3),
+            ];
+            if let (true, Some(v)) = (two, rest.first()) {
+                paper.push(format!("{v:.3}"));
+            }
+            t.row(paper);
         }
-        t.row(paper);
         for m in &ev.methods {
             let mut r = vec![
                 m.name.clone(),

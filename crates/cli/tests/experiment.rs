@@ -575,3 +575,41 @@ fn a_scenario_file_names_its_unknowns_in_the_estimate() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("modulus"));
 }
+
+#[test]
+fn experiment_runs_on_a_scenario_family_whose_grid_holds_no_template() {
+    let dir = temp("family-experiment");
+    let scenario = dir.join("soft_e1.toml");
+    std::fs::write(
+        &scenario,
+        "experiment = \"e1\"\n[whisker]\nyoungs_modulus = 2.6e9\n[unknowns]\nd = [0.016, 0.028]\n[grid]\nd = [0.017, 0.021, 0.025]\n",
+    )
+    .unwrap();
+    let out_dir = dir.join("out");
+    let out = vibrissa()
+        .args(["experiment", "--scenario"])
+        .arg(&scenario)
+        .arg("--out")
+        .arg(&out_dir)
+        .arg("--json")
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["unknowns"], serde_json::json!(["d"]));
+    assert_eq!(v["paper_mae"], serde_json::json!([]));
+    // Every grid run is scored; the templates (ends and middle of the range) were simulated apart.
+    let knn = v["methods"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|m| m["name"] == "knn")
+        .unwrap();
+    assert_eq!(knn["predictions"].as_array().unwrap().len(), 3);
+    assert!(knn["mae"][0].as_f64().unwrap() < 2e-3, "{}", knn["mae"]);
+    assert!(out_dir.join("results.json").exists());
+}

@@ -206,12 +206,17 @@ pub fn evaluate_with(
     let grid_runs = family.simulate_all(&grid, &noise, seed, &stage("grid", grid.len()))?;
     let grid_seconds = start.elapsed().as_secs_f64();
     let is_template: Vec<bool> = grid.iter().map(|p| family.is_template(p)).collect();
-    let templates: Vec<Sample> = grid_runs
+    let mut templates: Vec<Sample> = grid_runs
         .iter()
         .zip(&is_template)
         .filter(|(_, t)| **t)
         .map(|(s, _)| s.clone())
         .collect();
+    // Templates that the grid does not hold are simulated on their own.
+    let template_p = family.templates();
+    if templates.len() != template_p.len() {
+        templates = family.simulate_all(&template_p, &noise, seed.wrapping_add(4), &|| {})?;
+    }
     let evaluated: Vec<&Sample> = grid_runs
         .iter()
         .zip(&is_template)
