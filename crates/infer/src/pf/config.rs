@@ -1,0 +1,257 @@
+//! The filter's settings: the priors of the object's unknowns, hypothesis injection, and the
+//! checks of a run's configuration.
+
+#[cfg(doc)]
+use super::map_joints;
+use crate::error::{Error, Result};
+use crate::experiment::CHANNELS;
+use serde::Serialize;
+use vibrissa_core::chain::Discretisation;
+use vibrissa_core::whisker::WhiskerParams;
+
+/// Names of the object's unknowns, in the order of [`Config::priors`]: near-edge distance `d`
+/// (m), speed `v` (m/s), start delay of the approach `t0` (s), box side `size` (m) and friction
+/// coefficient `mu`.
+pub const PARAMS: [&str; 5] = ["d", "v", "t0", "size", "mu"];
+
+/// A uniform prior on `[lo, hi]`; `lo == hi` fixes the parameter.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Prior {
+    /// Lower end.
+    pub lo: f64,
+    /// Upper end.
+    pub hi: f64,
+}
+
+impl Prior {
+    /// A fixed value.
+    pub fn fixed(x: f64) -> Prior {
+        Prior { lo: x, hi: x }
+    }
+    /// Uniform on `[lo, hi]`.
+    pub fn uniform(lo: f64, hi: f64) -> Prior {
+        Prior { lo, hi }
+    }
+    /// Whether the parameter is unknown.
+    pub fn is_free(&self) -> bool {
+        self.hi > self.lo
+    }
+}
+
+/// Proposals from a discriminative estimate mixed into the initial particles (hypothesis
+/// injection): a `fraction` of the particles is drawn from a normal around `mean` with `std`
+/// (per unknown `d`, `v`; truncated to the prior), and every particle is weighted by
+/// prior / mixture density, so the filter's posterior is unchanged in expectation.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Injection {
+    /// Share of the particles drawn from the proposal, in (0, 1).
+    pub fraction: f64,
+    /// Proposal means of `d` (m) and `v` (m/s).
+    pub mean: [f64; 2],
+    /// Proposal standard deviations of `d` and `v`.
+    pub std: [f64; 2],
+}
+
+/// Settings of a filter run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Config {
+    /// Number of particles (≥ 1).
+    pub particles: usize,
+    /// Seed of every random stream.
+    pub seed: u64,
+    /// The whisker.
+    pub whisker: WhiskerParams,
+    /// Segments of the filter's chain. It may be coarser than the observed chain: its joint
+    /// angles are mapped onto the observed chain's joints (see [`map_joints`]).
+    pub segments: usize,
+    /// Segments of the chain that produced the observations (sets where `theta01` and `theta12`
+    /// are measured).
+    pub observed_segments: usize,
+    /// Stiffness rule of the observed chain, and of the transition model when it has the
+    /// observed chain's segments (a coarser model keeps the default, the most accurate at few
+    /// segments).
+    pub discretisation: Discretisation,
+    /// Time step of the transition model, s (shortened to divide the sample period).
+    pub dt: f64,
+    /// Geometric iterations per step of the transition model.
+    pub max_iterations: usize,
+    /// Observed channels, indices into [`CHANNELS`].
+    pub channels: Vec<usize>,
+    /// Observation noise standard deviation per channel of [`CHANNELS`], SI.
+    pub sigma: [f64; 5],
+    /// Process-noise intensity on every segment, N·s^½·m^-½.
+    pub process_noise: f64,
+    /// Liu–West shrinkage `a` in (0, 1].
+    pub shrink: f64,
+    /// Resample when the effective sample size falls below this fraction of the particles.
+    pub ess_fraction: f64,
+    /// Priors of [`PARAMS`].
+    pub priors: [Prior; 5],
+    /// Gap between the box's top face and the whisker when the approach starts, m.
+    pub gap: f64,
+    /// Hypothesis injection, if any.
+    pub injection: Option<Injection>,
+}
+
+impl Config {
+    /// The `e2` family: d ∈ [14, 31] mm, v ∈ [0.2, 1.6] m/s (the experiment's ranges, widened by
+    /// 1 mm and 0.1 m/s), known start, 10 mm frictionless box,
+    /// the `w30` whisker observed on a chain of 20 segments and modelled with 5, all five channels
+    /// with noise `sigma`.
+    pub fn e2(sigma: [f64; 5], particles: usize, seed: u64) -> Config {
+        Config {
+            particles,
+            seed,
+            whisker: WhiskerParams::w30(),
+            segments: 5,
+            observed_segments: 20,
+            discretisation: Discretisation::default(),
+            dt: 1e-3 / 3.0,
+            max_iterations: 1,
+            channels: (0..CHANNELS.len()).collect(),
+            sigma,
+            process_noise: crate::experiment::PROCESS_NOISE,
+            shrink: 0.98,
+            ess_fraction: 0.5,
+            // A little wider than the family's range, so that a value at its edge lies inside
+            // the prior's support (a central interval can never hold an edge of the support).
+            priors: [
+                Prior::uniform(0.014, 0.031),
+                Prior::uniform(0.2, 1.6),
+                Prior::fixed(0.0),
+                Prior::fixed(0.010),
+                Prior::fixed(0.0),
+            ],
+            gap: 1e-3,
+            injection: None,
+        }
+    }
+
+    /// The settings for a run of `family` (the experiment box with unknowns `d` or `d, v`):
+    /// its whisker, observed chain and box, priors on its ranges widened on both sides by the
+    /// larger of each unknown's margins (so that a value at a range's edge lies inside the
+    /// prior's support), and its fixed speed where `v` is not an unknown.
+    pub fn for_family(
+        family: &crate::Family,
+        sigma: [f64; 5],
+        particles: usize,
+        seed: u64,
+    ) -> Result<Config> {
+        if !family.is_box_family() {
+            return Err(Error::Setting(format!(
+                "the particle filter models the experiment box: it needs a family with \
+                 experiment = \"e1\" or \"e2\" and unknowns d or d, v (not {})",
+                family.unknowns().join(", ")
+            )));
+        }
+        let mut c = Config::e2(sigma, particles, seed);
+        let base = family.base();
+        c.whisker = base.whisker.clone();
+        c.observed_segments = base.segments;
+        c.discretisation = base.discretisation;
+        c.priors[3] = Prior::fixed(vibrissa_io::scenario::BOX_SIDE);
+        c.gap = vibrissa_io::scenario::BOX_GAP;
+        let mut ranges = family.ranges().into_iter().zip(family.margins());
+        if let Some(([lo, hi], [below, above])) = ranges.next() {
+            let m = below.max(above);
+            c.priors[0] = Prior::uniform(lo - m, hi + m);
+        }
+        c.priors[1] = match ranges.next() {
+            Some(([lo, hi], [below, above])) => {
+                let m = below.max(above);
+                Prior::uniform((lo - m).max(1e-6), hi + m)
+            }
+            None => Prior::fixed(family.speed_of(&[]).unwrap_or(0.6)),
+        };
+        Ok(c)
+    }
+
+    /// The stiffness rule of the transition model: the observed chain's at its segment count,
+    /// else the default.
+    pub fn model_discretisation(&self) -> Discretisation {
+        if self.segments == self.observed_segments {
+            self.discretisation
+        } else {
+            Discretisation::default()
+        }
+    }
+
+    /// Checks every setting, naming the first bad one.
+    pub fn check(&self) -> Result<()> {
+        let bad = |field: &str, allowed: &str| {
+            Err(Error::Setting(format!(
+                "filter setting `{field}`: expected {allowed}"
+            )))
+        };
+        if self.particles == 0 {
+            return bad("particles", "at least 1 particle");
+        }
+        if !(self.dt > 0.0 && self.dt <= 1e-3) {
+            return bad("dt", "a model time step in (0, 1 ms]");
+        }
+        if self.max_iterations == 0 {
+            return bad("max_iterations", "at least 1");
+        }
+        let chains = 2..=vibrissa_core::chain::MAX_SEGMENTS;
+        if !chains.contains(&self.segments) {
+            return bad("segments", "a segment count from 2 to 200");
+        }
+        if !chains.contains(&self.observed_segments) {
+            return bad("observed_segments", "a segment count from 2 to 200");
+        }
+        if self.channels.is_empty() || self.channels.iter().any(|&c| c >= CHANNELS.len()) {
+            return bad("channels", "one or more of theta01, theta12, m0, fx, fy");
+        }
+        for &c in &self.channels {
+            let s = self.sigma[c];
+            if !(s.is_finite() && s > 0.0) {
+                return bad(
+                    CHANNELS[c],
+                    "a finite observation noise > 0 for every observed channel",
+                );
+            }
+        }
+        if !(self.shrink > 0.0 && self.shrink <= 1.0) {
+            return bad("shrink", "a Liu–West shrinkage in (0, 1]");
+        }
+        if !(0.0..=1.0).contains(&self.ess_fraction) {
+            return bad("ess_fraction", "a fraction in [0, 1]");
+        }
+        let ranges = [
+            (0.0, f64::INFINITY),
+            (1e-6, f64::INFINITY),
+            (0.0, f64::INFINITY),
+            (1e-6, f64::INFINITY),
+            (0.0, 10.0),
+        ];
+        for (k, p) in self.priors.iter().enumerate() {
+            let (lo, hi) = ranges[k];
+            if !(p.lo.is_finite() && p.hi.is_finite() && p.lo <= p.hi && p.lo >= lo && p.hi <= hi) {
+                return bad(
+                    PARAMS[k],
+                    "a prior range lo <= hi, finite, within the parameter's physical range",
+                );
+            }
+        }
+        if let Some(inj) = &self.injection {
+            if !(inj.fraction > 0.0 && inj.fraction < 1.0)
+                || inj.std.iter().any(|s| !(s.is_finite() && *s > 0.0))
+                || inj.mean.iter().any(|m| !m.is_finite())
+            {
+                return bad(
+                    "injection",
+                    "a fraction in (0, 1), finite means and stds > 0",
+                );
+            }
+        }
+        Ok(())
+    }
+
+    /// Names of the free unknowns.
+    pub fn unknowns(&self) -> Vec<&'static str> {
+        (0..PARAMS.len())
+            .filter(|&k| self.priors[k].is_free())
+            .map(|k| PARAMS[k])
+            .collect()
+    }
+}

@@ -1,0 +1,286 @@
+//! The filter's loop: predict, weight, summarise, resample and move, and redraw the waiting
+//! group, one sample at a time; and the checks of the observations it is given.
+
+use super::config::{Config, PARAMS};
+use super::draws::{draw_initial, redraw_waiting};
+use super::posterior::{summarise, Observations, Posterior, TraceRow};
+use super::sampling::{liu_west, systematic};
+use super::transition::{advance, map_joints, param, Chain, FreeModel, ObjState};
+use crate::error::{Error, Result};
+use crate::experiment::CHANNELS;
+use rayon::prelude::*;
+use vibrissa_core::batch;
+use vibrissa_core::chain::Model;
+use vibrissa_core::dynamics::{initialize, Inputs, Integrator, State, Workspace};
+use vibrissa_core::rng::Rng;
+use vibrissa_core::sensors::Sensors;
+
+/// Stream indices: particles' process noise, their moves, the resampling draws, the prior.
+const STREAM_NOISE: u64 = 1 << 40;
+pub(super) const STREAM_MOVE: u64 = 2 << 40;
+const STREAM_RESAMPLE: u64 = 3 << 40;
+const STREAM_PRIOR: u64 = 4 << 40;
+const STREAM_REDRAW: u64 = 5 << 40;
+
+/// Runs the filter over `obs`, one sample at a time, calling `progress` with the fraction done.
+pub fn run(
+    config: &Config,
+    obs: &Observations,
+    progress: &mut dyn FnMut(f64),
+) -> Result<Posterior> {
+    config.check()?;
+    check_observations(config, obs)?;
+    let whisker = config
+        .whisker
+        .check()
+        .map_err(|e| Error::Observation(format!("filter whisker: {e}")))?;
+    let model = Model::new(&whisker, config.segments, config.model_discretisation())
+        .map_err(|e| Error::Observation(format!("filter model: {e}")))?;
+    let observed = Model::new(&whisker, config.observed_segments, config.discretisation)
+        .map_err(|e| Error::Observation(format!("observed chain: {e}")))?;
+    let np = config.particles;
+    let period = obs.t.get(1).map_or(1e-3, |t1| t1 - obs.t[0]);
+    let per_sample = ((period / config.dt) * (1.0 - 1e-9)).ceil().max(1.0) as usize;
+    let stepper = Integrator {
+        dt: period / per_sample as f64,
+        max_iterations: config.max_iterations,
+        ..Integrator::default()
+    }
+    .check()
+    .map_err(|e| Error::Observation(format!("filter integrator: {e}")))?;
+
+    // Initial particles: the whisker at rest, the object drawn from the prior (or the mixture
+    // with the injected proposal).
+    let mut template = State::at_rest(&model, config.seed);
+    let mut ws = Workspace::new(&model);
+    initialize(
+        &model,
+        &mut template,
+        &Inputs {
+            base: Default::default(),
+            loads: &[],
+            noise: 0.0,
+            objects: &[],
+        },
+        &mut ws,
+    )
+    .map_err(|e| Error::Observation(format!("filter initial state: {e}")))?;
+    let mut states: Vec<State> = (0..np)
+        .map(|i| {
+            let mut s = template.clone();
+            s.rng = Rng::stream(config.seed, STREAM_NOISE + i as u64);
+            s
+        })
+        .collect();
+    let mut objs: Vec<ObjState> = Vec::with_capacity(np);
+    let mut logw: Vec<f64> = Vec::with_capacity(np);
+    for i in 0..np {
+        let mut rng = Rng::stream(config.seed, STREAM_PRIOR + i as u64);
+        let (o, lw) = draw_initial(config, &mut rng);
+        objs.push(o);
+        logw.push(lw);
+    }
+
+    let free: Vec<usize> = (0..PARAMS.len())
+        .filter(|&k| config.priors[k].is_free())
+        .collect();
+    let mut post = Posterior::empty(config.unknowns());
+    post.trace.reserve(obs.t.len());
+    let mut ringing_samples = 0usize;
+    let ringing = FreeModel::new(config, &model, period)?;
+    let chain = Chain {
+        model: &model,
+        stepper: &stepper,
+        ringing: &ringing,
+    };
+    // Whether each particle's box has left for good (its whisker then rings free).
+    let mut cleared = vec![false; np];
+    let mut spare_cleared = cleared.clone();
+    // Whether each particle's box has come within reach of its whisker (before that, the whisker
+    // moves by process noise alone and the box's parameters are redrawn at every sample).
+    let mut arrived = vec![false; np];
+    let mut spare_arrived = arrived.clone();
+    let reach_zone = ringing.clearance + 1e-4;
+    let mut spare = states.clone();
+    let mut generation = 0u64;
+    let samples = obs.t.len();
+    for k in 0..samples {
+        let t = obs.t[k];
+        let y: [f64; 5] = std::array::from_fn(|c| {
+            obs.values
+                .get(c)
+                .and_then(|v| v.get(k))
+                .copied()
+                .unwrap_or(f64::NAN)
+        });
+        let mut seen = [false; 5];
+        for &c in &config.channels {
+            if y[c].is_finite() {
+                seen[c] = true;
+            } else {
+                post.skipped += 1;
+            }
+        }
+        // Predict (k > 0) and weight every particle, in parallel.
+        let steps = if k == 0 {
+            0
+        } else {
+            let dt_obs = t - obs.t[k - 1];
+            ((dt_obs / stepper.dt) + 0.5).floor() as usize
+        };
+        let periods = if k == 0 {
+            0
+        } else {
+            (((t - obs.t[k - 1]) / period) + 0.5).floor() as usize
+        };
+        // Weight mass the particles carry into this sample (for the evidence).
+        let prior_mass: f64 = logw.iter().map(|l| l.exp()).sum();
+        let ringing_before = cleared.iter().filter(|c| **c).count();
+        let diverged = batch::sum_with_workspace(
+            &model,
+            states
+                .par_iter_mut()
+                .zip(objs.par_iter())
+                .zip(logw.par_iter_mut())
+                .zip(cleared.par_iter_mut()),
+            |ws, (((s, o), lw), gone)| {
+                if *lw == f64::NEG_INFINITY {
+                    return 0;
+                }
+                let noise = config.process_noise;
+                if advance(&chain, s, o, gone, steps, periods, noise, t, ws).is_err() {
+                    *lw = f64::NEG_INFINITY;
+                    return 1;
+                }
+                let mut pred = Sensors::read(s).to_array();
+                [pred[0], pred[1]] = map_joints(&model, &observed, s.q());
+                let mut ll = 0.0;
+                for c in 0..5 {
+                    if seen[c] {
+                        let z = (y[c] - pred[c]) / config.sigma[c];
+                        ll -= 0.5 * z * z;
+                    }
+                }
+                *lw += ll;
+                0
+            },
+        );
+        post.diverged += diverged;
+        post.steps += ((np - ringing_before) * steps + ringing_before * periods) as u64;
+        ringing_samples += ringing_before;
+
+        // Normalise.
+        let max = logw.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+        if max == f64::NEG_INFINITY {
+            return Err(Error::Observation(format!(
+                "every particle diverged or has zero likelihood by t = {t} s"
+            )));
+        }
+        let mut w: Vec<f64> = logw.iter().map(|l| (l - max).exp()).collect();
+        let total: f64 = w.iter().sum();
+        // The weights entered this sample normalised (or equal after resampling), so their new
+        // sum is the sample's likelihood averaged over the particles.
+        post.log_evidence += max + (total / prior_mass).ln();
+        w.iter_mut().for_each(|x| *x /= total);
+        let ess = 1.0 / w.iter().map(|x| x * x).sum::<f64>();
+
+        // Posterior summary.
+        let estimates = free
+            .iter()
+            .map(|&p| {
+                let vals: Vec<f64> = objs.iter().map(|o| param(o, p, config.gap)).collect();
+                summarise(&vals, &w)
+            })
+            .collect();
+        post.trace.push(TraceRow { t, ess, estimates });
+
+        // Resample and move.
+        if ess < config.ess_fraction * np as f64 && k + 1 < samples {
+            generation += 1;
+            post.resamples += 1;
+            let mut rng = Rng::stream(config.seed, STREAM_RESAMPLE + generation);
+            let parents = systematic(&w, rng.uniform());
+            let moved = liu_west(
+                config, &objs, &w, &parents, &free, &cleared, &arrived, generation, t,
+            );
+            for (i, &p) in parents.iter().enumerate() {
+                spare[i].clone_from(&states[p]);
+                spare_cleared[i] = cleared[p];
+                spare_arrived[i] = arrived[p];
+                spare[i].rng =
+                    Rng::stream(config.seed, STREAM_NOISE + (generation << 20) + i as u64);
+            }
+            std::mem::swap(&mut states, &mut spare);
+            std::mem::swap(&mut cleared, &mut spare_cleared);
+            std::mem::swap(&mut arrived, &mut spare_arrived);
+            objs = moved;
+            logw.iter_mut().for_each(|l| *l = 0.0);
+        } else {
+            logw.iter_mut()
+                .zip(&w)
+                .for_each(|(l, x)| *l = if *x > 0.0 { x.ln() } else { f64::NEG_INFINITY });
+        }
+        // Boxes that have not come within reach yet: the whisker has not felt them, so their
+        // parameters are redrawn from the prior given "not arrived by now", with arrivals in the
+        // next few milliseconds favoured (and weighted back), so that whenever contact begins
+        // many particles meet it with a spread of distances and speeds.
+        if k + 1 < samples {
+            redraw_waiting(
+                config,
+                &mut objs,
+                &mut logw,
+                &mut arrived,
+                t,
+                reach_zone,
+                Rng::stream(config.seed, STREAM_REDRAW + k as u64),
+            );
+        }
+        if k % 16 == 0 {
+            progress(k as f64 / samples as f64);
+        }
+    }
+    progress(1.0);
+    post.ringing_share = ringing_samples as f64 / (np * samples) as f64;
+    Ok(post)
+}
+
+/// Refuses observations the filter cannot use.
+fn check_observations(config: &Config, obs: &Observations) -> Result<()> {
+    let n = obs.t.len();
+    if n < 2 {
+        return Err(Error::Observation(format!(
+            "the filter needs at least 2 samples, got {n}"
+        )));
+    }
+    for &c in &config.channels {
+        match obs.values.get(c) {
+            Some(v) if v.len() == n => {}
+            _ => {
+                return Err(Error::Observation(format!(
+                    "channel `{}` is observed by the filter but missing or of the wrong length (expected {n} samples)",
+                    CHANNELS[c]
+                )))
+            }
+        }
+    }
+    if obs.t.iter().any(|t| !t.is_finite()) {
+        return Err(Error::Observation("a sample time `t` is not finite".into()));
+    }
+    let period = obs.t[1] - obs.t[0];
+    if period.is_nan() || period <= 0.0 {
+        return Err(Error::Observation("sample times `t` must increase".into()));
+    }
+    for k in 1..n {
+        let dt = obs.t[k] - obs.t[k - 1];
+        let m = dt / period;
+        // Gaps of whole sample periods are predicted across; anything else is refused.
+        if m.is_nan() || m < 0.5 || (m - m.round()).abs() > 1e-3 {
+            return Err(Error::Observation(format!(
+                "irregular sample times: t = {} s follows {} s, expected a whole number of periods of {period} s",
+                obs.t[k],
+                obs.t[k - 1]
+            )));
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,248 @@
+//! The particle filter as an estimator ([`crate::Method`]).
+
+use super::config::{Config, Injection, Prior};
+use super::filter::run;
+use super::likelihood::{
+    noise_from_series, observation_sigma, temper_for, TransitionModel, FINE_TEMPER, MODEL_ERROR,
+    UNKNOWN_START_TEMPER,
+};
+use super::posterior::{Observations, Posterior};
+use crate::error::{Error, Result};
+use crate::experiment::CHANNELS;
+use vibrissa_core::dynamics::Integrator;
+
+/// The particle filter as an estimator of the experiments' unknowns ([`crate::Method`]): `pf`.
+///
+/// Fitting estimates the sensor noise of each channel from the training runs
+/// ([`noise_from_series`]); no training run enters the filter otherwise. Estimates are the
+/// posterior at the last sample.
+#[derive(Debug, Clone)]
+pub struct Pf {
+    /// Particles per run.
+    pub particles: usize,
+    /// Seed of the filter's streams.
+    pub seed: u64,
+    /// Likelihood tempering ([`temper_for`], or [`FINE_TEMPER`] for the fine model); times
+    /// [`UNKNOWN_START_TEMPER`] when `max_delay > 0` with the coarse model.
+    pub temper: f64,
+    /// Largest start delay of the approach (0: the start is known).
+    pub max_delay: f64,
+    /// Time step of the transition model, s.
+    pub dt: f64,
+    /// Geometric iterations per step of the transition model.
+    pub max_iterations: usize,
+    /// Segments of the transition model's chain.
+    pub segments: usize,
+    /// Liu–West shrinkage ([`Config::shrink`]).
+    pub shrink: f64,
+    /// Resampling threshold ([`Config::ess_fraction`]).
+    pub ess_fraction: f64,
+    /// Hypothesis injection from another method's estimates (fraction of particles).
+    pub inject: Option<(f64, std::sync::Arc<dyn crate::Method>)>,
+    /// The transition model; set it with [`Pf::set_model`], which also sets `segments`, `dt`
+    /// and `temper`.
+    pub model: TransitionModel,
+    sigma: Option<[f64; 5]>,
+    family: Option<crate::Family>,
+}
+
+impl std::fmt::Debug for dyn crate::Method {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}", self.name())
+    }
+}
+
+impl Default for Pf {
+    fn default() -> Self {
+        Pf::new(1000)
+    }
+}
+
+impl Pf {
+    /// A filter with `particles` particles and the default settings.
+    pub fn new(particles: usize) -> Pf {
+        Pf {
+            particles,
+            seed: 1,
+            temper: temper_for(particles),
+            max_delay: 0.0,
+            dt: 1e-3 / 3.0,
+            max_iterations: 1,
+            segments: 5,
+            shrink: 0.98,
+            ess_fraction: 0.5,
+            inject: None,
+            model: TransitionModel::Coarse,
+            sigma: None,
+            family: None,
+        }
+    }
+
+    /// Switches the transition model, with its segment count (the coarse model's 5; the fine
+    /// one takes the observed chain's), time step and tempering.
+    pub fn set_model(&mut self, model: TransitionModel) {
+        self.model = model;
+        match model {
+            TransitionModel::Coarse => {
+                self.segments = 5;
+                self.dt = 1e-3 / 3.0;
+                self.temper = temper_for(self.particles);
+            }
+            TransitionModel::Fine => {
+                self.dt = Integrator::default().dt;
+                self.temper = FINE_TEMPER;
+            }
+        }
+    }
+
+    /// The observation noise found by [`crate::Method::fit`], if fitted.
+    pub fn sigma(&self) -> Option<[f64; 5]> {
+        self.sigma
+    }
+
+    /// The filter's settings for one run of `family` with observation noise `sigma`.
+    pub fn config(&self, family: &crate::Family, sigma: [f64; 5]) -> Result<Config> {
+        let mut c = Config::for_family(family, sigma, self.particles, self.seed)?;
+        c.dt = self.dt;
+        c.max_iterations = self.max_iterations;
+        c.segments = match self.model {
+            TransitionModel::Coarse => self.segments,
+            TransitionModel::Fine => c.observed_segments,
+        };
+        c.shrink = self.shrink;
+        c.ess_fraction = self.ess_fraction;
+        if self.max_delay > 0.0 {
+            c.priors[2] = Prior::uniform(0.0, self.max_delay);
+        }
+        Ok(c)
+    }
+
+    /// Runs the filter on one run's channel-major series, sampled as the family's runs.
+    pub fn posterior(&self, obs: &[Vec<f64>]) -> Result<Posterior> {
+        let (Some(sigma), Some(family)) = (self.sigma, &self.family) else {
+            return Err(Error::Fit {
+                method: "pf".into(),
+                detail: "used before fit".into(),
+            });
+        };
+        let mut config = self.config(family, sigma)?;
+        if let Some((fraction, method)) = &self.inject {
+            let e = method.predict(obs)?;
+            let v = e
+                .get(1)
+                .copied()
+                .unwrap_or(crate::Estimate::normal(config.priors[1].lo, 1.0));
+            config.injection = Some(Injection {
+                fraction: *fraction,
+                mean: [e[0].mean, v.mean],
+                std: [e[0].std.max(1e-5), v.std.max(1e-3)],
+            });
+        }
+        run(
+            &config,
+            &Observations::at_rate(obs.to_vec(), family.sample_rate()),
+            &mut |_| {},
+        )
+    }
+}
+
+impl crate::Method for Pf {
+    fn name(&self) -> &'static str {
+        "pf"
+    }
+    fn budget(&self) -> crate::Budget {
+        crate::Budget::Free
+    }
+    fn channels(&self) -> Vec<usize> {
+        (0..CHANNELS.len()).collect()
+    }
+    fn fit(&mut self, training: &crate::Training) -> Result<()> {
+        let series: Vec<&[Vec<f64>]> = training
+            .samples
+            .iter()
+            .chain(&training.calibration)
+            .map(|s| &s.series[..])
+            .collect();
+        if series.is_empty() {
+            return Err(Error::Fit {
+                method: "pf".into(),
+                detail: "no training runs to estimate the sensor noise from".into(),
+            });
+        }
+        let sensor = noise_from_series(&series);
+        let noisy = training.family.noise(crate::Variant::Noisy)?.sensor;
+        let model: [f64; 5] = match self.model {
+            TransitionModel::Coarse => std::array::from_fn(|c| MODEL_ERROR[c] * noisy[c]),
+            TransitionModel::Fine => [0.0; 5],
+        };
+        let temper = if self.max_delay > 0.0 && self.model == TransitionModel::Coarse {
+            self.temper * UNKNOWN_START_TEMPER
+        } else {
+            self.temper
+        };
+        self.sigma = Some(observation_sigma(sensor, model, temper));
+        self.family = Some(training.family.clone());
+        if let Some((_, m)) = &mut self.inject {
+            let m = std::sync::Arc::get_mut(m).ok_or_else(|| Error::Fit {
+                method: "pf".into(),
+                detail: "the injected method is shared and cannot be fitted".into(),
+            })?;
+            m.fit(training)?;
+        }
+        Ok(())
+    }
+    fn predict(&self, obs: &[Vec<f64>]) -> Result<Vec<crate::Estimate>> {
+        let post = self.posterior(obs)?;
+        let last = post.last();
+        // Unknowns of the experiment only (d, or d and v).
+        let n = self.family.as_ref().map_or(2, |f| f.unknowns().len());
+        Ok(last.iter().take(n).copied().collect())
+    }
+    fn settings(&self) -> Vec<(String, f64)> {
+        let mut s = vec![
+            ("particles".to_string(), self.particles as f64),
+            ("temper".to_string(), self.temper),
+        ];
+        if let Some(sig) = self.sigma {
+            for (c, x) in sig.iter().enumerate() {
+                s.push((format!("sigma_{}", CHANNELS[c]), *x));
+            }
+        }
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn transition_models_set_their_chain_step_and_tempering() {
+        assert_eq!(
+            TransitionModel::from_name("fine").unwrap(),
+            TransitionModel::Fine
+        );
+        let e = TransitionModel::from_name("exact").unwrap_err().to_string();
+        assert!(e.contains("exact") && e.contains("coarse, fine"), "{e}");
+        let mut pf = Pf::new(4000);
+        pf.set_model(TransitionModel::Fine);
+        let e2 = crate::Family::builtin("e2").unwrap();
+        let c = pf.config(&e2, [1.0; 5]).unwrap();
+        assert_eq!(c.segments, c.observed_segments);
+        // The family's settings are the e2 filter's.
+        for (a, b) in c.priors.iter().zip(Config::e2([1.0; 5], 4000, 1).priors) {
+            assert!((a.lo - b.lo).abs() < 1e-15 && (a.hi - b.hi).abs() < 1e-15);
+        }
+        assert_eq!(c.whisker, Config::e2([1.0; 5], 4000, 1).whisker);
+        let e1 = pf
+            .config(&crate::Family::builtin("e1").unwrap(), [1.0; 5])
+            .unwrap();
+        assert_eq!(e1.priors[1], Prior::fixed(0.6));
+        assert_eq!(c.dt, Integrator::default().dt);
+        assert_eq!(pf.temper, FINE_TEMPER);
+        pf.set_model(TransitionModel::Coarse);
+        let c = pf.config(&e2, [1.0; 5]).unwrap();
+        assert_eq!((c.segments, c.dt), (5, 1e-3 / 3.0));
+        assert_eq!(pf.temper, temper_for(4000));
+    }
+}

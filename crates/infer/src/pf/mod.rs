@@ -1,0 +1,45 @@
+//! Generative inference: a particle filter whose transition model is the whisker physics (the
+//! seed paper's dynamic Bayesian network, its Fig. 5).
+//!
+//! Hidden state of a particle: the whisker's joint angles, rates and accelerations (a core
+//! [`State`]) and the object's state: the box's near edge `d` (m), its speed `v` (m/s), the
+//! height of its top face at t = 0 (its path is `y0 + v·t`; the start delay `t0` of the approach
+//! follows from it) and, when asked for, its size (m) and friction coefficient. Transition:
+//! physics steps of the core with seeded process noise on every segment; once a particle's box
+//! has gone for good, its whisker rings on a copy of the model stepped once per sample (see
+//! `FreeModel`). Observation: any set of the contract's channels `theta01`, `theta12`, `m0`,
+//! `fx`, `fy` with independent Gaussian noise of a stated standard deviation per channel.
+//!
+//! Static unknowns get a Liu–West kernel move at every resampling: each resampled particle's
+//! object parameters are shrunk toward the weighted mean by `a` and jittered with covariance
+//! `(1 − a²)` times the weighted covariance, so the cloud's mean and spread are kept while its
+//! points become distinct again. While a box may still touch its whisker, its height stays where
+//! it is (the whisker state stays consistent with it): its speed moves, and its start delay
+//! follows instead of moving on its own. Boxes that have not come
+//! within reach yet are instead redrawn at every sample from the prior given that they have not
+//! arrived ([`run`] calls it the waiting group), with early arrivals favoured and weighted back.
+//! Resampling is systematic, when the effective sample size falls below a fraction of the
+//! particle count. Every random number comes from a stream indexed by particle and generation,
+//! so a run gives the same bits whatever the number of threads.
+
+#[cfg(doc)]
+use vibrissa_core::dynamics::State;
+
+mod config;
+mod draws;
+mod filter;
+mod likelihood;
+mod method;
+mod posterior;
+mod sampling;
+mod transition;
+
+pub use config::{Config, Injection, Prior, PARAMS};
+pub use filter::run;
+pub use likelihood::{
+    noise_from_series, observation_sigma, temper_for, TransitionModel, FINE_TEMPER, MODEL_ERROR,
+    TRANSITION_MODELS, UNKNOWN_START_TEMPER,
+};
+pub use method::Pf;
+pub use posterior::{Observations, Posterior, TraceRow};
+pub use transition::map_joints;

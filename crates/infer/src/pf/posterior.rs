@@ -1,0 +1,149 @@
+//! What the filter reads and returns: observations, the per-sample trace and the posterior, and
+//! the weighted summary of one unknown.
+
+use crate::method::Estimate;
+use serde::Serialize;
+
+/// Observations: sample times and channel values (`NaN` where a sample is missing).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Observations {
+    /// Sample times, s, increasing, starting at 0.
+    pub t: Vec<f64>,
+    /// `[CHANNELS][samples]`; channels that are not observed may be empty.
+    pub values: Vec<Vec<f64>>,
+}
+
+impl Observations {
+    /// Observations sampled at `rate` (Hz) from t = 0, from channel-major series.
+    pub fn at_rate(values: Vec<Vec<f64>>, rate: f64) -> Observations {
+        let n = values.iter().map(Vec::len).max().unwrap_or(0);
+        Observations {
+            t: (0..n).map(|k| k as f64 / rate).collect(),
+            values,
+        }
+    }
+}
+
+/// The posterior of one sample.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TraceRow {
+    /// Sample time, s.
+    pub t: f64,
+    /// Effective sample size before any resampling at this sample.
+    pub ess: f64,
+    /// Per free unknown: the posterior summary.
+    pub estimates: Vec<Estimate>,
+}
+
+/// What a filter run returns.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Posterior {
+    /// Names of the free unknowns, in the order of every [`TraceRow::estimates`].
+    pub unknowns: Vec<&'static str>,
+    /// One row per sample.
+    pub trace: Vec<TraceRow>,
+    /// Samples whose channel values were missing (`NaN`) and skipped, counted per value.
+    pub skipped: usize,
+    /// Resampling events.
+    pub resamples: usize,
+    /// Particle steps that diverged (those particles got weight zero).
+    pub diverged: usize,
+    /// Physics steps taken over all particles.
+    pub steps: u64,
+    /// Share of particle-samples advanced on the free-ringing model (the box gone for good).
+    pub ringing_share: f64,
+    /// Logarithm of the (tempered) marginal likelihood of the observations, up to a constant
+    /// that depends only on the noise levels: the sum over samples of the log mean weight
+    /// update. Compares priors or models on the same series.
+    pub log_evidence: f64,
+}
+
+impl Posterior {
+    /// A posterior over `unknowns` with no sample yet.
+    pub fn empty(unknowns: Vec<&'static str>) -> Posterior {
+        Posterior {
+            unknowns,
+            trace: Vec::new(),
+            skipped: 0,
+            resamples: 0,
+            diverged: 0,
+            steps: 0,
+            ringing_share: 0.0,
+            log_evidence: 0.0,
+        }
+    }
+
+    /// The posterior at the last sample.
+    pub fn last(&self) -> &[Estimate] {
+        self.trace.last().map(|r| &r.estimates[..]).unwrap_or(&[])
+    }
+
+    /// The sample time and effective sample size where the effective sample size was least (the
+    /// first such sample), if there is any sample. A value near 1 means that one particle carried
+    /// almost all the weight there: the cloud had lost the data, and the posterior after it
+    /// rests on the descendants of very few particles and is likely too narrow.
+    pub fn least_ess(&self) -> Option<(f64, f64)> {
+        self.trace
+            .iter()
+            .map(|r| (r.t, r.ess))
+            .reduce(|a, b| if b.1 < a.1 { b } else { a })
+    }
+}
+
+/// Weighted mean, std and central 90% interval.
+pub(super) fn summarise(vals: &[f64], w: &[f64]) -> Estimate {
+    let mean: f64 = vals.iter().zip(w).map(|(x, w)| x * w).sum();
+    let var: f64 = vals
+        .iter()
+        .zip(w)
+        .map(|(x, w)| w * (x - mean) * (x - mean))
+        .sum();
+    let mut idx: Vec<usize> = (0..vals.len()).collect();
+    idx.sort_by(|&a, &b| vals[a].total_cmp(&vals[b]));
+    let quantile = |q: f64| {
+        let mut cum = 0.0;
+        for &i in &idx {
+            cum += w[i];
+            if cum >= q {
+                return vals[i];
+            }
+        }
+        vals[*idx.last().expect("at least one particle")]
+    };
+    Estimate {
+        mean,
+        std: var.max(0.0).sqrt(),
+        ci90: [quantile(0.05), quantile(0.95)],
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn least_ess_finds_the_first_smallest_sample() {
+        let row = |t: f64, ess: f64| TraceRow {
+            t,
+            ess,
+            estimates: vec![],
+        };
+        let mut post = Posterior::empty(vec![]);
+        assert_eq!(post.least_ess(), None);
+        post.trace = vec![
+            row(0.0, 100.0),
+            row(0.001, 3.0),
+            row(0.002, 3.0),
+            row(0.003, 50.0),
+        ];
+        assert_eq!(post.least_ess(), Some((0.001, 3.0)));
+    }
+
+    #[test]
+    fn weighted_summary_matches_hand_values() {
+        let e = summarise(&[1.0, 2.0, 3.0], &[0.25, 0.5, 0.25]);
+        assert!((e.mean - 2.0).abs() < 1e-12);
+        assert!((e.std - 0.5f64.sqrt()).abs() < 1e-12);
+        assert_eq!(e.ci90, [1.0, 3.0]);
+    }
+}

@@ -1,0 +1,234 @@
+//! A particle's object state and the transition model: the box it implies, the whisker's
+//! free-ringing model once the box has gone, the mapping of model joints onto the observed chain,
+//! and the one-step advance of a particle.
+
+use super::config::Config;
+use crate::error::{Error, Result};
+use vibrissa_core::chain::Model;
+use vibrissa_core::dynamics::{initialize, step, Inputs, Integrator, State, Workspace};
+use vibrissa_core::objects::{Motion, Object, Shape};
+
+/// The object's state of one particle: `[d, v, y0, size, mu]` with `y0` the height of the top
+/// face at t = 0 (its trajectory is `y0 + v·t`).
+pub(super) type ObjState = [f64; 5];
+
+pub(super) const Y: usize = 2;
+
+/// The particle's box.
+fn object_of(o: &ObjState) -> Object {
+    let [d, v, y0, size, mu] = *o;
+    Object {
+        shape: Shape::Box {
+            width: size,
+            height: size,
+        },
+        position: [d + 0.5 * size, y0 - 0.5 * size],
+        angle: 0.0,
+        motion: Motion::Constant {
+            velocity: [0.0, v],
+            angular_velocity: 0.0,
+        },
+        friction: mu,
+    }
+}
+
+/// Start delay of the approach: the top face is `gap` below the whisker at `t0`.
+pub(super) fn start_delay(o: &ObjState, gap: f64) -> f64 {
+    -(o[Y] + gap) / o[1]
+}
+
+/// The filter's reported value of unknown `k` for a particle.
+pub(super) fn param(o: &ObjState, k: usize, gap: f64) -> f64 {
+    match k {
+        2 => start_delay(o, gap),
+        _ => o[k],
+    }
+}
+
+/// The whisker's model once a particle's box has gone for good: the same chain stepped once per
+/// sample period, its stiffness raised so that the first mode keeps its frequency at that step
+/// (the implicit method's period elongation, `Ω_num = 2·atan(Ω/2)` with `Ω = ω·h`, is undone by
+/// `ω_model = (2/h)·tan(ω·h/2)`). Higher modes, whose frequencies it gets wrong, are damped away
+/// within a few milliseconds of the slip-off.
+pub(super) struct FreeModel {
+    model: Model,
+    stepper: vibrissa_core::dynamics::Stepper,
+    /// Tip deflection per √energy, m/√J: √(2L³/(3·EI_min)), the cantilever's least stiffness.
+    reach_per_root_energy: f64,
+    /// Highest rest point of the whisker plus its thickest radius and a margin, m.
+    pub(super) clearance: f64,
+}
+
+impl FreeModel {
+    pub(super) fn new(config: &Config, model: &Model, period: f64) -> Result<FreeModel> {
+        let f1 = model
+            .modes()
+            .map_err(|e| Error::Observation(format!("filter free model: {e}")))?
+            .frequencies[0];
+        let omega_h = 2.0 * std::f64::consts::PI * f1 * period;
+        let warp = ((0.5 * omega_h).tan() / (0.5 * omega_h)).powi(2);
+        let mut params = config.whisker.clone();
+        params.youngs_modulus *= warp;
+        let stiffer = params
+            .check()
+            .map_err(|e| Error::Observation(format!("filter free model: {e}")))?;
+        let free = Model::new(&stiffer, config.segments, config.model_discretisation())
+            .map_err(|e| Error::Observation(format!("filter free model: {e}")))?;
+        let stepper = Integrator {
+            dt: period,
+            max_iterations: config.max_iterations,
+            ..Integrator::default()
+        }
+        .check()
+        .map_err(|e| Error::Observation(format!("filter integrator: {e}")))?;
+        let p = &config.whisker;
+        let r_min = p.base_radius.min(p.tip_radius);
+        let ei_min = p.youngs_modulus * std::f64::consts::PI * r_min.powi(4) / 4.0;
+        let mut y_rest = 0.0f64;
+        let (mut y, mut ang) = (0.0f64, 0.0f64);
+        for i in 0..model.n {
+            ang += model.rest[i];
+            y += model.arc * ang.sin();
+            y_rest = y_rest.max(y.abs());
+        }
+        let rmax = model.radius.iter().cloned().fold(0.0, f64::max);
+        Ok(FreeModel {
+            model: free,
+            stepper,
+            reach_per_root_energy: (2.0 * p.length.powi(3) / (3.0 * ei_min)).sqrt(),
+            clearance: y_rest + rmax + 2e-4,
+        })
+    }
+
+    /// Whether the box has left the whisker for good at time `t`: it moves away (upward) and its
+    /// bottom is beyond anything the whisker can reach with its energy (by 10%).
+    fn cleared(&self, s: &State, o: &ObjState, t: f64, ws: &mut Workspace) -> bool {
+        let [_, v, y0, size, _] = *o;
+        let bottom = y0 + v * t - size;
+        if v <= 0.0 || bottom <= self.clearance {
+            return false;
+        }
+        let energy = vibrissa_core::dynamics::kinetic_energy(&self.model, s, ws)
+            + vibrissa_core::dynamics::potential_energy(&self.model, s);
+        bottom > self.clearance + 1.1 * self.reach_per_root_energy * energy.max(0.0).sqrt()
+    }
+}
+
+/// The joint angles `theta01`, `theta12` that a chain `observed` would show, from the joint angles
+/// `q` of the model chain `model` (which may be cut into fewer, longer segments). A joint spring
+/// holds its angle at its rest angle plus the elastic bending moment there times its compliance,
+/// so the model's moments `k_i·(q_i − rest_i)` at its nodes are interpolated linearly in arc length
+/// (the bending moment is linear near the base, where no load acts) to the observed chain's first
+/// two joints. Identical chains map exactly. `q` needs the model's joints up to the one beyond the
+/// observed chain's second joint.
+pub fn map_joints(model: &Model, observed: &Model, q: &[f64]) -> [f64; 2] {
+    if model.n == observed.n && model.stiffness == observed.stiffness {
+        return [q[0], q[1]];
+    }
+    let moment = |i: usize| model.stiffness[i] * (q[i] - model.rest[i]);
+    std::array::from_fn(|j| {
+        let s = j as f64 * observed.arc / model.arc;
+        let i = (s.floor() as usize).min(q.len().saturating_sub(2));
+        let u = s - i as f64;
+        let m = (1.0 - u) * moment(i) + u * moment(i + 1);
+        observed.rest[j] + m / observed.stiffness[j]
+    })
+}
+
+/// The filter's transition model: the chain, its stepper, and the free-ringing model.
+pub(super) struct Chain<'a> {
+    pub(super) model: &'a Model,
+    pub(super) stepper: &'a vibrissa_core::dynamics::Stepper,
+    pub(super) ringing: &'a FreeModel,
+}
+
+/// Advances one particle by `steps` steps of the contact model (or `periods` steps of the
+/// free-ringing model once its box has gone for good), with process noise of intensity `noise`
+/// drawn once per sample period; marks the box gone when it has left for good by time `t`.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn advance(
+    chain: &Chain,
+    s: &mut State,
+    o: &ObjState,
+    gone: &mut bool,
+    steps: usize,
+    periods: usize,
+    noise: f64,
+    t: f64,
+    ws: &mut Workspace,
+) -> std::result::Result<(), ()> {
+    let ringing = chain.ringing;
+    if *gone {
+        // Free ringing: one step per period of the free model.
+        let inputs = Inputs {
+            base: Default::default(),
+            loads: &[],
+            noise,
+            objects: &[],
+        };
+        for _ in 0..periods {
+            step(&ringing.model, &ringing.stepper, s, &inputs, ws).map_err(|_| ())?;
+        }
+        return Ok(());
+    }
+    let object = [object_of(o)];
+    // Process noise drawn once per period (on its first step, with the intensity that gives the
+    // period's impulse its full variance).
+    let per_period = (steps / periods.max(1)).max(1);
+    let lumped = noise * (per_period as f64).sqrt();
+    for j in 0..steps {
+        let inputs = Inputs {
+            base: Default::default(),
+            loads: &[],
+            noise: if j % per_period == 0 { lumped } else { 0.0 },
+            objects: &object,
+        };
+        step(chain.model, chain.stepper, s, &inputs, ws).map_err(|_| ())?;
+    }
+    if s.contact.is_none() && ringing.cleared(s, o, t, ws) {
+        let none = Inputs {
+            base: Default::default(),
+            loads: &[],
+            noise: 0.0,
+            objects: &[],
+        };
+        initialize(&ringing.model, s, &none, ws).map_err(|_| ())?;
+        *gone = true;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use vibrissa_core::chain::Discretisation;
+    use vibrissa_core::whisker::WhiskerParams;
+
+    #[test]
+    fn joint_angles_map_exactly_under_a_linear_bending_moment() {
+        // A straight and a curved whisker (whose joints rest at non-zero angles).
+        let mut curved = WhiskerParams::w30();
+        curved.rest_curvature = 20.0;
+        for params in [WhiskerParams::w30(), curved] {
+            let w = params.check().unwrap();
+            let fine = Model::new(&w, 20, Discretisation::default()).unwrap();
+            // A tip load: the bending moment falls linearly to zero at the tip, and every joint
+            // of a chain in equilibrium holds its rest angle plus the moment at its node over its
+            // stiffness.
+            let moment = |s: f64| 3e-6 * (0.03 - s) + 1e-7;
+            let angle = |m: &Model, i: usize| m.rest[i] + moment(i as f64 * m.arc) / m.stiffness[i];
+            for n in [3, 5, 8, 20, 40] {
+                let coarse = Model::new(&w, n, Discretisation::default()).unwrap();
+                let q: Vec<f64> = (0..n).map(|i| angle(&coarse, i)).collect();
+                let mapped = map_joints(&coarse, &fine, &q);
+                for (j, m) in mapped.iter().enumerate() {
+                    let want = angle(&fine, j);
+                    assert!(
+                        (m - want).abs() < 1e-12 * want.abs().max(1e-3),
+                        "N = {n}, joint {j}: {m} vs {want}"
+                    );
+                }
+            }
+        }
+    }
+}
