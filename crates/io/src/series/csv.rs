@@ -1,7 +1,7 @@
 //! The contract's CSV: `# key = value` comments, a header row, one row per sample.
 
 use super::{is_meta_key, Series};
-use crate::atomic::write_atomic;
+use crate::atomic::{stage, Staged};
 use crate::error::{Error, Result};
 use std::fmt::Write as _;
 use std::io::Write;
@@ -9,9 +9,13 @@ use std::path::Path;
 
 /// Writes `series` as CSV (see the [module documentation](super)).
 pub fn write_csv(series: &Series, path: impl AsRef<Path>) -> Result<()> {
-    let path = path.as_ref();
+    stage_csv(series, path.as_ref())?.commit()
+}
+
+/// Writes the CSV of `series` under a temporary name beside `path`.
+pub(crate) fn stage_csv(series: &Series, path: &Path) -> Result<Staged> {
     series.check()?;
-    write_atomic(path, |w| {
+    stage(path, |w| {
         w.write_all(header_text(series).as_bytes())?;
         let mut line = String::new();
         for row in 0..series.rows() {
