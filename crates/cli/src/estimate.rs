@@ -1,7 +1,7 @@
 //! `vibrissa estimate`: distance (and speed) of the object from recorded time series.
 //!
-//! Reads one or more contract CSV files, checks them against the experiment (151 samples at
-//! 1 kHz), trains the chosen method once (on the templates, or on its simulated training runs),
+//! Reads one or more contract CSV files (with the metadata of their JSON sidecars, where there
+//! are any), checks them against the experiment (151 samples at 1 kHz), trains the chosen method once (on the templates, or on its simulated training runs),
 //! and prints one estimate per file in the contract's JSON form.
 
 use crate::output::{sig, FormatArgs, Render};
@@ -13,6 +13,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 use vibrissa_infer::experiment::{SAMPLES, SAMPLE_RATE};
 use vibrissa_infer::{methods, training_for, Estimate, Experiment, Variant, CHANNELS};
+use vibrissa_io::series::Series;
 
 /// Arguments of `vibrissa estimate`.
 #[derive(Debug, clap::Args)]
@@ -272,10 +273,21 @@ fn print_json(report: &Report, lines: bool) -> Result<()> {
     Ok(())
 }
 
+/// Reads a recorded series with the metadata of its sidecar (`run.json` beside `run.csv`), if it
+/// has one. What is wrong with the sidecar is a warning on standard error, never an error: the
+/// CSV alone is always enough.
+pub(crate) fn read_recording(file: &Path) -> Result<Series> {
+    let (series, warnings) = vibrissa_io::series::read_csv_with_sidecar(file)
+        .with_context(|| format!("cannot read `{}`", file.display()))?;
+    for w in warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok(series)
+}
+
 /// Reads one observation file as channel-major `[CHANNELS][SAMPLES]` (missing channels empty).
 fn read_obs(file: &Path, needs: &[usize], method: &str) -> Result<Vec<Vec<f64>>> {
-    let series = vibrissa_io::series::read_csv(file)
-        .with_context(|| format!("cannot read `{}`", file.display()))?;
+    let series = read_recording(file)?;
     let name = file.display();
     let required = series
         .require(&["t", "theta01", "theta12"])

@@ -5,7 +5,7 @@
 //! warning. `--trace` writes the posterior at every sample and plots it. A run whose effective
 //! sample size fell below 1% of the particles gets a warning: its posterior may be too narrow.
 
-use crate::estimate::{print_json_rows, Args, FileEstimate};
+use crate::estimate::{print_json_rows, read_recording, Args, FileEstimate};
 use crate::files;
 use crate::plot::{render_series, Axis, Curve, Panel};
 use anyhow::{bail, Context, Result};
@@ -248,12 +248,12 @@ fn parse_channels(names: &[String]) -> Result<Vec<usize>> {
     Ok(out)
 }
 
-/// Reads one observed series, with the segment count of the chain that recorded it when the file
-/// says (`vibrissa simulate` writes it as metadata; the experiments' chain has 20).
+/// Reads one observed series, with the segment count of the chain that recorded it when its
+/// metadata says (`vibrissa simulate` writes it in the sidecar, older files have it on a `#` line;
+/// the experiments' chain has 20).
 fn read_series(file: &Path, channels: &[usize]) -> Result<(Observations, Option<usize>)> {
     let name = file.display();
-    let series =
-        vibrissa_io::series::read_csv(file).with_context(|| format!("cannot read `{name}`"))?;
+    let series = read_recording(file)?;
     let t = series
         .require(&["t"])
         .with_context(|| format!("`{name}` lacks the column t"))?[0]

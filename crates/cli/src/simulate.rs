@@ -1,10 +1,11 @@
 //! `vibrissa simulate`: one run of a scenario, written as a time series (and a figure).
 //!
-//! The scenario is loaded and checked, run, and written in the contract's columns; `--plot`
-//! also draws the observed channels over time like the seed paper's Fig. 3, with the contact
-//! period shaded. Every output file appears whole or not at all: the figure is drawn first into
-//! a temporary file, the series is written (atomically), and only then is the figure renamed
-//! into place. On any error no output file is left behind.
+//! The scenario is loaded and checked, run, and written in the contract's columns, with its
+//! metadata in a JSON sidecar beside it (`run.json` beside `run.csv`); `--plot` also draws the
+//! observed channels over time like the seed paper's Fig. 3, with the contact period shaded.
+//! Every output file appears whole or not at all: the figure is drawn first into a temporary
+//! file, the series and its sidecar are written (atomically), and only then is the figure
+//! renamed into place. On any error no output file is left behind.
 
 use crate::files;
 use crate::output::{sig, FormatArgs, Render};
@@ -29,7 +30,8 @@ pub struct Args {
     /// `objects.0.friction=0.3` (repeatable; applied in order).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     sets: Vec<String>,
-    /// Time-series file to write; its extension picks the format: .csv, .npy or .npz.
+    /// Time-series file to write; its extension picks the format: .csv, .npy or .npz. The run's
+    /// metadata goes beside it, into the same name with the extension .json.
     #[arg(long, value_name = "FILE")]
     out: PathBuf,
     /// Also draw the observed channels over time into this PNG file.
@@ -83,6 +85,7 @@ pub fn run(args: &Args) -> Result<()> {
     if let Some(figure) = figure {
         if let Err(e) = figure.commit() {
             let _ = std::fs::remove_file(&args.out);
+            let _ = std::fs::remove_file(series::sidecar_path(&args.out));
             return Err(e);
         }
     }
@@ -108,8 +111,9 @@ pub fn check_series_path(path: &Path) -> Result<()> {
     }
 }
 
-/// The run as a series in the contract's columns, with its metadata: the tool's version, the
-/// scenario as named and its overrides, the experiment and its d and v, segments, dt and seed.
+/// The run as a series in the contract's columns, with its metadata (written to the sidecar):
+/// the tool's version, the scenario as named and its overrides, the experiment and its d and v,
+/// segments, dt and seed.
 pub fn to_series(loaded: &Loaded, output: &Output, spec: &str, sets: &[String]) -> Series {
     let mut series = Series::new(&COLUMNS);
     for row in &output.rows {
@@ -266,6 +270,8 @@ struct Summary {
     experiment: Option<ExperimentSummary>,
     /// The time-series file written.
     out: String,
+    /// Its sidecar, with the run's metadata.
+    sidecar: String,
     /// The figure written, if any.
     plot: Option<String>,
     /// Samples (rows).
@@ -307,6 +313,7 @@ impl Summary {
                 v: e.v,
             }),
             out: args.out.display().to_string(),
+            sidecar: series::sidecar_path(&args.out).display().to_string(),
             plot: args.plot.as_ref().map(|p| p.display().to_string()),
             samples: output.rows.len(),
             duration: output.rows.last().map_or(0.0, |r| r[t]),
@@ -372,7 +379,7 @@ impl Render for Summary {
             format!("{} m", sig(self.max_penetration, 3)),
         )?;
         line(out, "wall time", format!("{} s", sig(self.seconds, 3)))?;
-        let mut wrote = self.out.clone();
+        let mut wrote = format!("{}, {}", self.out, self.sidecar);
         if let Some(p) = &self.plot {
             wrote.push_str(", ");
             wrote.push_str(p);

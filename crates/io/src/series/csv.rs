@@ -1,4 +1,5 @@
-//! The contract's CSV: `# key = value` comments, a header row, one row per sample.
+//! The contract's CSV: a header row, then one row per sample. Written without comment lines;
+//! read with them (`# key = value` comments carry metadata).
 
 use super::{is_meta_key, Series};
 use crate::atomic::{stage, Staged};
@@ -7,7 +8,8 @@ use std::fmt::Write as _;
 use std::io::Write;
 use std::path::Path;
 
-/// Writes `series` as CSV (see the [module documentation](super)).
+/// Writes `series` as CSV (see the [module documentation](super)): the header row and the data,
+/// nothing else. Its metadata is not written; [`write()`](super::write()) puts it in the sidecar.
 pub fn write_csv(series: &Series, path: impl AsRef<Path>) -> Result<()> {
     stage_csv(series, path.as_ref())?.commit()
 }
@@ -37,13 +39,10 @@ pub fn to_csv_string(series: &Series) -> Result<String> {
     Ok(text)
 }
 
-/// Metadata comment lines and the header row.
+/// The header row. No comment lines come before it: the first line of the file is the header, as
+/// every common reader expects by default.
 fn header_text(series: &Series) -> String {
-    let mut text = String::new();
-    for (key, value) in &series.meta {
-        let _ = writeln!(text, "# {key} = {value}");
-    }
-    text.push_str(&series.columns.join(","));
+    let mut text = series.columns.join(",");
     text.push('\n');
     text
 }

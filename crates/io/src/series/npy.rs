@@ -40,7 +40,8 @@ pub fn npy_header(shape: &[usize]) -> Vec<u8> {
 }
 
 /// Writes `series` as one 2-D NPY array, rows × columns, in the series' column order (see the
-/// [module documentation](super)).
+/// [module documentation](super)). Names and metadata are not written; [`write()`](super::write())
+/// puts them in the sidecar.
 pub fn write_npy(series: &Series, path: impl AsRef<Path>) -> Result<()> {
     stage_npy(series, path.as_ref())?.commit()
 }
@@ -64,6 +65,7 @@ pub(crate) fn stage_npy(series: &Series, path: &Path) -> Result<Staged> {
 }
 
 /// Writes `series` as an NPZ archive: one 1-D NPY array per column, named `<column>.npy`.
+/// Metadata is not written; [`write()`](super::write()) puts it in the sidecar.
 pub fn write_npz(series: &Series, path: impl AsRef<Path>) -> Result<()> {
     stage_npz(series, path.as_ref())?.commit()
 }
