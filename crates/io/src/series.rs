@@ -9,7 +9,8 @@
 //!   then one row per sample, and nothing else, so that `numpy.genfromtxt(f, delimiter=",",
 //!   names=True)`, `numpy.loadtxt(f, delimiter=",", skiprows=1)`, `pandas.read_csv(f)` and
 //!   `polars.read_csv(f)` read it with their defaults. Values are written with enough digits to
-//!   read back bit for bit, with `.` as decimal point and `NaN` for a missing value. The reader still accepts `#` comment
+//!   read back bit for bit, always as floating-point literals (`0.0`, `1.0`, `2.5e-12`), with
+//!   `.` as decimal point and `NaN` for a missing value. The reader still accepts `#` comment
 //!   lines anywhere, as the contract allows, and takes `# key = value` lines as metadata.
 //! - **NPY** ([`write_npy`]): one 2-D little-endian `float64` array, rows × columns in C order,
 //!   NPY format version 1.0 (`numpy.load` reads it). The columns are in the series' order, which

@@ -87,10 +87,19 @@ fn csv_round_trip_is_exact() {
     let lines: Vec<&str> = text.lines().collect();
     assert_eq!(lines[0], COLUMNS.join(","));
     assert_eq!(lines.len(), 8);
-    assert!(lines[1].starts_with("0,"), "{}", lines[1]);
+    assert!(lines[1].starts_with("0.0,"), "{}", lines[1]);
     assert!(lines[4].ends_with("NaN,NaN,NaN"), "{}", lines[4]);
     assert!(!text.contains('#') && !text.contains("inf"));
     assert_eq!(to_csv_string(&s).unwrap(), text);
+    // Every value is a floating-point literal, so no reader takes a column for integers.
+    for line in &lines[1..] {
+        for cell in line.split(',') {
+            assert!(
+                cell == "NaN" || cell.contains(['.', 'e']),
+                "{cell:?} in {line:?}"
+            );
+        }
+    }
 
     // The sidecar: the file it describes, its rows and columns, the metadata in order.
     assert_eq!(sidecar_path(&path), dir.join("run.json"));

@@ -60,12 +60,18 @@ fn push_row(line: &mut String, series: &Series, row: usize) {
 
 /// Appends `x` with the fewest digits that read back to the same bits: plain decimals for
 /// ordinary magnitudes, exponent notation for very small or large ones, `NaN` if not a number.
+/// A whole number keeps a decimal point (`0.0`, `1.0`), so that readers which guess a column's
+/// type from its first rows (polars) take every column as floating point.
 fn push_number(line: &mut String, x: f64) {
     let a = x.abs();
     if x.is_nan() {
         line.push_str("NaN");
     } else if a == 0.0 || (1e-5..1e16).contains(&a) {
+        let start = line.len();
         let _ = write!(line, "{x}");
+        if !line[start..].contains('.') {
+            line.push_str(".0");
+        }
     } else {
         let _ = write!(line, "{x:e}");
     }
