@@ -569,37 +569,166 @@ fn numpy_available() -> bool {
         .is_ok_and(|o| o.status.success())
 }
 
+/// What the Python readers are asked to read: the awkward sample, a column whose first 150
+/// values are whole numbers (a reader that guesses types from the first rows must still take it
+/// as floating point), and values with every kind of bit pattern.
+fn interop_series() -> Series {
+    let s = sample();
+    let mut out = Series::new(&s.columns);
+    out.meta = s.meta.clone();
+    let mut bits = 0x9E37_79B9_7F4A_7C15u64;
+    for r in 0..400 {
+        let row: Vec<f64> = (0..s.columns.len())
+            .map(|c| {
+                if c == 3 {
+                    return if r < 150 {
+                        (r % 3) as f64
+                    } else {
+                        r as f64 / 7.0
+                    };
+                }
+                if r < s.rows() {
+                    return s.data[c][r];
+                }
+                if c == 0 {
+                    return r as f64 * 1e-3;
+                }
+                // A finite value from a scrambled bit pattern (xorshift).
+                loop {
+                    bits ^= bits << 13;
+                    bits ^= bits >> 7;
+                    bits ^= bits << 17;
+                    let x = f64::from_bits(bits);
+                    if x.is_finite() {
+                        return x;
+                    }
+                }
+            })
+            .collect();
+        out.push_row(&row);
+    }
+    out
+}
+
 #[test]
 fn numpy_reads_what_is_written_when_available() {
     if !numpy_available() {
+        // CI sets this: there the test must run.
+        assert!(
+            std::env::var_os("VIBRISSA_REQUIRE_INTEROP").is_none(),
+            "VIBRISSA_REQUIRE_INTEROP is set, but python3 cannot import numpy"
+        );
         eprintln!("numpy_reads_what_is_written_when_available: skipped (no python3 with numpy)");
         return;
     }
     let dir = temp_dir("numpy");
-    let s = sample();
+    let s = interop_series();
     let (npy, npz, csv) = (dir.join("r.npy"), dir.join("r.npz"), dir.join("r.csv"));
-    write_npy(&s, &npy).unwrap();
-    write_npz(&s, &npz).unwrap();
-    write_csv(&s, &csv).unwrap();
+    write(&s, &npy).unwrap();
+    write(&s, &npz).unwrap();
+    write(&s, &csv).unwrap();
+
+    // Each reader with its defaults; every value comes back as its 64 bits in hexadecimal, one
+    // line per reader and column: `reader column bits bits ...`.
     let script = r##"
-import sys, numpy as np
-a = np.load(sys.argv[1]); z = np.load(sys.argv[2])
-c = np.genfromtxt(sys.argv[3], delimiter=",", names=True, comments="#")
-assert a.dtype == np.float64 and a.shape == (7, 10), a.shape
-for k, name in enumerate(z.files):
-    col = z[name]
-    assert np.array_equal(col, a[:, k], equal_nan=True), name
-    assert np.array_equal(c[name], col, equal_nan=True), name
-print("ok")
+import importlib.util, json, struct, sys
+import numpy as np
+npy, npz, csv, sidecar = sys.argv[1:5]
+def show(reader, name, values):
+    bits = [struct.pack(">d", float(x)).hex() for x in values]
+    print(reader, name, " ".join(bits))
+a = np.load(npy)
+assert a.dtype == np.float64, a.dtype
+names = json.load(open(sidecar))["columns"]
+assert a.ndim == 2 and a.shape[1] == len(names), a.shape
+for k, name in enumerate(names):
+    show("npy", name, a[:, k])
+with np.load(npz) as z:
+    for entry in z.files:
+        show("npz", entry, z[entry])
+g = np.genfromtxt(csv, delimiter=",", names=True)
+for name in g.dtype.names:
+    assert g[name].dtype == np.float64, (name, g[name].dtype)
+    show("genfromtxt", name, g[name])
+l = np.loadtxt(csv, delimiter=",", skiprows=1)
+assert l.dtype == np.float64
+for k, name in enumerate(names):
+    show("loadtxt", name, l[:, k])
+if importlib.util.find_spec("pandas"):
+    import pandas as pd
+    p = pd.read_csv(csv)
+    for name in p.columns:
+        assert p[name].dtype == np.float64, (name, p[name].dtype)
+        show("pandas", name, p[name].to_numpy())
+else:
+    print("missing pandas")
+if importlib.util.find_spec("polars"):
+    import polars as pl
+    q = pl.read_csv(csv)
+    for name in q.columns:
+        assert q[name].dtype == pl.Float64, (name, q[name].dtype)
+        show("polars", name, q[name].to_list())
+else:
+    print("missing polars")
 "##;
     let out = std::process::Command::new("python3")
         .args(["-c", script])
-        .args([&npy, &npz, &csv].map(|p: &PathBuf| p.as_path().to_str().unwrap().to_string()))
+        .args([&npy, &npz, &csv, &dir.join("r.json")].map(|p: &PathBuf| p.as_os_str().to_owned()))
         .output()
         .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success(),
-        "{}",
+        "{}\n{stdout}",
         String::from_utf8_lossy(&out.stderr)
+    );
+
+    // Every reader gave every column, with every value's bits (any NaN for a NaN).
+    let mut readers = vec!["npy", "npz", "genfromtxt", "loadtxt", "pandas", "polars"];
+    let mut seen: Vec<(String, String)> = Vec::new();
+    for line in stdout.lines() {
+        let mut parts = line.split(' ');
+        let (reader, name) = (parts.next().unwrap(), parts.next().unwrap_or(""));
+        if reader == "missing" {
+            assert!(
+                name != "pandas" || std::env::var_os("VIBRISSA_REQUIRE_INTEROP").is_none(),
+                "VIBRISSA_REQUIRE_INTEROP is set, but python3 cannot import pandas"
+            );
+            eprintln!(
+                "numpy_reads_what_is_written_when_available: {name} not checked (not installed)"
+            );
+            readers.retain(|r| *r != name);
+            continue;
+        }
+        let column = name.strip_suffix(".npy").unwrap_or(name);
+        let expected = s
+            .column(column)
+            .unwrap_or_else(|| panic!("{reader}: unknown column {name}"));
+        let got: Vec<f64> = parts
+            .map(|h| f64::from_bits(u64::from_str_radix(h, 16).unwrap()))
+            .collect();
+        assert_eq!(got.len(), expected.len(), "{reader} {name}");
+        for (row, (g, e)) in got.iter().zip(expected).enumerate() {
+            assert!(
+                g.to_bits() == e.to_bits() || (g.is_nan() && e.is_nan()),
+                "{reader} {name} row {row}: read {g:e} ({:#x}), wrote {e:e} ({:#x})",
+                g.to_bits(),
+                e.to_bits()
+            );
+        }
+        seen.push((reader.to_string(), column.to_string()));
+    }
+    for reader in readers {
+        for column in &s.columns {
+            assert!(
+                seen.contains(&(reader.to_string(), column.clone())),
+                "{reader} did not give column {column}"
+            );
+        }
+    }
+    eprintln!(
+        "numpy_reads_what_is_written_when_available: {} columns of {} rows checked bit for bit",
+        seen.len(),
+        s.rows()
     );
 }
