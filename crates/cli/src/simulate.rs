@@ -257,6 +257,37 @@ struct ContactSummary {
     end: f64,
     /// Samples in contact.
     samples: usize,
+    /// Every interval of consecutive samples in contact, as the times of its first and last
+    /// sample, s (a whisker that leaves an object and strikes it again has several).
+    intervals: Vec<[f64; 2]>,
+}
+
+impl ContactSummary {
+    /// The contact of a run from its rows (`None` if nothing was touched).
+    fn of(rows: &[[f64; 10]]) -> Option<ContactSummary> {
+        let (t, flag) = (index("t"), index("contact"));
+        let mut intervals: Vec<[f64; 2]> = Vec::new();
+        let mut samples = 0;
+        let mut touching = false;
+        for row in rows {
+            if row[flag] > 0.5 {
+                match intervals.last_mut() {
+                    Some(last) if touching => last[1] = row[t],
+                    _ => intervals.push([row[t], row[t]]),
+                }
+                samples += 1;
+                touching = true;
+            } else {
+                touching = false;
+            }
+        }
+        Some(ContactSummary {
+            start: intervals.first()?[0],
+            end: intervals.last()?[1],
+            samples,
+            intervals,
+        })
+    }
 }
 
 /// What `vibrissa simulate` prints.
@@ -284,7 +315,7 @@ struct Summary {
     dt: f64,
     /// Segment count.
     segments: usize,
-    /// Contact period, if the whisker touched anything.
+    /// Contact periods, if the whisker touched anything.
     contact: Option<ContactSummary>,
     /// Largest penetration into an object, m.
     max_penetration: f64,
@@ -294,16 +325,8 @@ struct Summary {
 
 impl Summary {
     fn new(loaded: &Loaded, output: &Output, seconds: f64, args: &Args) -> Summary {
-        let (t, flag) = (index("t"), index("contact"));
-        let contact_rows: Vec<&[f64; 10]> = output.rows.iter().filter(|r| r[flag] > 0.5).collect();
-        let contact = match (contact_rows.first(), contact_rows.last()) {
-            (Some(first), Some(last)) => Some(ContactSummary {
-                start: first[t],
-                end: last[t],
-                samples: contact_rows.len(),
-            }),
-            _ => None,
-        };
+        let t = index("t");
+        let contact = ContactSummary::of(&output.rows);
         Summary {
             scenario: args.scenario.clone(),
             set: args.sets.clone(),
@@ -364,12 +387,20 @@ impl Render for Summary {
             ),
         )?;
         let contact = match &self.contact {
-            Some(c) => format!(
-                "{} … {} ms ({} samples)",
-                short(c.start * 1e3),
-                short(c.end * 1e3),
-                c.samples
-            ),
+            Some(c) => {
+                let intervals: Vec<String> = c
+                    .intervals
+                    .iter()
+                    .map(|&[a, b]| {
+                        if a == b {
+                            format!("{} ms", short(a * 1e3))
+                        } else {
+                            format!("{}–{} ms", short(a * 1e3), short(b * 1e3))
+                        }
+                    })
+                    .collect();
+                format!("{} ({} samples)", intervals.join(", "), c.samples)
+            }
             None => "none".to_string(),
         };
         line(out, "contact", contact)?;
@@ -398,6 +429,28 @@ mod tests {
         assert_eq!(short(0.6), "0.6");
         assert_eq!(short(0.15 * 1e3), "150");
         assert_eq!(short(1e-4 * 1e6), "100");
+    }
+
+    #[test]
+    fn contact_lists_every_interval() {
+        let row = |k: usize, touching: bool| {
+            let mut r = [0.0; 10];
+            r[index("t")] = k as f64 / 8.0;
+            r[index("contact")] = if touching { 1.0 } else { 0.0 };
+            r
+        };
+        let flags = [0, 1, 1, 0, 1, 0, 0, 1, 1, 1];
+        let rows: Vec<[f64; 10]> = flags
+            .iter()
+            .enumerate()
+            .map(|(k, &f)| row(k, f == 1))
+            .collect();
+        let c = ContactSummary::of(&rows).unwrap();
+        assert_eq!(c.intervals, [[0.125, 0.25], [0.5, 0.5], [0.875, 1.125]]);
+        assert_eq!((c.start, c.end, c.samples), (0.125, 1.125, 6));
+        let none: Vec<[f64; 10]> = (0..5).map(|k| row(k, false)).collect();
+        assert!(ContactSummary::of(&none).is_none());
+        assert!(ContactSummary::of(&[]).is_none());
     }
 
     #[test]

@@ -319,7 +319,7 @@ fn simulate_e2_writes_the_contract_series_and_a_figure() {
     let png = fs::read(dir.path().join("run.png")).unwrap();
     assert!(png.starts_with(b"\x89PNG\r\n\x1a\n"), "not a PNG");
 
-    // The summary names the contact period.
+    // The summary names the contact periods.
     assert!(stdout(&out).contains("contact"), "{}", stdout(&out));
 }
 
@@ -345,6 +345,45 @@ fn simulate_writes_npz_and_json_summary() {
     assert_eq!(summary["experiment"]["name"], "e1");
     assert_eq!(summary["experiment"]["d"], 0.025);
     assert!(summary["contact"]["start"].as_f64().is_some(), "{summary}");
+}
+
+#[test]
+fn simulate_lists_every_contact_interval() {
+    // At d = 20 mm in e2 the whisker strikes the box, leaves it and strikes it again: samples
+    // 2–23 and 25–51 are in contact.
+    let dir = Scratch::new("simulate-intervals");
+    let args = ["simulate", "e2", "--set", "d=0.02", "--out", "x.csv"];
+    let out = vibrissa_in(dir.path(), &args);
+    assert!(out.status.success(), "stderr:\n{}", stderr(&out));
+    let text = stdout(&out);
+    assert!(
+        text.contains("contact          2–23 ms, 25–51 ms (49 samples)"),
+        "{text}"
+    );
+
+    // The file has the same two intervals.
+    let (_, rows) = csv_rows(&dir.path().join("x.csv"));
+    let touching: Vec<usize> = (0..rows.len()).filter(|&k| rows[k][6] == 1.0).collect();
+    let expected: Vec<usize> = (2..=23).chain(25..=51).collect();
+    assert_eq!(touching, expected);
+
+    // JSON: the first and last contact and the sample count as before, and every interval.
+    let out = vibrissa_in(dir.path(), &[&args[..], &["--json"]].concat());
+    assert!(out.status.success(), "stderr:\n{}", stderr(&out));
+    let contact = &json(&out)["contact"];
+    let close = |v: &Value, x: f64| (v.as_f64().unwrap() - x).abs() < 1e-12;
+    assert!(close(&contact["start"], 0.002) && close(&contact["end"], 0.051));
+    assert_eq!(contact["samples"], 49);
+    let intervals = contact["intervals"]
+        .as_array()
+        .expect("a list of intervals");
+    assert_eq!(intervals.len(), 2, "{contact}");
+    for (interval, [a, b]) in intervals.iter().zip([[0.002, 0.023], [0.025, 0.051]]) {
+        assert!(
+            close(&interval[0], a) && close(&interval[1], b),
+            "{contact}"
+        );
+    }
 }
 
 #[test]
