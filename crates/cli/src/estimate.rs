@@ -365,8 +365,13 @@ pub(crate) fn read_recording(
     needs: &[usize],
     method: Option<&str>,
 ) -> Result<Recording> {
-    let series = vibrissa_io::series::read_csv(file)
+    // The sidecar's metadata (`run.json` beside `run.csv`) where there is one; what is wrong with
+    // it is a warning, never an error: the CSV alone is always enough.
+    let (series, warnings) = vibrissa_io::series::read_csv_with_sidecar(file)
         .with_context(|| format!("cannot read `{}`", file.display()))?;
+    for w in warnings {
+        eprintln!("warning: {w}");
+    }
     let name = file.display();
     let t = series
         .require(&["t", "theta01", "theta12"])

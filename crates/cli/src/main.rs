@@ -48,14 +48,16 @@ enum Command {
     ///
     /// SCENARIO is a built-in experiment (e1, e2) or a TOML scenario file; `--set key=value`
     /// overrides any of its keys. The series has the contract's columns (t, theta01, theta12,
-    /// m0, fx, fy, contact, cx, cy, s); `--plot` draws the angles, the base moment and the base
+    /// m0, fx, fy, contact, cx, cy, s); the run's metadata goes into a JSON sidecar beside it
+    /// (`run.json` beside `run.csv`). `--plot` draws the angles, the base moment and the base
     /// forces over time with the contact period shaded. No output file is left behind on error.
     Simulate(simulate::Args),
     /// Run every combination of a grid of parameter values, in parallel, one file per run.
     ///
-    /// Grid keys are `--set` keys; e1 and e2 without `--grid` sweep their own grids. Writes
-    /// `manifest.csv` beside the runs (kept up to date as runs finish); started again on the
-    /// same folder, skips the runs already done. A failed run is reported with its parameters
+    /// Grid keys are `--set` keys; e1 and e2 without `--grid` sweep their own grids. Each run
+    /// writes its series and a JSON sidecar with its metadata. Writes `manifest.csv` beside the
+    /// runs (kept up to date as runs finish); started again on the same folder, skips the runs
+    /// whose series and sidecar are both there. A failed run is reported with its parameters
     /// and makes the sweep exit with status 1 after the others have run.
     Sweep(sweep::Args),
     /// Run the seed's template experiment e1 or e2 and score every estimator.

@@ -1,10 +1,11 @@
 //! `vibrissa simulate`: one run of a scenario, written as a time series (and a figure).
 //!
-//! The scenario is loaded and checked, run, and written in the contract's columns; `--plot`
-//! also draws the observed channels over time like the seed paper's Fig. 3, with the contact
-//! period shaded. Every output file appears whole or not at all: the figure is drawn first into
-//! a temporary file, the series is written (atomically), and only then is the figure renamed
-//! into place. On any error no output file is left behind.
+//! The scenario is loaded and checked, run, and written in the contract's columns, with its
+//! metadata in a JSON sidecar beside it (`run.json` beside `run.csv`); `--plot` also draws the
+//! observed channels over time like the seed paper's Fig. 3, with the contact period shaded.
+//! Every output file appears whole or not at all: the figure is drawn first into a temporary
+//! file, the series and its sidecar are written (atomically), and only then is the figure
+//! renamed into place. On any error no output file is left behind.
 
 use crate::files;
 use crate::output::{sig, FormatArgs, Render};
@@ -29,7 +30,8 @@ pub struct Args {
     /// `objects.0.friction=0.3` (repeatable; applied in order).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     sets: Vec<String>,
-    /// Time-series file to write; its extension picks the format: .csv, .npy or .npz.
+    /// Time-series file to write; its extension picks the format: .csv, .npy or .npz. The run's
+    /// metadata goes beside it, into the same name with the extension .json.
     #[arg(long, value_name = "FILE")]
     out: PathBuf,
     /// Also draw the observed channels over time into this PNG file.
@@ -83,6 +85,7 @@ pub fn run(args: &Args) -> Result<()> {
     if let Some(figure) = figure {
         if let Err(e) = figure.commit() {
             let _ = std::fs::remove_file(&args.out);
+            let _ = std::fs::remove_file(series::sidecar_path(&args.out));
             return Err(e);
         }
     }
@@ -108,8 +111,9 @@ pub fn check_series_path(path: &Path) -> Result<()> {
     }
 }
 
-/// The run as a series in the contract's columns, with its metadata: the tool's version, the
-/// scenario as named and its overrides, the experiment and its d and v, segments, dt and seed.
+/// The run as a series in the contract's columns, with its metadata (written to the sidecar):
+/// the tool's version, the scenario as named and its overrides, the experiment and its d and v,
+/// segments, dt and seed.
 pub fn to_series(loaded: &Loaded, output: &Output, spec: &str, sets: &[String]) -> Series {
     let mut series = Series::new(&COLUMNS);
     for row in &output.rows {
@@ -253,6 +257,37 @@ struct ContactSummary {
     end: f64,
     /// Samples in contact.
     samples: usize,
+    /// Every interval of consecutive samples in contact, as the times of its first and last
+    /// sample, s (a whisker that leaves an object and strikes it again has several).
+    intervals: Vec<[f64; 2]>,
+}
+
+impl ContactSummary {
+    /// The contact of a run from its rows (`None` if nothing was touched).
+    fn of(rows: &[[f64; 10]]) -> Option<ContactSummary> {
+        let (t, flag) = (index("t"), index("contact"));
+        let mut intervals: Vec<[f64; 2]> = Vec::new();
+        let mut samples = 0;
+        let mut touching = false;
+        for row in rows {
+            if row[flag] > 0.5 {
+                match intervals.last_mut() {
+                    Some(last) if touching => last[1] = row[t],
+                    _ => intervals.push([row[t], row[t]]),
+                }
+                samples += 1;
+                touching = true;
+            } else {
+                touching = false;
+            }
+        }
+        Some(ContactSummary {
+            start: intervals.first()?[0],
+            end: intervals.last()?[1],
+            samples,
+            intervals,
+        })
+    }
 }
 
 /// What `vibrissa simulate` prints.
@@ -266,6 +301,8 @@ struct Summary {
     experiment: Option<ExperimentSummary>,
     /// The time-series file written.
     out: String,
+    /// Its sidecar, with the run's metadata.
+    sidecar: String,
     /// The figure written, if any.
     plot: Option<String>,
     /// Samples (rows).
@@ -278,7 +315,7 @@ struct Summary {
     dt: f64,
     /// Segment count.
     segments: usize,
-    /// Contact period, if the whisker touched anything.
+    /// Contact periods, if the whisker touched anything.
     contact: Option<ContactSummary>,
     /// Largest penetration into an object, m.
     max_penetration: f64,
@@ -288,16 +325,8 @@ struct Summary {
 
 impl Summary {
     fn new(loaded: &Loaded, output: &Output, seconds: f64, args: &Args) -> Summary {
-        let (t, flag) = (index("t"), index("contact"));
-        let contact_rows: Vec<&[f64; 10]> = output.rows.iter().filter(|r| r[flag] > 0.5).collect();
-        let contact = match (contact_rows.first(), contact_rows.last()) {
-            (Some(first), Some(last)) => Some(ContactSummary {
-                start: first[t],
-                end: last[t],
-                samples: contact_rows.len(),
-            }),
-            _ => None,
-        };
+        let t = index("t");
+        let contact = ContactSummary::of(&output.rows);
         Summary {
             scenario: args.scenario.clone(),
             set: args.sets.clone(),
@@ -307,6 +336,7 @@ impl Summary {
                 v: e.v,
             }),
             out: args.out.display().to_string(),
+            sidecar: series::sidecar_path(&args.out).display().to_string(),
             plot: args.plot.as_ref().map(|p| p.display().to_string()),
             samples: output.rows.len(),
             duration: output.rows.last().map_or(0.0, |r| r[t]),
@@ -357,12 +387,20 @@ impl Render for Summary {
             ),
         )?;
         let contact = match &self.contact {
-            Some(c) => format!(
-                "{} … {} ms ({} samples)",
-                short(c.start * 1e3),
-                short(c.end * 1e3),
-                c.samples
-            ),
+            Some(c) => {
+                let intervals: Vec<String> = c
+                    .intervals
+                    .iter()
+                    .map(|&[a, b]| {
+                        if a == b {
+                            format!("{} ms", short(a * 1e3))
+                        } else {
+                            format!("{}–{} ms", short(a * 1e3), short(b * 1e3))
+                        }
+                    })
+                    .collect();
+                format!("{} ({} samples)", intervals.join(", "), c.samples)
+            }
             None => "none".to_string(),
         };
         line(out, "contact", contact)?;
@@ -372,7 +410,7 @@ impl Render for Summary {
             format!("{} m", sig(self.max_penetration, 3)),
         )?;
         line(out, "wall time", format!("{} s", sig(self.seconds, 3)))?;
-        let mut wrote = self.out.clone();
+        let mut wrote = format!("{}, {}", self.out, self.sidecar);
         if let Some(p) = &self.plot {
             wrote.push_str(", ");
             wrote.push_str(p);
@@ -391,6 +429,28 @@ mod tests {
         assert_eq!(short(0.6), "0.6");
         assert_eq!(short(0.15 * 1e3), "150");
         assert_eq!(short(1e-4 * 1e6), "100");
+    }
+
+    #[test]
+    fn contact_lists_every_interval() {
+        let row = |k: usize, touching: bool| {
+            let mut r = [0.0; 10];
+            r[index("t")] = k as f64 / 8.0;
+            r[index("contact")] = if touching { 1.0 } else { 0.0 };
+            r
+        };
+        let flags = [0, 1, 1, 0, 1, 0, 0, 1, 1, 1];
+        let rows: Vec<[f64; 10]> = flags
+            .iter()
+            .enumerate()
+            .map(|(k, &f)| row(k, f == 1))
+            .collect();
+        let c = ContactSummary::of(&rows).unwrap();
+        assert_eq!(c.intervals, [[0.125, 0.25], [0.5, 0.5], [0.875, 1.125]]);
+        assert_eq!((c.start, c.end, c.samples), (0.125, 1.125, 6));
+        let none: Vec<[f64; 10]> = (0..5).map(|k| row(k, false)).collect();
+        assert!(ContactSummary::of(&none).is_none());
+        assert!(ContactSummary::of(&[]).is_none());
     }
 
     #[test]

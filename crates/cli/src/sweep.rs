@@ -6,8 +6,10 @@
 //! command line's own `--set`s. A built-in experiment (or a file naming one) with no `--grid`
 //! sweeps its own grid from EXPERIMENTS.md.
 //!
-//! Each run's series is renamed into place only when complete, so a file in the folder is a
-//! finished run: started again on the same folder, a sweep skips the runs whose files exist.
+//! Each run writes its series and, beside it, a JSON sidecar with its metadata (`d0.015_v0.3.csv`
+//! and `d0.015_v0.3.json`). Both are renamed into place only when complete, the series last, so
+//! a run is finished when both files are in the folder: started again on the same folder, a
+//! sweep skips those runs, and runs again any whose series or sidecar is missing.
 //! `manifest.csv` lists the finished runs with their parameters and figures; it is rewritten
 //! (atomically) after every run, so a killed sweep leaves a truthful one. A run that fails is
 //! reported with its parameters; the others still run, and the sweep then exits non-zero.
@@ -36,8 +38,9 @@ pub struct Args {
     /// Scenario: a built-in experiment (e1, e2) or the path of a TOML scenario file.
     #[arg(value_name = "SCENARIO")]
     scenario: String,
-    /// Folder for the runs' files and `manifest.csv` (created if missing; an existing one is
-    /// resumed: runs whose files are there are skipped).
+    /// Folder for the runs' files (a series and its .json sidecar each) and `manifest.csv`
+    /// (created if missing; an existing one is resumed: runs whose two files are there are
+    /// skipped).
     #[arg(long, value_name = "DIR")]
     out: PathBuf,
     /// Overrides a scenario key for every run, e.g. `whisker.length=0.04` (repeatable).
@@ -92,6 +95,12 @@ impl Job {
     fn label(&self) -> String {
         self.sets().collect::<Vec<_>>().join(" ")
     }
+
+    /// Whether the run is finished in `dir`: its series and its sidecar are both there.
+    fn done(&self, dir: &Path) -> bool {
+        let file = dir.join(&self.file);
+        file.is_file() && series::sidecar_path(&file).is_file()
+    }
 }
 
 /// Runs the sweep and prints its report; fails at the end if any run failed.
@@ -128,7 +137,7 @@ pub fn run(args: &Args) -> Result<()> {
         return Err(first.unwrap_or_else(|| anyhow!("the grid has no runs")));
     }
 
-    // Resume: a run whose file exists is finished.
+    // Resume: a run whose series and sidecar both exist is finished.
     let dir = &args.out;
     fs::create_dir_all(dir)
         .with_context(|| format!("cannot create the folder `{}`", dir.display()))?;
@@ -137,7 +146,7 @@ pub fn run(args: &Args) -> Result<()> {
     let rows: Vec<Option<Row>> = jobs
         .iter()
         .map(|job| {
-            dir.join(&job.file).exists().then(|| {
+            job.done(dir).then(|| {
                 previous
                     .get(&job.file)
                     .cloned()
@@ -154,7 +163,7 @@ pub fn run(args: &Args) -> Result<()> {
     manifest.write(&jobs)?;
     if skipped > 0 {
         eprintln!(
-            "skipping {skipped} of {} runs: their files are already in `{}`",
+            "skipping {skipped} of {} runs: their series and sidecars are already in `{}`",
             jobs.len(),
             dir.display()
         );
@@ -282,7 +291,7 @@ impl State {
     }
 }
 
-/// Runs one job and writes its series; returns its manifest row.
+/// Runs one job and writes its series and sidecar; returns its manifest row.
 fn run_one(loaded: &Loaded, spec: &str, sets: &[String], job: &Job, dir: &Path) -> Result<Row> {
     let start = Instant::now();
     let output = sim::run(&loaded.scenario, &mut |_| {})?;
@@ -489,7 +498,7 @@ struct Row {
 }
 
 impl Row {
-    /// A finished run whose figures are not known (its file exists, the manifest lacked it).
+    /// A finished run whose figures are not known (its files exist, the manifest lacked it).
     fn unknown() -> Row {
         let nan = || "NaN".to_string();
         Row {
@@ -655,7 +664,7 @@ struct Report {
     runs: usize,
     /// Runs completed in this invocation.
     ran: usize,
-    /// Runs skipped because their files existed.
+    /// Runs skipped because their series and sidecars existed.
     skipped: usize,
     /// Runs that failed.
     failed: Vec<Failure>,

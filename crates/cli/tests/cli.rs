@@ -241,10 +241,10 @@ fn unknown_discretisation_lists_the_rules() {
 /// The contract's time-series columns (CONTRACT.md), in order.
 const CONTRACT_COLUMNS: &str = "t,theta01,theta12,m0,fx,fy,contact,cx,cy,s";
 
-/// The header and data rows of a time-series CSV (comment lines skipped).
+/// The header (the first line) and data rows of a time-series CSV.
 fn csv_rows(path: &Path) -> (String, Vec<Vec<f64>>) {
     let text = fs::read_to_string(path).expect("the CSV is readable");
-    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
+    let mut lines = text.lines();
     let header = lines.next().expect("a header row").to_string();
     let rows = lines
         .map(|l| {
@@ -272,8 +272,8 @@ fn simulate_e2_writes_the_contract_series_and_a_figure() {
     assert!(out.status.success(), "stderr:\n{}", stderr(&out));
     assert_eq!(
         dir.entries(),
-        ["run.csv", "run.png"],
-        "only the two outputs"
+        ["run.csv", "run.json", "run.png"],
+        "only the series, its sidecar and the figure"
     );
 
     // The contract's header, 151 samples at 1 kHz, contact for a while.
@@ -293,22 +293,33 @@ fn simulate_e2_writes_the_contract_series_and_a_figure() {
     );
     assert!(rows.iter().all(|r| r[6] == 0.0 || r[6] == 1.0));
 
-    // The metadata says what was run.
+    // The CSV opens with its header (no comment lines); the sidecar says what was run.
     let text = fs::read_to_string(dir.path().join("run.csv")).unwrap();
-    for line in [
-        "# experiment = e2",
-        "# d = 0.02",
-        "# v = 0.6",
-        "# segments = 20",
+    assert!(text.starts_with(CONTRACT_COLUMNS) && !text.contains('#'));
+    let sidecar: Value =
+        serde_json::from_str(&fs::read_to_string(dir.path().join("run.json")).unwrap()).unwrap();
+    assert_eq!(sidecar["file"], "run.csv");
+    assert_eq!(sidecar["rows"], 151);
+    assert_eq!(
+        sidecar["columns"].as_array().unwrap().len(),
+        10,
+        "{sidecar}"
+    );
+    for (key, value) in [
+        ("experiment", "e2"),
+        ("d", "0.02"),
+        ("v", "0.6"),
+        ("segments", "20"),
+        ("set", "d=0.02 v=0.6"),
     ] {
-        assert!(text.contains(line), "metadata lacks {line:?}");
+        assert_eq!(sidecar["meta"][key], value, "{sidecar}");
     }
 
     // A PNG file.
     let png = fs::read(dir.path().join("run.png")).unwrap();
     assert!(png.starts_with(b"\x89PNG\r\n\x1a\n"), "not a PNG");
 
-    // The summary names the contact period.
+    // The summary names the contact periods.
     assert!(stdout(&out).contains("contact"), "{}", stdout(&out));
 }
 
@@ -324,11 +335,55 @@ fn simulate_writes_npz_and_json_summary() {
     assert!(out.status.success(), "stderr:\n{}", stderr(&out));
     let npz = fs::read(dir.path().join("run.npz")).expect("run.npz exists");
     assert!(npz.starts_with(b"PK"), "not a ZIP archive");
+    assert_eq!(dir.entries(), ["run.json", "run.npz"]);
+    let sidecar = fs::read_to_string(dir.path().join("run.json")).unwrap();
+    assert!(sidecar.contains("\"file\": \"run.npz\""), "{sidecar}");
     let summary = json(&out);
+    assert_eq!(summary["out"], "run.npz");
+    assert_eq!(summary["sidecar"], "run.json");
     assert_eq!(summary["samples"], 151);
     assert_eq!(summary["experiment"]["name"], "e1");
     assert_eq!(summary["experiment"]["d"], 0.025);
     assert!(summary["contact"]["start"].as_f64().is_some(), "{summary}");
+}
+
+#[test]
+fn simulate_lists_every_contact_interval() {
+    // At d = 20 mm in e2 the whisker strikes the box, leaves it and strikes it again: samples
+    // 2–23 and 25–51 are in contact.
+    let dir = Scratch::new("simulate-intervals");
+    let args = ["simulate", "e2", "--set", "d=0.02", "--out", "x.csv"];
+    let out = vibrissa_in(dir.path(), &args);
+    assert!(out.status.success(), "stderr:\n{}", stderr(&out));
+    let text = stdout(&out);
+    assert!(
+        text.contains("contact          2–23 ms, 25–51 ms (49 samples)"),
+        "{text}"
+    );
+
+    // The file has the same two intervals.
+    let (_, rows) = csv_rows(&dir.path().join("x.csv"));
+    let touching: Vec<usize> = (0..rows.len()).filter(|&k| rows[k][6] == 1.0).collect();
+    let expected: Vec<usize> = (2..=23).chain(25..=51).collect();
+    assert_eq!(touching, expected);
+
+    // JSON: the first and last contact and the sample count as before, and every interval.
+    let out = vibrissa_in(dir.path(), &[&args[..], &["--json"]].concat());
+    assert!(out.status.success(), "stderr:\n{}", stderr(&out));
+    let contact = &json(&out)["contact"];
+    let close = |v: &Value, x: f64| (v.as_f64().unwrap() - x).abs() < 1e-12;
+    assert!(close(&contact["start"], 0.002) && close(&contact["end"], 0.051));
+    assert_eq!(contact["samples"], 49);
+    let intervals = contact["intervals"]
+        .as_array()
+        .expect("a list of intervals");
+    assert_eq!(intervals.len(), 2, "{contact}");
+    for (interval, [a, b]) in intervals.iter().zip([[0.002, 0.023], [0.025, 0.051]]) {
+        assert!(
+            close(&interval[0], a) && close(&interval[1], b),
+            "{contact}"
+        );
+    }
 }
 
 #[test]
@@ -395,7 +450,7 @@ fn sweep_writes_one_file_per_run_and_resumes() {
         "d0.03_v1.5.csv",
     ];
 
-    // First run: four files and a manifest with four rows.
+    // First run: four series, their sidecars, and a manifest with four rows.
     let out = small_sweep(&dir);
     assert!(out.status.success(), "stderr:\n{}", stderr(&out));
     let report = json(&out);
@@ -404,6 +459,7 @@ fn sweep_writes_one_file_per_run_and_resumes() {
         (Some(4), Some(4))
     );
     let mut expected: Vec<String> = files.iter().map(|f| f.to_string()).collect();
+    expected.extend(files.iter().map(|f| f.replace(".csv", ".json")));
     expected.push("manifest.csv".to_string());
     expected.sort();
     assert_eq!(entries(&dir), expected);
@@ -417,6 +473,8 @@ fn sweep_writes_one_file_per_run_and_resumes() {
     }
     let (header, rows) = csv_rows(&dir.join(files[0]));
     assert_eq!((header.as_str(), rows.len()), (CONTRACT_COLUMNS, 151));
+    let sidecar = fs::read_to_string(dir.join("d0.015_v0.3.json")).unwrap();
+    assert!(sidecar.contains("\"set\": \"d=0.015 v=0.3\""), "{sidecar}");
 
     // Again: everything is skipped, and the manifest keeps its rows.
     let out = small_sweep(&dir);
@@ -444,6 +502,17 @@ fn sweep_writes_one_file_per_run_and_resumes() {
     assert_eq!(entries(&dir), expected);
     let manifest = fs::read_to_string(dir.join("manifest.csv")).unwrap();
     assert_eq!(manifest.lines().count(), 5, "{manifest}");
+
+    // So is a run whose sidecar is missing: both files come back.
+    fs::remove_file(dir.join("d0.015_v1.5.json")).unwrap();
+    let out = small_sweep(&dir);
+    assert!(out.status.success(), "stderr:\n{}", stderr(&out));
+    let report = json(&out);
+    assert_eq!(
+        (report["ran"].as_u64(), report["skipped"].as_u64()),
+        (Some(1), Some(3))
+    );
+    assert_eq!(entries(&dir), expected);
 }
 
 #[test]
@@ -464,7 +533,14 @@ fn sweep_reports_failed_runs_after_finishing_the_others() {
     let err = stderr(&out);
     assert!(err.contains("whisker.length=-1"), "{err}");
     assert!(err.contains("1 of 2 runs failed"), "{err}");
-    assert_eq!(entries(&dir), ["manifest.csv", "whisker.length0.03.csv"]);
+    assert_eq!(
+        entries(&dir),
+        [
+            "manifest.csv",
+            "whisker.length0.03.csv",
+            "whisker.length0.03.json"
+        ]
+    );
     let manifest = fs::read_to_string(dir.join("manifest.csv")).unwrap();
     assert_eq!(manifest.lines().count(), 2, "{manifest}");
 }

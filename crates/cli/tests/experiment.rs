@@ -301,6 +301,64 @@ fn with_value(text: &str, row: usize, column: &str, value: &str) -> String {
     lines.join("\n") + "\n"
 }
 
+/// Runs `vibrissa estimate --experiment e1` with `args` on `csv`; returns success and stderr.
+fn estimate_e1(args: &[&str], csv: &Path) -> (bool, String) {
+    let out = vibrissa()
+        .args(["estimate", "--experiment", "e1"])
+        .args(args)
+        .arg("--obs")
+        .arg(csv)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    (out.status.success(), err)
+}
+
+#[test]
+fn estimates_read_the_sidecar_and_only_warn_about_a_bad_one() {
+    let dir = temp("sidecar");
+    let (csv, _) = simulated_e1(&dir);
+    let sidecar = dir.join("run.json");
+    let good = std::fs::read_to_string(&sidecar).unwrap();
+    assert!(good.contains("\"segments\": \"20\""), "{good}");
+
+    // The filter takes the recording's segment count from the sidecar: an impossible one is
+    // refused, naming the metadata.
+    std::fs::write(
+        &sidecar,
+        good.replace("\"segments\": \"20\"", "\"segments\": \"1\""),
+    )
+    .unwrap();
+    let (ok, err) = estimate_e1(&["--method", "pf", "--particles", "10"], &csv);
+    assert!(!ok && err.contains("metadata `segments` is `1`"), "{err}");
+
+    // A broken sidecar, or one written for another recording, is a warning; the CSV is read.
+    let cases = [
+        ("{\"meta\": ".to_string(), "is not a valid sidecar"),
+        (
+            good.replace("\"rows\": 151", "\"rows\": 150"),
+            "it records 150 rows, the file has 151",
+        ),
+    ];
+    for (text, says) in cases {
+        std::fs::write(&sidecar, text).unwrap();
+        let (ok, err) = estimate_e1(&["--method", "template"], &csv);
+        assert!(ok, "{err}");
+        assert!(err.contains("warning: `") && err.contains(says), "{err}");
+    }
+
+    // Without a sidecar: no warning at all.
+    std::fs::remove_file(&sidecar).unwrap();
+    let (ok, err) = estimate_e1(&["--method", "template"], &csv);
+    assert!(ok && !err.contains("warning"), "{err}");
+
+    // A file with its metadata on `#` lines (as written before sidecars) still gives it.
+    let text = std::fs::read_to_string(&csv).unwrap();
+    std::fs::write(&csv, format!("# segments = 1\n{text}")).unwrap();
+    let (ok, err) = estimate_e1(&["--method", "pf", "--particles", "10"], &csv);
+    assert!(!ok && err.contains("metadata `segments` is `1`"), "{err}");
+}
+
 #[test]
 fn pf_estimates_writes_a_trace_and_refuses_bad_settings() {
     let dir = temp("pf");

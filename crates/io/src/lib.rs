@@ -2,7 +2,8 @@
 //!
 //! - [`scenario`]: TOML scenario files (and the built-in experiments `e1`, `e2`) read into a
 //!   checked [`vibrissa_core::sim::Scenario`], with `key=value` overrides.
-//! - [`series`]: time series in the contract's CSV, and as NumPy NPY/NPZ files.
+//! - [`series`]: time series in the contract's CSV, and as NumPy NPY/NPZ files, with their
+//!   metadata in a JSON sidecar file.
 //!
 //! Every file is written through a temporary file renamed into place, so a failed write never
 //! leaves a partial file. Errors are [`Error`], whose messages name the file, the line or key,

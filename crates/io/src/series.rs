@@ -1,32 +1,46 @@
 //! Time series in the contract's formats.
 //!
 //! A [`Series`] is a table of named `f64` columns plus `key = value` metadata (the segment count
-//! of a run, its scenario, …). It is written as:
+//! of a run, its scenario, …). [`write()`] writes the data in the format its extension names and
+//! the metadata in a JSON **sidecar** beside it, with the same name and the extension `.json`
+//! (`run.json` beside `run.csv`; see [`sidecar_path`]):
 //!
-//! - **CSV** ([`write_csv`], read back by [`read_csv`]): the contract's format. `# key = value`
-//!   comment lines carry the metadata, then one header row and one row per sample; values are
-//!   written with enough digits to read back bit for bit, `.` as decimal point and `NaN` for a
-//!   missing value.
+//! - **CSV** ([`write_csv`], read back by [`read_csv`]): the contract's format. One header row,
+//!   then one row per sample, and nothing else, so that `numpy.genfromtxt(f, delimiter=",",
+//!   names=True)`, `numpy.loadtxt(f, delimiter=",", skiprows=1)`, `pandas.read_csv(f)` and
+//!   `polars.read_csv(f)` read it with their defaults. Values are written with enough digits to
+//!   read back bit for bit, always as floating-point literals (`0.0`, `1.0`, `2.5e-12`), with
+//!   `.` as decimal point and `NaN` for a missing value. The reader still accepts `#` comment
+//!   lines anywhere, as the contract allows, and takes `# key = value` lines as metadata.
 //! - **NPY** ([`write_npy`]): one 2-D little-endian `float64` array, rows × columns in C order,
 //!   NPY format version 1.0 (`numpy.load` reads it). The columns are in the series' order, which
-//!   for a simulated run is the contract's ([`vibrissa_core::sim::COLUMNS`]); NPY has no place for
-//!   names or metadata.
+//!   for a simulated run is the contract's ([`vibrissa_core::sim::COLUMNS`]); the sidecar names
+//!   them.
 //! - **NPZ** ([`write_npz`]): a ZIP archive (stored, uncompressed) of one 1-D NPY array per
-//!   column, named after it (`t.npy`, `theta01.npy`, …), so `numpy.load(f)["theta12"]` works.
-//!   Metadata is not stored.
+//!   column, named after it (`t.npy`, `theta01.npy`, …), so `numpy.load(f)["theta12"]` works. The
+//!   archive holds only the columns; the metadata is in the sidecar as for the other formats.
 //!
-//! [`write()`] picks the format from the file's extension. Every writer first writes a temporary
-//! file beside the target and renames it into place when everything has been written, so a
-//! failure never leaves a half-written file behind.
+//! The sidecar ([`sidecar`] describes its layout) records the data file's name, its row count and
+//! columns beside the metadata, so that a reader can tell whether it belongs to the data it sits
+//! beside. [`read_csv_with_sidecar`] reads a CSV and adds its sidecar's metadata; a missing
+//! sidecar is fine, and one that is malformed or does not match the data only gives a
+//! [`SidecarWarning`]: the data file alone is always readable.
+//!
+//! Every writer first writes a temporary file beside the target and renames it into place when
+//! everything has been written, so a failure never leaves a half-written file behind. [`write()`]
+//! writes both files before renaming either, and renames the data file last: whenever the data
+//! file is in place, its sidecar is complete.
 //!
 //! Values must be finite or `NaN`: infinities are refused on writing and on reading.
 
 mod csv;
 mod npy;
+pub mod sidecar;
 mod zip;
 
 pub use csv::{read_csv, read_csv_str, to_csv_string, write_csv};
 pub use npy::{npy_header, write_npy, write_npz};
+pub use sidecar::{merge_sidecar, read_csv_with_sidecar, sidecar_path, SidecarWarning};
 pub use zip::crc32;
 
 pub(crate) use csv::parse_csv;
@@ -44,7 +58,8 @@ pub struct Series {
     pub columns: Vec<String>,
     /// Values, column-major: `data[c][row]`; every column has the same length.
     pub data: Vec<Vec<f64>>,
-    /// `key = value` metadata, in order (CSV comment lines).
+    /// `key = value` metadata, in order: the sidecar's `meta` entries (and a read CSV's
+    /// `# key = value` comment lines).
     pub meta: Vec<(String, String)>,
 }
 
@@ -121,8 +136,8 @@ impl Series {
     }
 
     /// Checks that the series can be written: one data vector per column, all of one length,
-    /// unique column names that a CSV header can hold, metadata that fits on comment lines, and
-    /// no infinite values.
+    /// unique column names that a CSV header can hold, metadata keys that a `# key = value` line
+    /// could also hold and values of one line, and no infinite values.
     pub fn check(&self) -> Result<()> {
         let bad = |m: String| Err(Error::InvalidSeries(m));
         // Shape.
@@ -195,20 +210,35 @@ pub(crate) fn is_meta_key(key: &str) -> bool {
             .all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.'))
 }
 
-/// Writes `series` in the format its extension names: `.csv`, `.npy` or `.npz` (any case).
+/// Writes `series` in the format its extension names, `.csv`, `.npy` or `.npz` (any case), and
+/// its sidecar beside it ([`sidecar_path`]: the same name with the extension `.json`).
+///
+/// Both files are written under temporary names first; then the sidecar is renamed into place,
+/// and the data file last. If anything fails, neither new file is left: an existing data file
+/// keeps its old content (an existing sidecar may be gone, which readers take as no metadata).
 pub fn write(series: &Series, path: impl AsRef<Path>) -> Result<()> {
     let path = path.as_ref();
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
-    match ext.as_deref() {
-        Some("csv") => write_csv(series, path),
-        Some("npy") => write_npy(series, path),
-        Some("npz") => write_npz(series, path),
-        _ => Err(Error::Format {
-            path: path.to_path_buf(),
-            allowed: EXTENSIONS.iter().map(|e| format!(".{e}")).collect(),
-        }),
+    let data = match ext.as_deref() {
+        Some("csv") => csv::stage_csv(series, path)?,
+        Some("npy") => npy::stage_npy(series, path)?,
+        Some("npz") => npy::stage_npz(series, path)?,
+        _ => {
+            return Err(Error::Format {
+                path: path.to_path_buf(),
+                allowed: EXTENSIONS.iter().map(|e| format!(".{e}")).collect(),
+            })
+        }
+    };
+    let sidecar = sidecar::stage_sidecar(series, path)?;
+    sidecar.commit()?;
+    if let Err(e) = data.commit() {
+        // The data did not take its place: a sidecar without it would describe other data.
+        let _ = std::fs::remove_file(sidecar_path(path));
+        return Err(e);
     }
+    Ok(())
 }

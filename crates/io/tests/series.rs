@@ -1,10 +1,12 @@
-//! Time series: CSV round trips and errors, NPY and NPZ bytes.
+//! Time series: CSV round trips and errors, NPY and NPZ bytes, sidecars, and what numpy, pandas
+//! and polars read back.
 
 use std::fs;
 use std::path::PathBuf;
 use vibrissa_core::sim::COLUMNS;
 use vibrissa_io::series::{
-    crc32, read_csv, read_csv_str, to_csv_string, write, write_csv, write_npy, write_npz, Series,
+    crc32, merge_sidecar, read_csv, read_csv_str, read_csv_with_sidecar, sidecar_path,
+    to_csv_string, write, write_csv, write_npy, write_npz, Series, SidecarWarning,
 };
 use vibrissa_io::Error;
 
@@ -69,25 +71,49 @@ fn csv_round_trip_is_exact() {
     let dir = temp_dir("round-trip");
     let path = dir.join("run.csv");
     let s = sample();
-    write_csv(&s, &path).unwrap();
-    let back = read_csv(&path).unwrap();
+    write(&s, &path).unwrap();
+
+    // The CSV alone has the data; its sidecar adds the metadata.
+    let alone = read_csv(&path).unwrap();
+    assert!(alone.meta.is_empty(), "{:?}", alone.meta);
+    let (back, warnings) = read_csv_with_sidecar(&path).unwrap();
+    assert!(warnings.is_empty(), "{warnings:?}");
     assert_same(&s, &back);
     assert_eq!(back.meta_value("segments"), Some("20"));
     assert_eq!(back.rows(), 7);
 
-    // The layout the contract describes.
+    // The layout the contract describes: the header first, no comment lines.
     let text = fs::read_to_string(&path).unwrap();
     let lines: Vec<&str> = text.lines().collect();
-    assert_eq!(lines[0], "# segments = 20");
-    assert_eq!(lines[1], "# scenario = e2 (d = 0.023)");
-    assert_eq!(lines[2], COLUMNS.join(","));
-    assert!(lines[3].starts_with("0,"));
-    assert!(lines[6].ends_with("NaN,NaN,NaN"), "{}", lines[6]);
-    assert!(!text.contains("inf"));
+    assert_eq!(lines[0], COLUMNS.join(","));
+    assert_eq!(lines.len(), 8);
+    assert!(lines[1].starts_with("0.0,"), "{}", lines[1]);
+    assert!(lines[4].ends_with("NaN,NaN,NaN"), "{}", lines[4]);
+    assert!(!text.contains('#') && !text.contains("inf"));
     assert_eq!(to_csv_string(&s).unwrap(), text);
+    // Every value is a floating-point literal, so no reader takes a column for integers.
+    for line in &lines[1..] {
+        for cell in line.split(',') {
+            assert!(
+                cell == "NaN" || cell.contains(['.', 'e']),
+                "{cell:?} in {line:?}"
+            );
+        }
+    }
+
+    // The sidecar: the file it describes, its rows and columns, the metadata in order.
+    assert_eq!(sidecar_path(&path), dir.join("run.json"));
+    let json = fs::read_to_string(dir.join("run.json")).unwrap();
+    assert!(json.contains("\"file\": \"run.csv\""), "{json}");
+    assert!(json.contains("\"rows\": 7"), "{json}");
+    assert!(json.contains("\"segments\": \"20\""), "{json}");
+    assert!(
+        json.find("segments").unwrap() < json.find("scenario").unwrap(),
+        "{json}"
+    );
 
     // Nothing else is left in the folder.
-    assert_eq!(fs::read_dir(&dir).unwrap().count(), 1);
+    assert_eq!(fs::read_dir(&dir).unwrap().count(), 2);
 }
 
 #[test]
@@ -201,8 +227,24 @@ fn failed_writes_leave_old_files_alone() {
     // A folder that does not exist.
     let e = write_csv(&sample(), dir.join("no/such/dir/out.csv")).unwrap_err();
     assert!(matches!(e, Error::Io { .. }), "{e}");
-    // Only the three old files remain: no temporary files.
+    let e = write(&sample(), dir.join("no/such/dir/out.csv")).unwrap_err();
+    assert!(matches!(e, Error::Io { .. }), "{e}");
+    // Only the three old files remain: no temporary files, no sidecar.
     assert_eq!(fs::read_dir(&dir).unwrap().count(), 3);
+
+    // The data file cannot take its place (a folder is in the way): the sidecar, already
+    // renamed, is removed again, and no temporary file is left.
+    fs::create_dir(dir.join("busy.csv")).unwrap();
+    fs::write(dir.join("busy.csv/keep"), "").unwrap();
+    let e = write(&sample(), dir.join("busy.csv")).unwrap_err();
+    assert!(matches!(e, Error::Io { .. }), "{e}");
+    assert!(!dir.join("busy.json").exists());
+    // A folder where the sidecar goes: nothing is written either.
+    fs::create_dir(dir.join("side.json")).unwrap();
+    let e = write(&sample(), dir.join("side.csv")).unwrap_err();
+    assert!(matches!(e, Error::Io { .. }), "{e}");
+    assert!(!dir.join("side.csv").exists());
+    assert_eq!(fs::read_dir(&dir).unwrap().count(), 5);
 }
 
 #[test]
@@ -210,17 +252,26 @@ fn format_follows_the_extension() {
     let dir = temp_dir("extension");
     let s = sample();
     write(&s, dir.join("a.csv")).unwrap();
-    write(&s, dir.join("a.NPY")).unwrap();
-    write(&s, dir.join("a.npz")).unwrap();
+    write(&s, dir.join("b.NPY")).unwrap();
+    write(&s, dir.join("c.npz")).unwrap();
     assert!(fs::read(dir.join("a.csv"))
         .unwrap()
-        .starts_with(b"# segments"));
-    assert!(fs::read(dir.join("a.NPY"))
+        .starts_with(b"t,theta01,"));
+    assert!(fs::read(dir.join("b.NPY"))
         .unwrap()
         .starts_with(b"\x93NUMPY"));
-    assert!(fs::read(dir.join("a.npz"))
+    assert!(fs::read(dir.join("c.npz"))
         .unwrap()
         .starts_with(b"PK\x03\x04"));
+    // Each with its sidecar, naming it.
+    for (data, side) in [
+        ("a.csv", "a.json"),
+        ("b.NPY", "b.json"),
+        ("c.npz", "c.json"),
+    ] {
+        let json = fs::read_to_string(dir.join(side)).unwrap();
+        assert!(json.contains(&format!("\"file\": \"{data}\"")), "{json}");
+    }
     for bad in ["a.txt", "a", "a.csv.gz"] {
         let e = write(&s, dir.join(bad)).unwrap_err();
         assert!(matches!(e, Error::Format { .. }));
@@ -383,6 +434,133 @@ fn crc32_check_value() {
     );
 }
 
+/// Writes `sample()` to `dir/name` with its sidecar, then replaces the sidecar's text.
+fn with_sidecar(dir: &std::path::Path, name: &str, sidecar: &str) -> PathBuf {
+    let path = dir.join(name);
+    write(&sample(), &path).unwrap();
+    fs::write(sidecar_path(&path), sidecar).unwrap();
+    path
+}
+
+#[test]
+fn a_missing_sidecar_is_no_problem() {
+    let dir = temp_dir("sidecar-missing");
+    let path = dir.join("run.csv");
+    write_csv(&sample(), &path).unwrap();
+    assert!(
+        !dir.join("run.json").exists(),
+        "write_csv writes the CSV alone"
+    );
+    let (s, warnings) = read_csv_with_sidecar(&path).unwrap();
+    assert!(warnings.is_empty() && s.meta.is_empty(), "{warnings:?}");
+    assert_eq!(s.rows(), 7);
+}
+
+#[test]
+fn bad_sidecars_are_warnings_and_the_csv_is_read_all_the_same() {
+    let dir = temp_dir("sidecar-bad");
+    let cols = format!("{:?}", COLUMNS).replace(' ', "");
+    let cases = [
+        (
+            "not-json.csv",
+            "{\"meta\": ".to_string(),
+            "is not a valid sidecar",
+        ),
+        ("array.csv", "[]".to_string(), "is not a valid sidecar"),
+        (
+            "bad-key.csv",
+            "{\"meta\": {\"two words\": \"x\"}}".to_string(),
+            "metadata key \"two words\"",
+        ),
+        (
+            "rows.csv",
+            format!("{{\"rows\": 8, \"columns\": {cols}, \"meta\": {{\"segments\": \"5\"}}}}"),
+            "it records 8 rows, the file has 7",
+        ),
+        (
+            "columns.csv",
+            "{\"rows\": 7, \"columns\": [\"t\"], \"meta\": {\"segments\": \"5\"}}".to_string(),
+            "it lists the columns t, the file has t,theta01",
+        ),
+        (
+            "format.csv",
+            "{\"file\": \"format.npz\", \"meta\": {\"segments\": \"5\"}}".to_string(),
+            "it describes `format.npz`",
+        ),
+    ];
+    for (name, sidecar, says) in cases {
+        let path = with_sidecar(&dir, name, &sidecar);
+        let (s, warnings) = read_csv_with_sidecar(&path).unwrap();
+        assert_eq!(warnings.len(), 1, "{name}: {warnings:?}");
+        let w = warnings[0].to_string();
+        assert!(w.contains(says), "{name}: {w}");
+        assert!(w.contains("its metadata is ignored"), "{name}: {w}");
+        // The data is all there; none of the sidecar's metadata is.
+        assert_eq!(s.rows(), 7);
+        assert!(s.meta.is_empty(), "{name}: {:?}", s.meta);
+    }
+
+    // A sidecar renamed together with its data still matches.
+    let path = with_sidecar(
+        &dir,
+        "renamed.csv",
+        &format!("{{\"file\": \"run.CSV\", \"rows\": 7, \"columns\": {cols}, \"meta\": {{\"segments\": 5}}}}"),
+    );
+    let (s, warnings) = read_csv_with_sidecar(&path).unwrap();
+    assert!(warnings.is_empty(), "{warnings:?}");
+    assert_eq!(s.meta_value("segments"), Some("5"));
+
+    // A sidecar that cannot be read: a folder in its place.
+    let path = dir.join("folder.csv");
+    write_csv(&sample(), &path).unwrap();
+    fs::create_dir(dir.join("folder.json")).unwrap();
+    let (s, warnings) = read_csv_with_sidecar(&path).unwrap();
+    assert!(
+        matches!(&warnings[..], [SidecarWarning::Unreadable { .. }]),
+        "{warnings:?}"
+    );
+    assert_eq!(s.rows(), 7);
+
+    // A bad CSV is still an error, whatever its sidecar.
+    let bad = dir.join("bad.csv");
+    fs::write(&bad, "t,x\n0\n").unwrap();
+    fs::write(dir.join("bad.json"), "{\"meta\": {}}").unwrap();
+    assert!(read_csv_with_sidecar(&bad).is_err());
+}
+
+#[test]
+fn a_csvs_own_comment_lines_win_over_its_sidecar() {
+    let dir = temp_dir("sidecar-conflict");
+    let path = dir.join("old.csv");
+    fs::write(&path, "# segments = 20\n# note = kept\nt,x\n0,1\n").unwrap();
+    fs::write(
+        dir.join("old.json"),
+        "{\"meta\": {\"segments\": \"10\", \"note\": \"kept\", \"dt\": \"0.0001\"}}",
+    )
+    .unwrap();
+    let (s, warnings) = read_csv_with_sidecar(&path).unwrap();
+    let texts: Vec<String> = warnings.iter().map(ToString::to_string).collect();
+    assert_eq!(texts.len(), 1, "{texts:?}");
+    assert!(
+        texts[0].contains("segments = \"10\"") && texts[0].contains("segments = \"20\""),
+        "{}",
+        texts[0]
+    );
+    let expect = [("segments", "20"), ("note", "kept"), ("dt", "0.0001")];
+    let meta: Vec<(&str, &str)> = s
+        .meta
+        .iter()
+        .map(|(k, v)| (k.as_str(), v.as_str()))
+        .collect();
+    assert_eq!(meta, expect);
+
+    // merge_sidecar serves series read some other way too.
+    let mut other = Series::new(&["t", "x"]);
+    other.push_row(&[0.0, 1.0]);
+    assert!(merge_sidecar(&mut other, &path).is_empty());
+    assert_eq!(other.meta_value("segments"), Some("10"));
+}
+
 /// Whether `python3` with numpy runs here.
 fn numpy_available() -> bool {
     std::process::Command::new("python3")
@@ -391,37 +569,166 @@ fn numpy_available() -> bool {
         .is_ok_and(|o| o.status.success())
 }
 
+/// What the Python readers are asked to read: the awkward sample, a column whose first 150
+/// values are whole numbers (a reader that guesses types from the first rows must still take it
+/// as floating point), and values with every kind of bit pattern.
+fn interop_series() -> Series {
+    let s = sample();
+    let mut out = Series::new(&s.columns);
+    out.meta = s.meta.clone();
+    let mut bits = 0x9E37_79B9_7F4A_7C15u64;
+    for r in 0..400 {
+        let row: Vec<f64> = (0..s.columns.len())
+            .map(|c| {
+                if c == 3 {
+                    return if r < 150 {
+                        (r % 3) as f64
+                    } else {
+                        r as f64 / 7.0
+                    };
+                }
+                if r < s.rows() {
+                    return s.data[c][r];
+                }
+                if c == 0 {
+                    return r as f64 * 1e-3;
+                }
+                // A finite value from a scrambled bit pattern (xorshift).
+                loop {
+                    bits ^= bits << 13;
+                    bits ^= bits >> 7;
+                    bits ^= bits << 17;
+                    let x = f64::from_bits(bits);
+                    if x.is_finite() {
+                        return x;
+                    }
+                }
+            })
+            .collect();
+        out.push_row(&row);
+    }
+    out
+}
+
 #[test]
 fn numpy_reads_what_is_written_when_available() {
     if !numpy_available() {
+        // CI sets this: there the test must run.
+        assert!(
+            std::env::var_os("VIBRISSA_REQUIRE_INTEROP").is_none(),
+            "VIBRISSA_REQUIRE_INTEROP is set, but python3 cannot import numpy"
+        );
         eprintln!("numpy_reads_what_is_written_when_available: skipped (no python3 with numpy)");
         return;
     }
     let dir = temp_dir("numpy");
-    let s = sample();
+    let s = interop_series();
     let (npy, npz, csv) = (dir.join("r.npy"), dir.join("r.npz"), dir.join("r.csv"));
-    write_npy(&s, &npy).unwrap();
-    write_npz(&s, &npz).unwrap();
-    write_csv(&s, &csv).unwrap();
+    write(&s, &npy).unwrap();
+    write(&s, &npz).unwrap();
+    write(&s, &csv).unwrap();
+
+    // Each reader with its defaults; every value comes back as its 64 bits in hexadecimal, one
+    // line per reader and column: `reader column bits bits ...`.
     let script = r##"
-import sys, numpy as np
-a = np.load(sys.argv[1]); z = np.load(sys.argv[2])
-c = np.genfromtxt(sys.argv[3], delimiter=",", names=True, comments="#")
-assert a.dtype == np.float64 and a.shape == (7, 10), a.shape
-for k, name in enumerate(z.files):
-    col = z[name]
-    assert np.array_equal(col, a[:, k], equal_nan=True), name
-    assert np.array_equal(c[name[:-4]], col, equal_nan=True), name
-print("ok")
+import importlib.util, json, struct, sys
+import numpy as np
+npy, npz, csv, sidecar = sys.argv[1:5]
+def show(reader, name, values):
+    bits = [struct.pack(">d", float(x)).hex() for x in values]
+    print(reader, name, " ".join(bits))
+a = np.load(npy)
+assert a.dtype == np.float64, a.dtype
+names = json.load(open(sidecar))["columns"]
+assert a.ndim == 2 and a.shape[1] == len(names), a.shape
+for k, name in enumerate(names):
+    show("npy", name, a[:, k])
+with np.load(npz) as z:
+    for entry in z.files:
+        show("npz", entry, z[entry])
+g = np.genfromtxt(csv, delimiter=",", names=True)
+for name in g.dtype.names:
+    assert g[name].dtype == np.float64, (name, g[name].dtype)
+    show("genfromtxt", name, g[name])
+l = np.loadtxt(csv, delimiter=",", skiprows=1)
+assert l.dtype == np.float64
+for k, name in enumerate(names):
+    show("loadtxt", name, l[:, k])
+if importlib.util.find_spec("pandas"):
+    import pandas as pd
+    p = pd.read_csv(csv)
+    for name in p.columns:
+        assert p[name].dtype == np.float64, (name, p[name].dtype)
+        show("pandas", name, p[name].to_numpy())
+else:
+    print("missing pandas")
+if importlib.util.find_spec("polars"):
+    import polars as pl
+    q = pl.read_csv(csv)
+    for name in q.columns:
+        assert q[name].dtype == pl.Float64, (name, q[name].dtype)
+        show("polars", name, q[name].to_list())
+else:
+    print("missing polars")
 "##;
     let out = std::process::Command::new("python3")
         .args(["-c", script])
-        .args([&npy, &npz, &csv].map(|p: &PathBuf| p.as_path().to_str().unwrap().to_string()))
+        .args([&npy, &npz, &csv, &dir.join("r.json")].map(|p: &PathBuf| p.as_os_str().to_owned()))
         .output()
         .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success(),
-        "{}",
+        "{}\n{stdout}",
         String::from_utf8_lossy(&out.stderr)
+    );
+
+    // Every reader gave every column, with every value's bits (any NaN for a NaN).
+    let mut readers = vec!["npy", "npz", "genfromtxt", "loadtxt", "pandas", "polars"];
+    let mut seen: Vec<(String, String)> = Vec::new();
+    for line in stdout.lines() {
+        let mut parts = line.split(' ');
+        let (reader, name) = (parts.next().unwrap(), parts.next().unwrap_or(""));
+        if reader == "missing" {
+            assert!(
+                name != "pandas" || std::env::var_os("VIBRISSA_REQUIRE_INTEROP").is_none(),
+                "VIBRISSA_REQUIRE_INTEROP is set, but python3 cannot import pandas"
+            );
+            eprintln!(
+                "numpy_reads_what_is_written_when_available: {name} not checked (not installed)"
+            );
+            readers.retain(|r| *r != name);
+            continue;
+        }
+        let column = name.strip_suffix(".npy").unwrap_or(name);
+        let expected = s
+            .column(column)
+            .unwrap_or_else(|| panic!("{reader}: unknown column {name}"));
+        let got: Vec<f64> = parts
+            .map(|h| f64::from_bits(u64::from_str_radix(h, 16).unwrap()))
+            .collect();
+        assert_eq!(got.len(), expected.len(), "{reader} {name}");
+        for (row, (g, e)) in got.iter().zip(expected).enumerate() {
+            assert!(
+                g.to_bits() == e.to_bits() || (g.is_nan() && e.is_nan()),
+                "{reader} {name} row {row}: read {g:e} ({:#x}), wrote {e:e} ({:#x})",
+                g.to_bits(),
+                e.to_bits()
+            );
+        }
+        seen.push((reader.to_string(), column.to_string()));
+    }
+    for reader in readers {
+        for column in &s.columns {
+            assert!(
+                seen.contains(&(reader.to_string(), column.clone())),
+                "{reader} did not give column {column}"
+            );
+        }
+    }
+    eprintln!(
+        "numpy_reads_what_is_written_when_available: {} columns of {} rows checked bit for bit",
+        seen.len(),
+        s.rows()
     );
 }

@@ -1,17 +1,23 @@
-//! The contract's CSV: `# key = value` comments, a header row, one row per sample.
+//! The contract's CSV: a header row, then one row per sample. Written without comment lines;
+//! read with them (`# key = value` comments carry metadata).
 
 use super::{is_meta_key, Series};
-use crate::atomic::write_atomic;
+use crate::atomic::{stage, Staged};
 use crate::error::{Error, Result};
 use std::fmt::Write as _;
 use std::io::Write;
 use std::path::Path;
 
-/// Writes `series` as CSV (see the [module documentation](super)).
+/// Writes `series` as CSV (see the [module documentation](super)): the header row and the data,
+/// nothing else. Its metadata is not written; [`write()`](super::write()) puts it in the sidecar.
 pub fn write_csv(series: &Series, path: impl AsRef<Path>) -> Result<()> {
-    let path = path.as_ref();
+    stage_csv(series, path.as_ref())?.commit()
+}
+
+/// Writes the CSV of `series` under a temporary name beside `path`.
+pub(crate) fn stage_csv(series: &Series, path: &Path) -> Result<Staged> {
     series.check()?;
-    write_atomic(path, |w| {
+    stage(path, |w| {
         w.write_all(header_text(series).as_bytes())?;
         let mut line = String::new();
         for row in 0..series.rows() {
@@ -33,13 +39,10 @@ pub fn to_csv_string(series: &Series) -> Result<String> {
     Ok(text)
 }
 
-/// Metadata comment lines and the header row.
+/// The header row. No comment lines come before it: the first line of the file is the header, as
+/// every common reader expects by default.
 fn header_text(series: &Series) -> String {
-    let mut text = String::new();
-    for (key, value) in &series.meta {
-        let _ = writeln!(text, "# {key} = {value}");
-    }
-    text.push_str(&series.columns.join(","));
+    let mut text = series.columns.join(",");
     text.push('\n');
     text
 }
@@ -57,12 +60,18 @@ fn push_row(line: &mut String, series: &Series, row: usize) {
 
 /// Appends `x` with the fewest digits that read back to the same bits: plain decimals for
 /// ordinary magnitudes, exponent notation for very small or large ones, `NaN` if not a number.
+/// A whole number keeps a decimal point (`0.0`, `1.0`), so that readers which guess a column's
+/// type from its first rows (polars) take every column as floating point.
 fn push_number(line: &mut String, x: f64) {
     let a = x.abs();
     if x.is_nan() {
         line.push_str("NaN");
     } else if a == 0.0 || (1e-5..1e16).contains(&a) {
+        let start = line.len();
         let _ = write!(line, "{x}");
+        if !line[start..].contains('.') {
+            line.push_str(".0");
+        }
     } else {
         let _ = write!(line, "{x:e}");
     }

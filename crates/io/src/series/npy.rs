@@ -2,7 +2,7 @@
 
 use super::zip::ZipWriter;
 use super::Series;
-use crate::atomic::write_atomic;
+use crate::atomic::{stage, Staged};
 use crate::error::{Error, Result};
 use std::io::Write;
 use std::path::Path;
@@ -40,11 +40,17 @@ pub fn npy_header(shape: &[usize]) -> Vec<u8> {
 }
 
 /// Writes `series` as one 2-D NPY array, rows × columns, in the series' column order (see the
-/// [module documentation](super)).
+/// [module documentation](super)). Names and metadata are not written; [`write()`](super::write())
+/// puts them in the sidecar.
 pub fn write_npy(series: &Series, path: impl AsRef<Path>) -> Result<()> {
+    stage_npy(series, path.as_ref())?.commit()
+}
+
+/// Writes the NPY array of `series` under a temporary name beside `path`.
+pub(crate) fn stage_npy(series: &Series, path: &Path) -> Result<Staged> {
     series.check()?;
     let (rows, cols) = (series.rows(), series.columns.len());
-    write_atomic(path.as_ref(), |w| {
+    stage(path, |w| {
         w.write_all(&npy_header(&[rows, cols]))?;
         let mut row_bytes = Vec::with_capacity(8 * cols);
         for r in 0..rows {
@@ -59,7 +65,13 @@ pub fn write_npy(series: &Series, path: impl AsRef<Path>) -> Result<()> {
 }
 
 /// Writes `series` as an NPZ archive: one 1-D NPY array per column, named `<column>.npy`.
+/// Metadata is not written; [`write()`](super::write()) puts it in the sidecar.
 pub fn write_npz(series: &Series, path: impl AsRef<Path>) -> Result<()> {
+    stage_npz(series, path.as_ref())?.commit()
+}
+
+/// Writes the NPZ archive of `series` under a temporary name beside `path`.
+pub(crate) fn stage_npz(series: &Series, path: &Path) -> Result<Staged> {
     series.check()?;
     // Column names become file names inside the archive.
     for name in &series.columns {
@@ -69,7 +81,7 @@ pub fn write_npz(series: &Series, path: impl AsRef<Path>) -> Result<()> {
             )));
         }
     }
-    write_atomic(path.as_ref(), |w| {
+    stage(path, |w| {
         let mut zip = ZipWriter::new(w);
         let mut entry = Vec::new();
         for (name, col) in series.columns.iter().zip(&series.data) {
