@@ -69,6 +69,92 @@ pub struct SensorNoise {
     pub fy: f64,
 }
 
+/// Linear response of one observed channel: recorded = `gain`·true + `offset` (sensor noise is
+/// added after it).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Response {
+    /// Gain, dimensionless; finite and not 0.
+    pub gain: f64,
+    /// Offset, in the channel's unit (rad, N·m or N).
+    pub offset: f64,
+}
+
+impl Default for Response {
+    fn default() -> Self {
+        Response {
+            gain: 1.0,
+            offset: 0.0,
+        }
+    }
+}
+
+impl Response {
+    /// The recorded value of the true value `x`. The identity response returns `x` bit for bit
+    /// (a negative zero stays negative).
+    pub fn apply(&self, x: f64) -> f64 {
+        if self.offset == 0.0 {
+            self.gain * x
+        } else {
+            self.gain * x + self.offset
+        }
+    }
+
+    /// Whether this is the identity (gain 1, offset 0).
+    pub fn is_identity(&self) -> bool {
+        self.gain == 1.0 && self.offset == 0.0
+    }
+}
+
+/// Linear responses of the five observed channels (gains and offsets of the sensors).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct SensorResponse {
+    /// Of `theta01` (offset in rad).
+    pub theta01: Response,
+    /// Of `theta12` (offset in rad).
+    pub theta12: Response,
+    /// Of `m0` (offset in N·m).
+    pub m0: Response,
+    /// Of `fx` (offset in N).
+    pub fx: Response,
+    /// Of `fy` (offset in N).
+    pub fy: Response,
+}
+
+impl SensorResponse {
+    /// The responses in [`crate::sensors::CHANNELS`] order.
+    pub fn to_array(&self) -> [Response; 5] {
+        [self.theta01, self.theta12, self.m0, self.fx, self.fy]
+    }
+
+    /// Responses given in [`crate::sensors::CHANNELS`] order.
+    pub fn from_array(r: [Response; 5]) -> Self {
+        let [theta01, theta12, m0, fx, fy] = r;
+        SensorResponse {
+            theta01,
+            theta12,
+            m0,
+            fx,
+            fy,
+        }
+    }
+
+    /// Checks that every gain is finite and not 0 and every offset finite, naming the first bad
+    /// one (`sensors.m0.gain`).
+    pub fn check(&self) -> Result<()> {
+        for (name, r) in crate::sensors::CHANNELS.iter().zip(self.to_array()) {
+            if !(r.gain.is_finite() && r.gain != 0.0) {
+                return Err(Error::invalid(
+                    format!("sensors.{name}.gain"),
+                    r.gain,
+                    "a finite number other than 0",
+                ));
+            }
+            check_finite(&format!("sensors.{name}.offset"), r.offset)?;
+        }
+        Ok(())
+    }
+}
+
 /// Everything that defines one run. Check it with [`Scenario::check`] (done by [`run`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Scenario {
@@ -92,6 +178,8 @@ pub struct Scenario {
     pub process_noise: f64,
     /// Sensor noise.
     pub sensor_noise: SensorNoise,
+    /// Sensor gains and offsets, applied to the true channels before the noise.
+    pub sensor_response: SensorResponse,
     /// Seed of all randomness in the run.
     pub seed: u64,
 }
@@ -109,6 +197,7 @@ impl Default for Scenario {
             base: BaseDrive::Fixed,
             process_noise: 0.0,
             sensor_noise: SensorNoise::default(),
+            sensor_response: SensorResponse::default(),
             seed: 0,
         }
     }
@@ -304,6 +393,7 @@ impl Scenario {
         ] {
             check_non_negative(name, x)?;
         }
+        self.sensor_response.check()?;
         for (k, o) in self.objects.iter().enumerate() {
             o.check(&format!("objects[{k}]"))?;
         }
@@ -387,6 +477,7 @@ pub fn run(scenario: &Scenario, progress: &mut dyn FnMut(f64)) -> Result<Output>
             &state,
             k as f64 * period,
             &scenario.sensor_noise,
+            &scenario.sensor_response,
             &mut sensor_rng,
         ));
         if k % 64 == 0 {
@@ -403,15 +494,33 @@ pub fn run(scenario: &Scenario, progress: &mut dyn FnMut(f64)) -> Result<Output>
     })
 }
 
-/// The contract's row for `state` at sample time `t`, with sensor noise.
-fn sample(state: &State, t: f64, noise: &SensorNoise, rng: &mut Rng) -> [f64; 10] {
+/// The contract's row for `state` at sample time `t`, through the sensors' gains and offsets,
+/// with sensor noise.
+fn sample(
+    state: &State,
+    t: f64,
+    noise: &SensorNoise,
+    response: &SensorResponse,
+    rng: &mut Rng,
+) -> [f64; 10] {
     let s = Sensors::read(state);
-    let mut add = |x: f64, sd: f64| if sd > 0.0 { x + sd * rng.normal() } else { x };
-    let (theta01, theta12) = (add(s.theta01, noise.theta01), add(s.theta12, noise.theta12));
+    let mut add = |x: f64, r: &Response, sd: f64| {
+        let y = r.apply(x);
+        if sd > 0.0 {
+            y + sd * rng.normal()
+        } else {
+            y
+        }
+    };
+    let r = response;
+    let (theta01, theta12) = (
+        add(s.theta01, &r.theta01, noise.theta01),
+        add(s.theta12, &r.theta12, noise.theta12),
+    );
     let (m0, fx, fy) = (
-        add(s.m0, noise.m0),
-        add(s.fx, noise.fx),
-        add(s.fy, noise.fy),
+        add(s.m0, &r.m0, noise.m0),
+        add(s.fx, &r.fx, noise.fx),
+        add(s.fy, &r.fy, noise.fy),
     );
     let (contact, cx, cy, arc) = match state.contact {
         Some(c) => {

@@ -46,6 +46,24 @@
 //! [sensor_noise]             # standard deviation of Gaussian noise per observed channel
 //! theta01 = 0.0              # rad (also theta12; m0 in N·m; fx, fy in N)
 //!
+//! [sensors]                  # gains and offsets: recorded = gain·true + offset (+ noise)
+//! theta01 = { gain = 1.0, offset = 0.0 }  # gain finite and not 0 (default 1), offset in the
+//!                            # channel's unit (default 0); also theta12, m0, fx, fy
+//!
+//! [calibration]              # written by `vibrissa calibrate`; a record, no effect on the run
+//! labelled = "calib"         # the folder of labelled recordings fitted
+//! recordings = 9             # how many
+//! rms_before = { theta01 = 1.2e-2, m0 = 3.1e-6 }  # residual RMS per channel, nominal scenario
+//! rms_after = { theta01 = 4.0e-4, m0 = 2.2e-7 }   # the same, fitted scenario
+//! noise = { theta01 = 4.0e-4, m0 = 2.2e-7 }       # sensor noise sd per channel, as estimated
+//! [[calibration.parameters]] # one entry per parameter the fit considered
+//! key = "whisker.youngs_modulus"  # the scenario key it sets (or `time_offset`, s)
+//! nominal = 3.3e9            # value in the nominal scenario
+//! value = 3.05e9             # value in this file (the nominal one if not determined)
+//! std_error = 2.1e7          # standard error, same unit (absent if not determined)
+//! determined = true          # false: the recordings did not determine it; held
+//! note = "..."               # optional: why it was held, how to read it
+//!
 //! [base]                     # prescribed base rotation (active whisking)
 //! kind = "sinusoid"          # required: "fixed" | "sinusoid" | "ramp" | "trajectory"
 //! amplitude = 0.3            # sinusoid (required), rad: offset + amplitude·sin(2π·frequency·t + phase)
@@ -99,11 +117,15 @@
 //! of a line). A key given to a kind that does not take it names the key and the kind's keys; a
 //! value out of range is core's [`Scenario::check`] verdict, prefixed with the file's name.
 
+mod calibration;
+mod document;
 mod family;
 mod overrides;
 mod schema;
 
-pub use family::{Document, FamilySpec, UnknownSpec, DEFAULT_GRID_COUNT, DEFAULT_MARGIN_FRACTION};
+pub use calibration::{CalibratedParameter, Calibration, ChannelValues};
+pub use document::Document;
+pub use family::{FamilySpec, UnknownSpec, DEFAULT_GRID_COUNT, DEFAULT_MARGIN_FRACTION};
 
 use crate::error::{Error, Result};
 use crate::series::parse_csv;
@@ -169,6 +191,8 @@ pub struct Loaded {
     pub family: Option<FamilySpec>,
     /// The file's path or the built-in's name, as used in messages.
     pub origin: String,
+    /// The file's `[calibration]` record, if it has one.
+    pub calibration: Option<Calibration>,
 }
 
 /// TOML text of the built-in `e1`.
@@ -291,30 +315,9 @@ pub fn open(spec: &str, sets: &[String]) -> Result<(Document, Loaded)> {
 }
 
 fn open_unchecked(spec: &str, sets: &[String]) -> Result<(Document, Loaded)> {
-    // A built-in name wins over a file of the same name (write ./e1 for the file).
-    if let Some(text) = builtin(spec) {
-        return parse(
-            text,
-            &format!("built-in scenario `{spec}`"),
-            Path::new(""),
-            sets,
-        );
-    }
-    let path = Path::new(spec);
-    let text = std::fs::read_to_string(path).map_err(|e| {
-        // A bare word that is no file was probably meant as a built-in name.
-        let word = !spec.contains(['/', '\\', '.']);
-        if e.kind() == std::io::ErrorKind::NotFound && word {
-            Error::UnknownScenario {
-                spec: spec.to_string(),
-                builtins: BUILTINS.iter().map(|b| b.to_string()).collect(),
-            }
-        } else {
-            Error::io("read", path, e)
-        }
-    })?;
-    let dir = path.parent().unwrap_or(Path::new(""));
-    parse(&text, &path.display().to_string(), dir, sets)
+    let document = Document::load(spec, sets)?;
+    let loaded = document.loaded()?;
+    Ok((document, loaded))
 }
 
 /// Loads a scenario from TOML text; `origin` names it in errors, and relative paths in it
@@ -373,35 +376,24 @@ pub fn read_trajectory(path: &Path) -> Result<(Vec<f64>, Vec<f64>)> {
 
 /// Parses, applies the overrides, reads the schema and checks the result.
 fn parse(text: &str, origin: &str, base_dir: &Path, sets: &[String]) -> Result<(Document, Loaded)> {
-    let toml_error = |origin: &str, e: toml::de::Error| Error::Toml {
-        origin: origin.to_string(),
-        message: e.to_string().trim_end().to_string(),
-    };
-    let mut doc: toml::Table = toml::from_str(text).map_err(|e| toml_error(origin, e))?;
-    let file: schema::FileTable = if sets.is_empty() {
-        // Straight from the text, so that errors carry line and column.
-        toml::from_str(text).map_err(|e| toml_error(origin, e))?
-    } else {
-        for set in sets {
-            overrides::apply(&mut doc, set)?;
-        }
-        match schema::FileTable::deserialize_table(doc.clone()) {
-            Ok(file) => file,
-            Err(e) => {
-                // An error the file has without the overrides is shown where it is in the file.
-                if let Err(plain) = toml::from_str::<schema::FileTable>(text) {
-                    if plain.message() == e.message() {
-                        return Err(toml_error(origin, plain));
-                    }
-                }
-                return Err(toml_error(
-                    &format!("{origin} with --set {}", sets.join(" --set ")),
-                    e,
-                ));
-            }
-        }
-    };
-    let loaded = file.into_loaded(&schema::Ctx { origin, base_dir })?;
-    let document = Document::new(doc, origin.to_string(), base_dir.to_path_buf());
+    let document = Document::parse(text, origin, base_dir, sets)?;
+    let loaded = document.loaded()?;
     Ok((document, loaded))
+}
+
+/// Reads a scenario file; a missing file whose name looks like a built-in's is reported as an
+/// unknown scenario name.
+pub(crate) fn read_scenario_text(spec: &str, path: &Path) -> Result<String> {
+    std::fs::read_to_string(path).map_err(|e| {
+        // A bare word that is no file was probably meant as a built-in name.
+        let word = !spec.contains(['/', '\\', '.']);
+        if e.kind() == std::io::ErrorKind::NotFound && word {
+            Error::UnknownScenario {
+                spec: spec.to_string(),
+                builtins: BUILTINS.iter().map(|b| b.to_string()).collect(),
+            }
+        } else {
+            Error::io("read", path, e)
+        }
+    })
 }

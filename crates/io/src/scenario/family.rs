@@ -1,14 +1,12 @@
-//! Scenario families: the `[unknowns]`, `[templates]` and `[grid]` tables of a scenario file, and
-//! a [`Document`] that makes the scenario for any values of its unknowns.
+//! Scenario families: the `[unknowns]`, `[templates]` and `[grid]` tables of a scenario file
+//! (the [`Document`](super::Document) makes the scenario for any values of its unknowns).
 //!
 //! A family is a scenario file plus the keys an estimator infers. Each unknown is a scenario key
 //! (`d`, `v`, `whisker.youngs_modulus`, `objects.0.position.1`, …) with the range of values a
 //! user expects; a run of the family at a parameter vector is the file with those keys set to
 //! those values, read by the same schema as any file.
 
-use super::Loaded;
 use crate::error::{Error, Result};
-use std::path::PathBuf;
 use toml::{Table, Value};
 
 /// Evenly spaced grid values per unknown when a family gives no `[grid]`.
@@ -247,66 +245,4 @@ fn values(
             Ok(xs)
         })
         .collect()
-}
-
-/// A scenario file as parsed (overrides applied), from which runs at any values of its keys are
-/// made.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Document {
-    table: Table,
-    origin: String,
-    base_dir: PathBuf,
-}
-
-impl Document {
-    pub(super) fn new(table: Table, origin: String, base_dir: PathBuf) -> Document {
-        Document {
-            table,
-            origin,
-            base_dir,
-        }
-    }
-
-    /// The file's path or the built-in's name, as used in messages.
-    pub fn origin(&self) -> &str {
-        &self.origin
-    }
-
-    /// The scenario with `values` set (each a dotted key and a number), read and checked like a
-    /// file.
-    pub fn with_values<S: AsRef<str>>(&self, values: &[(S, f64)]) -> Result<Loaded> {
-        let mut table = self.table.clone();
-        for (key, x) in values {
-            let key = key.as_ref();
-            super::overrides::set_value(&mut table, key, Value::Float(*x)).map_err(|message| {
-                Error::Field {
-                    origin: self.origin.clone(),
-                    field: key.to_string(),
-                    message,
-                }
-            })?;
-        }
-        let file = super::schema::FileTable::deserialize_table(table).map_err(|e| {
-            let keys: Vec<String> = values
-                .iter()
-                .map(|(k, x)| format!("{}={x}", k.as_ref()))
-                .collect();
-            Error::Toml {
-                origin: format!("{} with {}", self.origin, keys.join(", ")),
-                message: e.to_string().trim_end().to_string(),
-            }
-        })?;
-        file.into_loaded(&super::schema::Ctx {
-            origin: &self.origin,
-            base_dir: &self.base_dir,
-        })
-    }
-
-    /// A stable digest of the document (FNV-1a over its canonical TOML text), for caches.
-    pub fn digest(&self) -> u64 {
-        let text = toml::to_string(&self.table).unwrap_or_default();
-        text.bytes().fold(0xcbf2_9ce4_8422_2325, |h, b| {
-            (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3)
-        })
-    }
 }

@@ -3,6 +3,7 @@
 //! Tables whose keys depend on a `kind` (or `shape`) are read as flat structs and sorted out here,
 //! so that a wrong type names its key and a key given to the wrong kind is reported by name.
 
+use super::calibration::{Calibration, SensorsTable};
 use super::family::FamilySpec;
 use super::{
     experiment_box, read_trajectory, Experiment, ExperimentRun, Loaded, DEFAULT_D, DEFAULT_V,
@@ -44,6 +45,9 @@ pub(super) struct FileTable {
     unknowns: Option<toml::Table>,
     templates: Option<toml::Table>,
     grid: Option<toml::Table>,
+    // Sensor gains and offsets, and a calibration's record (calibration.rs).
+    sensors: Option<SensorsTable>,
+    calibration: Option<Calibration>,
 }
 
 /// `[whisker]`: a preset, then overrides of its fields.
@@ -166,7 +170,7 @@ pub(super) struct Ctx<'a> {
 
 impl Ctx<'_> {
     /// An error about one key.
-    fn field(&self, field: impl Into<String>, message: impl Into<String>) -> Error {
+    pub(super) fn field(&self, field: impl Into<String>, message: impl Into<String>) -> Error {
         Error::Field {
             origin: self.origin.to_string(),
             field: field.into(),
@@ -299,14 +303,21 @@ impl FileTable {
                     fx: n.fx,
                     fy: n.fy,
                 }),
+            sensor_response: self
+                .sensors
+                .map_or(defaults.sensor_response, SensorsTable::into_response),
             seed: self.seed.unwrap_or(defaults.seed),
         };
         scenario.check().map_err(|e| ctx.invalid(e))?;
+        if let Some(c) = &self.calibration {
+            c.check(ctx)?;
+        }
         Ok(Loaded {
             scenario,
             experiment,
             family,
             origin: ctx.origin.to_string(),
+            calibration: self.calibration,
         })
     }
 }
