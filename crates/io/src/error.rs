@@ -75,6 +75,15 @@ pub enum Error {
         /// What is wrong.
         message: String,
     },
+    /// A folder of labelled recordings that does not fit the contract as a whole (no
+    /// `truth.csv`, recordings it does not name).
+    #[error("{}: {message}", path.display())]
+    Labelled {
+        /// The folder.
+        path: PathBuf,
+        /// What is wrong and what to do.
+        message: String,
+    },
     /// A time series lacks columns that a reader needs.
     #[error("missing column{} {}; the columns present are {}",
         if missing.len() == 1 { "" } else { "s" },

@@ -4,6 +4,7 @@
 //!   checked [`vibrissa_core::sim::Scenario`], with `key=value` overrides.
 //! - [`series`]: time series in the contract's CSV, and as NumPy NPY/NPZ files, with their
 //!   metadata in a JSON sidecar file.
+//! - [`labelled`]: folders of labelled recordings (`truth.csv` and the recordings it names).
 //!
 //! Every file is written through a temporary file renamed into place, so a failed write never
 //! leaves a partial file. Errors are [`Error`], whose messages name the file, the line or key,
@@ -12,6 +13,7 @@
 
 mod atomic;
 pub mod error;
+pub mod labelled;
 pub mod scenario;
 pub mod series;
 
