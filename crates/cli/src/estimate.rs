@@ -407,7 +407,7 @@ pub(crate) fn read_recording(
             );
         }
     }
-    let step = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
+    let rate = vibrissa_io::labelled::sample_rate(t);
     let mut values = Vec::with_capacity(CHANNELS.len());
     for (c, ch) in CHANNELS.iter().enumerate() {
         match series.column(ch) {
@@ -448,7 +448,7 @@ pub(crate) fn read_recording(
     Ok(Recording {
         t,
         values,
-        rate: 1.0 / step,
+        rate,
         segments,
     })
 }

@@ -23,7 +23,8 @@ pub enum Error {
         #[source]
         source: vibrissa_core::Error,
     },
-    /// A scenario file could not be read or does not fit the schema.
+    /// A scenario file or a folder of labelled recordings could not be read, or a scenario does not
+    /// fit the schema.
     #[error(transparent)]
     Scenario(#[from] vibrissa_io::Error),
     /// An observation does not fit the experiment or the method.
@@ -40,6 +41,9 @@ pub enum Error {
         /// What was wrong.
         detail: String,
     },
+    /// A calibration could not be completed (no convergence, recordings that do not simulate).
+    #[error("calibration: {0}")]
+    Calibration(String),
     /// An unknown name (experiment, variant, method).
     #[error("unknown {what} `{name}`: choose one of {choices}")]
     Unknown {

@@ -5,9 +5,12 @@
 //! it returns ([`Estimate`]); [`methods`] holds the estimators: the paper's template method and
 //! better ones under the paper's budget (templates only) or a free budget (any simulated
 //! training runs except the evaluated ones). [`evaluate`] runs a whole experiment and scores
-//! every method.
+//! every method. [`calibrate`] fits a whisker's material, follicle, damping and sensor gains to
+//! labelled recordings, with the simulator in the loop; [`standin`] makes perturbed "foreign"
+//! whiskers and their labelled recordings to check it on.
 #![warn(missing_docs)]
 
+pub mod calibrate;
 pub mod error;
 pub mod evaluate;
 pub mod experiment;
@@ -16,6 +19,7 @@ pub mod features;
 pub mod method;
 pub mod methods;
 pub mod pf;
+pub mod standin;
 pub mod unknown_start;
 
 pub use error::{Error, Result};

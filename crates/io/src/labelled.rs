@@ -71,6 +71,28 @@ impl Recording {
     pub fn channel(&self, name: &str) -> Option<&[f64]> {
         self.series.column(name)
     }
+
+    /// Sample rate, Hz (see [`sample_rate`]).
+    pub fn rate(&self) -> f64 {
+        sample_rate(self.t())
+    }
+}
+
+/// The sample rate of constant-rate times `t` (at least two): samples per second over the whole
+/// span, rounded to 9 significant digits so that times written as decimals (0.001, 0.002, …)
+/// give the rate they were made at (1000 Hz, not 999.9999999997 Hz: a simulator that divides
+/// the sample period into time steps would otherwise take a different step).
+pub fn sample_rate(t: &[f64]) -> f64 {
+    let n = t.len();
+    if n < 2 {
+        return f64::NAN;
+    }
+    let rate = (n - 1) as f64 / (t[n - 1] - t[0]);
+    if !(rate.is_finite() && rate > 0.0) {
+        return rate;
+    }
+    let scale = 10f64.powi(8 - rate.log10().floor() as i32);
+    (rate * scale).round() / scale
 }
 
 /// A checked folder of labelled recordings.

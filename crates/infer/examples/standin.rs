@@ -1,0 +1,52 @@
+//! Writes a stand-in "foreign" whisker's labelled recordings (see `vibrissa_infer::standin`).
+//!
+//! ```sh
+//! cargo run --release -p vibrissa-infer --example standin -- --seed 3 --out DIR \
+//!     [--nominal e2|FILE.toml] [--segments 50] [--discretisation seed] [--off-grid 20] \
+//!     [--calib-noise 0] [--eval-noise 0.03]
+//! ```
+//!
+//! DIR receives `calib/` (9 template strikes, clean unless `--calib-noise`), `eval/` (off-grid
+//! noisy strikes), `nominal.toml`, `standin.toml` (the truth as a scenario) and `truth.json`.
+
+use std::path::PathBuf;
+use vibrissa_core::chain::Discretisation;
+use vibrissa_infer::standin::{make, Options};
+use vibrissa_io::scenario::Document;
+
+fn main() {
+    if let Err(e) = run() {
+        eprintln!("error: {e}");
+        std::process::exit(1);
+    }
+}
+
+fn run() -> Result<(), Box<dyn std::error::Error>> {
+    let mut args = std::env::args().skip(1);
+    let (mut seed, mut out, mut nominal) = (None, None, "e2".to_string());
+    let mut options = Options::default();
+    while let Some(flag) = args.next() {
+        let mut value = || args.next().ok_or(format!("{flag} needs a value"));
+        match flag.as_str() {
+            "--seed" => seed = Some(value()?.parse::<u64>()?),
+            "--out" => out = Some(PathBuf::from(value()?)),
+            "--nominal" => nominal = value()?,
+            "--segments" => options.segments = value()?.parse()?,
+            "--discretisation" => options.discretisation = Discretisation::from_name(&value()?)?,
+            "--off-grid" => options.off_grid = value()?.parse()?,
+            "--calib-noise" => options.calib_noise = value()?.parse()?,
+            "--eval-noise" => options.eval_noise = value()?.parse()?,
+            _ => return Err(format!("unknown option {flag}").into()),
+        }
+    }
+    let seed = seed.ok_or("--seed N is required")?;
+    let out = out.ok_or("--out DIR is required")?;
+    let doc = Document::load(&nominal, &[])?;
+    let standin = make(&doc, seed, &options)?;
+    standin.write(&out, &options)?;
+    for v in standin.true_values()? {
+        println!("{:28} {:.6e}", v.key, v.value);
+    }
+    eprintln!("wrote {}", out.display());
+    Ok(())
+}

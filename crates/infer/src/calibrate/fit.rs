@@ -1,0 +1,642 @@
+//! The least-squares problem: simulated channels against recorded ones, the sensors' gains and
+//! offsets, the Levenberg–Marquardt driver and the Gauss–Newton covariance.
+
+use super::params::{apply, bounds, Param, Reference};
+use super::{GainHandling, Progress};
+use crate::error::{Error, Result};
+use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use vibrissa_core::sim::{self, Response, Scenario};
+
+/// Number of observed channels (theta01, theta12, m0, fx, fy).
+pub(super) const CHANNELS: usize = 5;
+
+/// Simulated channels of every run: `[run][channel][sample]`.
+pub(super) type Sims = Vec<[Vec<f64>; CHANNELS]>;
+
+/// A finite difference: simulations at one point, at another (`None`: the centre) and the
+/// parameter's change from the second to the first.
+type Difference = (Sims, Option<Sims>, f64);
+
+/// One labelled recording prepared for fitting.
+#[derive(Debug, Clone)]
+pub(super) struct Run {
+    /// Its name in `truth.csv`.
+    pub file: String,
+    /// The nominal scenario with its labels, timed like the recording, noise-free, with identity
+    /// sensors.
+    pub scenario: Scenario,
+    /// Recorded channels (`NaN` where a sample is missing; `None` where the recording lacks the
+    /// channel): `[channel][sample]`.
+    pub y: [Option<Vec<f64>>; CHANNELS],
+    /// Samples.
+    pub n: usize,
+}
+
+/// Everything one fit holds fixed.
+pub(super) struct Setup<'a> {
+    /// The recordings.
+    pub runs: &'a [Run],
+    /// Every nonlinear parameter, free or held.
+    pub params: &'a [Param],
+    /// Constants of the parametrisation.
+    pub reference: &'a Reference,
+    /// Which parameters are fitted.
+    pub free: Vec<bool>,
+    /// Values of the held parameters (`None`: nominal).
+    pub held: Vec<Option<f64>>,
+    /// Channels that some recording has.
+    pub channels: Vec<usize>,
+    /// Noise standard deviation of each channel (its residuals' weight is 1/σ²).
+    pub sigma: [f64; CHANNELS],
+    /// Whether each channel's gain is fitted (else held at `nominal`'s).
+    pub gain_free: [bool; CHANNELS],
+    /// Nominal gains and offsets.
+    pub nominal: [Response; CHANNELS],
+    /// How gains and offsets are fitted.
+    pub handling: GainHandling,
+    /// Width of the moving average applied to recorded and simulated channels, samples (1: none).
+    pub smooth: usize,
+    /// The recorded channels as fitted (smoothed by `smooth`): `[run][channel][sample]`.
+    pub ys: Vec<[Option<Vec<f64>>; CHANNELS]>,
+}
+
+impl Setup<'_> {
+    /// Indices of the free parameters.
+    pub fn free_indices(&self) -> Vec<usize> {
+        (0..self.params.len()).filter(|&i| self.free[i]).collect()
+    }
+
+    /// Fits channels smoothed by a centred moving average of `width` samples from now on.
+    pub fn set_smoothing(&mut self, width: usize) {
+        self.smooth = width.max(1);
+        self.ys = self
+            .runs
+            .iter()
+            .map(|r| std::array::from_fn(|c| r.y[c].as_ref().map(|y| smooth(y, self.smooth))))
+            .collect();
+    }
+
+    /// `sims` as fitted (smoothed like the recordings).
+    fn view<'s>(&self, sims: &'s Sims) -> std::borrow::Cow<'s, Sims> {
+        if self.smooth <= 1 {
+            std::borrow::Cow::Borrowed(sims)
+        } else {
+            std::borrow::Cow::Owned(
+                sims.iter()
+                    .map(|run| std::array::from_fn(|c| smooth(&run[c], self.smooth)))
+                    .collect(),
+            )
+        }
+    }
+
+    /// Every parameter's value from the free ones `z` (in order).
+    pub fn full_x(&self, z: &[f64]) -> Vec<Option<f64>> {
+        let mut it = z.iter();
+        (0..self.params.len())
+            .map(|i| {
+                if self.free[i] {
+                    it.next().copied()
+                } else {
+                    self.held[i]
+                }
+            })
+            .collect()
+    }
+
+    /// Channels whose gain is fitted.
+    fn gains(&self) -> Vec<usize> {
+        self.channels
+            .iter()
+            .copied()
+            .filter(|&c| self.gain_free[c])
+            .collect()
+    }
+
+    /// Number of residuals.
+    pub fn residual_count(&self) -> usize {
+        self.channels
+            .iter()
+            .map(|&c| {
+                self.runs
+                    .iter()
+                    .filter(|r| r.y[c].is_some())
+                    .map(|r| r.n)
+                    .sum::<usize>()
+            })
+            .sum()
+    }
+
+    /// Simulates every run at `x` in parallel; `None` if any simulation fails.
+    pub fn simulate(&self, x: &[Option<f64>], count: &AtomicUsize) -> Option<Sims> {
+        self.runs
+            .par_iter()
+            .map(|run| {
+                simulate_run(
+                    run,
+                    &apply(&run.scenario, self.params, x, self.reference),
+                    count,
+                )
+            })
+            .collect()
+    }
+
+    /// The gains and offsets that fit `sims` best in the weighted least-squares sense, per
+    /// channel in closed form (a held gain keeps its nominal value; only the offset is fitted).
+    pub fn solve_linear(&self, sims: &Sims) -> [Response; CHANNELS] {
+        let mut out = self.nominal;
+        let sims = self.view(sims);
+        for &c in &self.channels {
+            // Sums over every recorded sample of the channel.
+            let (mut n, mut s1, mut y1, mut ss, mut sy) = (0.0, 0.0, 0.0, 0.0, 0.0);
+            for (ys, sim) in self.ys.iter().zip(sims.iter()) {
+                let Some(y) = &ys[c] else { continue };
+                for (&s, &y) in sim[c].iter().zip(y) {
+                    if y.is_finite() {
+                        n += 1.0;
+                        s1 += s;
+                        y1 += y;
+                        ss += s * s;
+                        sy += s * y;
+                    }
+                }
+            }
+            if n == 0.0 {
+                continue;
+            }
+            let det = n * ss - s1 * s1;
+            let gain = if self.gain_free[c] && det > 1e-12 * n * ss {
+                (n * sy - s1 * y1) / det
+            } else {
+                self.nominal[c].gain
+            };
+            out[c] = Response {
+                gain,
+                offset: (y1 - gain * s1) / n,
+            };
+        }
+        out
+    }
+
+    /// Weighted residuals `(gain·sim + offset − recorded)/σ` (0 where a sample is missing).
+    pub fn residual(&self, sims: &Sims, resp: &[Response; CHANNELS]) -> DVector<f64> {
+        let mut e = Vec::with_capacity(self.residual_count());
+        let sims = self.view(sims);
+        for &c in &self.channels {
+            for (ys, sim) in self.ys.iter().zip(sims.iter()) {
+                let Some(y) = &ys[c] else { continue };
+                for (&s, &y) in sim[c].iter().zip(y) {
+                    e.push(if y.is_finite() {
+                        (resp[c].apply(s) - y) / self.sigma[c]
+                    } else {
+                        0.0
+                    });
+                }
+            }
+        }
+        DVector::from_vec(e)
+    }
+
+    /// Unweighted residual RMS of each channel (`None` for channels without data).
+    pub fn rms(&self, sims: &Sims, resp: &[Response; CHANNELS]) -> [Option<f64>; CHANNELS] {
+        let mut out = [None; CHANNELS];
+        let sims = self.view(sims);
+        for &c in &self.channels {
+            let (mut sum, mut n) = (0.0, 0usize);
+            for (ys, sim) in self.ys.iter().zip(sims.iter()) {
+                let Some(y) = &ys[c] else { continue };
+                for (&s, &y) in sim[c].iter().zip(y) {
+                    if y.is_finite() {
+                        sum += (resp[c].apply(s) - y).powi(2);
+                        n += 1;
+                    }
+                }
+            }
+            if n > 0 {
+                out[c] = Some((sum / n as f64).sqrt());
+            }
+        }
+        out
+    }
+
+    /// Simulations with each free parameter stepped in turn by ± its step (central
+    /// differences; one-sided where one side fails to simulate), in parallel over parameters,
+    /// sides and runs. Per free parameter: the simulations after and before (`None`: at `z`
+    /// itself) and the distance between them.
+    fn stepped(&self, z: &[f64], count: &AtomicUsize) -> Option<Vec<Difference>> {
+        let free = self.free_indices();
+        let runs = self.runs.len();
+        let tasks: Vec<(usize, f64, usize)> = (0..free.len())
+            .flat_map(|j| [1.0, -1.0].map(|side| (j, side)))
+            .flat_map(|(j, side)| (0..runs).map(move |r| (j, side, r)))
+            .collect();
+        let sims: Vec<Option<[Vec<f64>; CHANNELS]>> = tasks
+            .par_iter()
+            .map(|&(j, side, r)| self.stepped_run(z, free[j], j, r, side, count))
+            .collect();
+        let side = |j: usize, k: usize| -> Option<Sims> {
+            let at = (2 * j + k) * runs;
+            sims[at..at + runs].iter().cloned().collect()
+        };
+        free.iter()
+            .enumerate()
+            .map(|(j, &i)| {
+                let h = self.params[i].step;
+                // A side beyond a bound would be simulated at the bound: one-sided there.
+                let (lo, hi) = bounds(self.params[i].kind);
+                let up = (z[j] + h <= hi).then(|| side(j, 0)).flatten();
+                let down = (z[j] - h >= lo).then(|| side(j, 1)).flatten();
+                match (up, down) {
+                    (Some(a), Some(b)) => Some((a, Some(b), 2.0 * h)),
+                    (Some(a), None) => Some((a, None, h)),
+                    (None, Some(b)) => Some((b, None, -h)),
+                    (None, None) => None,
+                }
+            })
+            .collect()
+    }
+
+    /// Run `r` simulated with free parameter `j` (parameter `i`) stepped by `sign`·step.
+    fn stepped_run(
+        &self,
+        z: &[f64],
+        i: usize,
+        j: usize,
+        r: usize,
+        sign: f64,
+        count: &AtomicUsize,
+    ) -> Option<[Vec<f64>; CHANNELS]> {
+        let mut zs = z.to_vec();
+        zs[j] += sign * self.params[i].step;
+        let x = self.full_x(&zs);
+        let run = &self.runs[r];
+        simulate_run(
+            run,
+            &apply(&run.scenario, self.params, &x, self.reference),
+            count,
+        )
+    }
+
+    /// The Jacobian of the weighted residuals with the gains and offsets held at `resp`, with
+    /// respect to the free parameters, then the free gains, then every channel's offset.
+    pub fn jacobian_full(
+        &self,
+        z: &[f64],
+        sims: &Sims,
+        resp: &[Response; CHANNELS],
+        count: &AtomicUsize,
+    ) -> Option<DMatrix<f64>> {
+        let stepped = self.stepped(z, count)?;
+        let e = self.residual(sims, resp);
+        let gains = self.gains();
+        let cols = stepped.len() + gains.len() + self.channels.len();
+        let mut jac = DMatrix::zeros(e.len(), cols);
+        for (j, (a, b, h)) in stepped.iter().enumerate() {
+            let eb = b
+                .as_ref()
+                .map_or_else(|| e.clone(), |b| self.residual(b, resp));
+            jac.set_column(j, &((self.residual(a, resp) - eb) / *h));
+        }
+        let lin = self.linear_columns(sims);
+        for (k, &c) in gains.iter().enumerate() {
+            jac.set_column(stepped.len() + k, &lin[c].0);
+        }
+        for (k, &c) in self.channels.iter().enumerate() {
+            jac.set_column(stepped.len() + gains.len() + k, &lin[c].1);
+        }
+        Some(jac)
+    }
+
+    /// Columns of the residuals' derivatives with respect to each channel's gain and offset.
+    fn linear_columns(&self, sims: &Sims) -> Vec<(DVector<f64>, DVector<f64>)> {
+        let m = self.residual_count();
+        let mut out = vec![(DVector::zeros(m), DVector::zeros(m)); CHANNELS];
+        let mut row = 0;
+        let sims = self.view(sims);
+        for &c in &self.channels {
+            for (ys, sim) in self.ys.iter().zip(sims.iter()) {
+                let Some(y) = &ys[c] else { continue };
+                for (&s, &y) in sim[c].iter().zip(y) {
+                    if y.is_finite() {
+                        out[c].0[row] = s / self.sigma[c];
+                        out[c].1[row] = 1.0 / self.sigma[c];
+                    }
+                    row += 1;
+                }
+            }
+        }
+        out
+    }
+}
+
+/// Centred moving average of `x` over `width` samples (fewer at the ends), skipping `NaN`s; a
+/// sample whose window holds no number stays `NaN`.
+fn smooth(x: &[f64], width: usize) -> Vec<f64> {
+    if width <= 1 {
+        return x.to_vec();
+    }
+    let half = width / 2;
+    let n = x.len();
+    // Prefix sums of the finite values and their count.
+    let (mut sum, mut cnt) = (vec![0.0; n + 1], vec![0usize; n + 1]);
+    for k in 0..n {
+        let ok = x[k].is_finite();
+        sum[k + 1] = sum[k] + if ok { x[k] } else { 0.0 };
+        cnt[k + 1] = cnt[k] + usize::from(ok);
+    }
+    (0..n)
+        .map(|k| {
+            let (a, b) = (k.saturating_sub(half), (k + half + 1).min(n));
+            let m = cnt[b] - cnt[a];
+            if m == 0 || !x[k].is_finite() {
+                f64::NAN
+            } else {
+                (sum[b] - sum[a]) / m as f64
+            }
+        })
+        .collect()
+}
+
+/// The observed channels of one simulated run, or `None` if it fails or its length differs.
+fn simulate_run(
+    run: &Run,
+    scenario: &Scenario,
+    count: &AtomicUsize,
+) -> Option<[Vec<f64>; CHANNELS]> {
+    count.fetch_add(1, Ordering::Relaxed);
+    let out = sim::run(scenario, &mut |_| {}).ok()?;
+    if out.rows.len() < run.n {
+        return None;
+    }
+    let rows = &out.rows[..run.n];
+    Some(std::array::from_fn(|c| {
+        rows.iter().map(|r| r[c + 1]).collect()
+    }))
+}
+
+/// A finished fit.
+pub(super) struct Solution {
+    /// Free parameters' values, in order.
+    pub z: Vec<f64>,
+    /// Simulations at `z`.
+    pub sims: Sims,
+    /// Gains and offsets at `z`.
+    pub resp: [Response; CHANNELS],
+    /// Jacobian evaluations (iterations).
+    pub iterations: usize,
+}
+
+/// Gains and offsets at `z` (free parameters, then with joint handling the free gains and every
+/// offset) for `sims`.
+fn responses(setup: &Setup, z: &[f64], sims: &Sims) -> [Response; CHANNELS] {
+    match setup.handling {
+        GainHandling::Projected => setup.solve_linear(sims),
+        GainHandling::Joint => {
+            let mut resp = setup.nominal;
+            let p = setup.free.iter().filter(|&&f| f).count();
+            let gains = setup.gains();
+            for (k, &c) in gains.iter().enumerate() {
+                resp[c].gain = z[p + k];
+            }
+            for (k, &c) in setup.channels.iter().enumerate() {
+                resp[c].offset = z[p + gains.len() + k];
+            }
+            resp
+        }
+    }
+}
+
+/// The Jacobian of the residuals at `z` (free parameters, then with joint handling the gains
+/// and offsets), with `sims` the simulations there.
+fn jacobian(
+    setup: &Setup,
+    z: &[f64],
+    sims: &Sims,
+    resp: &[Response; CHANNELS],
+    count: &AtomicUsize,
+) -> Option<DMatrix<f64>> {
+    let p = setup.free.iter().filter(|&&f| f).count();
+    match setup.handling {
+        GainHandling::Joint => setup.jacobian_full(&z[..p], sims, resp, count),
+        GainHandling::Projected => {
+            // Derivatives of the residuals with the gains and offsets re-solved at each step.
+            let stepped = setup.stepped(&z[..p], count)?;
+            let e = setup.residual(sims, resp);
+            let mut jac = DMatrix::zeros(e.len(), p);
+            for (j, (a, b, h)) in stepped.iter().enumerate() {
+                let ea = setup.residual(a, &setup.solve_linear(a));
+                let eb = b
+                    .as_ref()
+                    .map_or_else(|| e.clone(), |b| setup.residual(b, &setup.solve_linear(b)));
+                jac.set_column(j, &((ea - eb) / *h));
+            }
+            Some(jac)
+        }
+    }
+}
+
+/// Relative decrease of the cost below which an iteration counts as stalled; two stalled
+/// iterations in a row end the fit.
+const FTOL: f64 = 1e-4;
+
+/// Fits the free parameters from `z0` (and, with joint handling, the gains and offsets from
+/// `resp0`) by Levenberg–Marquardt; at most `max_iterations` Jacobians.
+///
+/// Marquardt's scaling (the damping is λ times the diagonal of JᵀJ) with Nielsen's update of λ.
+/// A trial point whose simulation fails counts as a rejected step. The simulated channels are
+/// not smooth at the finest scale (contact events fall on time steps), so every decrease of the
+/// cost is accepted and the fit ends when the cost stops falling: two iterations in a row below
+/// a relative decrease of 1e-4, or no decrease for any damping.
+pub(super) fn fit(
+    setup: &Setup,
+    z0: &[f64],
+    resp0: &[Response; CHANNELS],
+    max_iterations: usize,
+    count: &AtomicUsize,
+    stage: &str,
+    progress: &mut dyn FnMut(&Progress),
+) -> Result<Solution> {
+    let mut z = z0.to_vec();
+    if setup.handling == GainHandling::Joint {
+        z.extend(setup.gains().iter().map(|&c| resp0[c].gain));
+        z.extend(setup.channels.iter().map(|&c| resp0[c].offset));
+    }
+    let p = setup.free.iter().filter(|&&f| f).count();
+    let evaluate = |z: &[f64]| -> Option<(Sims, [Response; CHANNELS], f64)> {
+        let sims = setup.simulate(&setup.full_x(&z[..p]), count)?;
+        let resp = responses(setup, z, &sims);
+        let cost = setup.residual(&sims, &resp).norm_squared();
+        cost.is_finite().then_some((sims, resp, cost))
+    };
+    let (mut sims, mut resp, mut cost) = evaluate(&z).ok_or_else(|| {
+        Error::Calibration("a recording's scenario does not simulate at the starting point".into())
+    })?;
+    let (mut evaluations, mut iterations, mut stalled) = (1, 0, 0);
+    let mut lambda: Option<f64> = None;
+    let mut nu = 2.0;
+    let converged = loop {
+        if iterations >= max_iterations {
+            break false;
+        }
+        iterations += 1;
+        let jac = jacobian(setup, &z, &sims, &resp, count).ok_or_else(|| {
+            Error::Calibration("simulations next to the current point failed".into())
+        })?;
+        let e = setup.residual(&sims, &resp);
+        let g = jac.transpose() * &e;
+        let a = jac.transpose() * &jac;
+        let diag: Vec<f64> = (0..a.nrows()).map(|k| a[(k, k)].max(1e-30)).collect();
+        let lam = *lambda.get_or_insert(1e-3);
+        // Trial steps, damping more after each failure.
+        let mut lam_try = lam;
+        let mut accepted = None;
+        for _ in 0..12 {
+            let mut m = a.clone();
+            for k in 0..m.nrows() {
+                m[(k, k)] += lam_try * diag[k];
+            }
+            let Some(step) = m.cholesky().map(|c| c.solve(&(-&g))) else {
+                lam_try *= nu;
+                nu *= 2.0;
+                continue;
+            };
+            // Steps beyond a parameter's bounds stop at the bound.
+            let free = setup.free_indices();
+            let trial: Vec<f64> = z
+                .iter()
+                .zip(step.iter())
+                .enumerate()
+                .map(|(j, (a, b))| match free.get(j) {
+                    Some(&i) => {
+                        let (lo, hi) = bounds(setup.params[i].kind);
+                        (a + b).clamp(lo, hi)
+                    }
+                    None => a + b,
+                })
+                .collect();
+            evaluations += 1;
+            let predicted = -(step.dot(&g) * 2.0 + (&jac * &step).norm_squared());
+            match evaluate(&trial) {
+                Some((s, r, c)) if c < cost => {
+                    // Nielsen: damp less after a step that went as predicted.
+                    let ratio = (cost - c) / predicted.max(f64::MIN_POSITIVE);
+                    lambda = Some(lam_try * (1.0 / 3.0f64).max(1.0 - (2.0 * ratio - 1.0).powi(3)));
+                    nu = 2.0;
+                    accepted = Some((trial, s, r, c));
+                    break;
+                }
+                _ => {
+                    lam_try *= nu;
+                    nu *= 2.0;
+                }
+            }
+        }
+        progress(&Progress {
+            stage: stage.to_string(),
+            iteration: iterations,
+            evaluations,
+            cost: accepted.as_ref().map_or(cost, |a| a.3),
+        });
+        let Some((zt, s, r, c)) = accepted else {
+            // No damping lowers the cost: a minimum at the resolution of the simulations.
+            break true;
+        };
+        let decrease = (cost - c) / cost;
+        (z, sims, resp, cost) = (zt, s, r, c);
+        stalled = if decrease < FTOL { stalled + 1 } else { 0 };
+        if stalled >= 2 {
+            break true;
+        }
+    };
+    if !converged {
+        return Err(Error::Calibration(format!(
+            "the fit did not converge within {max_iterations} iterations ({stage}; the cost \
+             still fell by more than {FTOL:e} per iteration)"
+        )));
+    }
+    Ok(Solution {
+        z: z[..p].to_vec(),
+        sims,
+        resp,
+        iterations,
+    })
+}
+
+/// Standard errors and degeneracy at a solution, from the Gauss–Newton Hessian.
+pub(super) struct Covariance {
+    /// Covariance of the free parameters, then the free gains, then every channel's offset
+    /// (a pseudo-inverse where the Jacobian is rank-deficient).
+    pub cov: DMatrix<f64>,
+    /// Singular values of the column-normalised Jacobian, relative to the largest, with the
+    /// index of the column that dominates each one's right singular vector.
+    pub weak: Vec<(f64, usize)>,
+}
+
+/// The covariance `s²·(JᵀJ)⁻¹` at `sol`, with the Jacobian in [`Setup::jacobian_full`]'s order.
+pub(super) fn covariance(setup: &Setup, sol: &Solution, count: &AtomicUsize) -> Result<Covariance> {
+    let jac = setup
+        .jacobian_full(&sol.z, &sol.sims, &sol.resp, count)
+        .ok_or_else(|| Error::Calibration("a simulation failed next to the solution".into()))?;
+    let e = setup.residual(&sol.sims, &sol.resp);
+    let (m, p) = jac.shape();
+    let s2 = e.norm_squared() / (m.saturating_sub(p)).max(1) as f64;
+
+    // Column-normalised Jacobian: its singular values show degenerate combinations.
+    let norms: Vec<f64> = (0..p).map(|j| jac.column(j).norm()).collect();
+    let mut scaled = jac.clone();
+    for (j, &nj) in norms.iter().enumerate() {
+        if nj > 0.0 {
+            scaled.column_mut(j).scale_mut(1.0 / nj);
+        }
+    }
+    let svd = scaled.clone().svd(false, true);
+    let smax = svd.singular_values.max().max(f64::MIN_POSITIVE);
+    let vt = svd
+        .v_t
+        .clone()
+        .ok_or_else(|| Error::Calibration("singular value decomposition failed".into()))?;
+    let mut weak: Vec<(f64, usize)> = (0..svd.singular_values.len())
+        .map(|k| {
+            let row = vt.row(k);
+            let dominant = (0..p)
+                .max_by(|&a, &b| row[a].abs().total_cmp(&row[b].abs()))
+                .unwrap_or(0);
+            (svd.singular_values[k] / smax, dominant)
+        })
+        .collect();
+    weak.sort_by(|a, b| a.0.total_cmp(&b.0));
+    // Zero columns have no direction at all.
+    for (j, &nj) in norms.iter().enumerate() {
+        if nj == 0.0 {
+            weak.insert(0, (0.0, j));
+        }
+    }
+
+    // (JᵀJ)⁻¹ in the scaled coordinates, pseudo-inverted past a relative cutoff.
+    let jtj = scaled.transpose() * &scaled;
+    let eig = jtj.symmetric_eigen();
+    let lmax = eig.eigenvalues.max().max(f64::MIN_POSITIVE);
+    let mut inv = DMatrix::zeros(p, p);
+    for k in 0..p {
+        let l = eig.eigenvalues[k];
+        if l > 1e-14 * lmax {
+            let v = eig.eigenvectors.column(k);
+            inv += (v * v.transpose()) / l;
+        }
+    }
+    let mut cov = inv * s2;
+    for a in 0..p {
+        for b in 0..p {
+            let d = norms[a] * norms[b];
+            cov[(a, b)] = if d > 0.0 { cov[(a, b)] / d } else { 0.0 };
+        }
+    }
+    // A zero column's parameter has no information: infinite variance.
+    for (j, &nj) in norms.iter().enumerate() {
+        if nj == 0.0 {
+            cov[(j, j)] = f64::INFINITY;
+        }
+    }
+    Ok(Covariance { cov, weak })
+}

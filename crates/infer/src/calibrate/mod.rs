@@ -1,0 +1,971 @@
+//! Calibration: fitting what a real rig gets wrong about its whisker and sensors, with the
+//! simulator in the loop, from labelled recordings (strikes whose object parameters are known).
+//!
+//! # Model
+//!
+//! Every labelled recording is simulated from the nominal scenario with its labels applied as
+//! overrides (`d`, `v`, …), sampled like the recording (its own step and length; its first
+//! sample is simulation time 0, up to the fitted time offset), without noise. Recorded channel
+//! `c` of recording `r` at sample `k` is modelled as
+//!
+//! `y[r,c,k] = g_c · s_c(θ; r, k) + o_c + ε`,  `ε ~ N(0, σ_c²)` independent,
+//!
+//! where `s_c` is the simulated channel, `g_c` and `o_c` the sensor's gain and offset (shared by
+//! all recordings) and `θ` the whisker's parameters. The fit maximises the likelihood: weighted
+//! least squares in `θ`, `g`, `o`, alternated with the maximum-likelihood noise levels
+//! `σ_c² = mean squared residual of channel c` (a few rounds, each starting from the previous
+//! fit), so that channels in different units count by how well they can be fitted. Before the
+//! first round every `σ_c` is 1% of the channel's range over the recordings; no `σ_c` goes below
+//! 1e-4 of that range.
+//!
+//! # Parameters (`θ`)
+//!
+//! | key | parametrisation | start |
+//! |---|---|---|
+//! | `whisker.youngs_modulus` | `ln(E/E_nominal)` | nominal |
+//! | `whisker.density` | `ln(ρ/ρ_nominal)` | nominal |
+//! | `whisker.tip_radius` | `ln(tip/base radius)`, at most 0 | nominal |
+//! | `whisker.follicle.stiffness` | `ln(k0/k_f)`, k0 the nominal chain's base joint | nominal (clamped: k0/5) |
+//! | `whisker.follicle.damping` | `ln(c_f/(k_f·β0))`, β0 the whisker's own stiffness-proportional coefficient | nominal (clamped: 0) |
+//! | `whisker.damping.ratio` (or `.q`, `.beta`) | `ln(value/nominal)` | nominal |
+//! | `time_offset` | the recording's first sample on the simulation's clock, s | 0 |
+//!
+//! A clamped follicle or a uniform whisker is the boundary of its parametrisation (x → ±∞), so
+//! the fit starts a little inside and may run back out; if it does, or the recordings do not
+//! resolve the parameter, the parameter is reported as not determined and the nominal (clamped,
+//! uniform) is kept. `time_offset` is fitted only with a fixed base (it moves the objects along
+//! their paths). A parameter set by the recordings' labels is not fitted.
+//!
+//! The simulated channels are unchanged when E, ρ, the follicle's stiffness and damping are all
+//! multiplied by one factor, except that the base's moment and forces scale with it. The
+//! recordings alone therefore cannot separate the force sensors' common gain from the whisker's
+//! absolute stiffness: the gain of the first force channel present (m0, else fx, else fy) is held
+//! at its nominal value as the reference of the force scale, and the other force gains are fitted
+//! relative to it. Without any force channel, E is held instead.
+//!
+//! # Gains and offsets
+//!
+//! They enter linearly, so by default ([`GainHandling::Projected`]) they are solved in closed form
+//! (a 2×2 weighted least-squares problem per channel) inside every residual evaluation, and the
+//! Levenberg–Marquardt iterations see only the whisker's parameters (variable projection). With
+//! [`GainHandling::Joint`] they are parameters of the iterations beside the whisker's, with
+//! exact Jacobian columns. Both reach the same minimum; `docs/calibration.md` has the measured
+//! comparison that made projection the default.
+//!
+//! # Solver
+//!
+//! Levenberg–Marquardt with Marquardt's scaling (damping λ times the diagonal of JᵀJ) and
+//! Nielsen's update of λ, on nalgebra (`fit.rs`, about a hundred lines). It is written here rather
+//! than taken from a crate because the problem needs what general drivers do not offer together:
+//! a residual function that may fail (an object overlapping the whisker at t = 0, a divergence:
+//! such a trial step is rejected and the damping raised), parameters with bounds (a uniform
+//! whisker is the taper's bound; steps stop there and differences turn one-sided), the gains
+//! and offsets re-solved inside every evaluation, and a stopping rule suited to a cost that is
+//! not smooth at the finest scale (contact events fall on time steps). The Jacobian is by
+//! central differences, one-sided at a bound or where a side fails to simulate; the
+//! simulations of all parameters × sides × recordings run in parallel with rayon.
+//!
+//! Several starts (see `best_start`): the plain nominal one and the best points of a scan over
+//! density × follicle compliance × taper each get a full fit, and the lowest minimum wins.
+//!
+//! # Standard errors and determination
+//!
+//! At the solution the covariance is `s²·(JᵀJ)⁻¹` with `J` the Jacobian of the weighted
+//! residuals with respect to every fitted quantity (whisker parameters, free gains, offsets) and
+//! `s²` the residual variance per degree of freedom; errors of the physical values follow by the
+//! delta method. A parameter is not determined when a singular value of the column-normalised
+//! Jacobian below 1e-6 of the largest is dominated by it, or when its relative standard error
+//! exceeds [`Settings::threshold`] (for the follicle, its compliance; for the taper, the amount
+//! of taper 1 − tip/base; for the time offset, a sample period). The worst such parameter is
+//! held at its nominal value and the fit is repeated without it, until every fitted parameter is
+//! determined. A fit that does not converge within [`Settings::max_iterations`] is an error.
+
+mod fit;
+mod params;
+
+use crate::error::{Error, Result};
+use fit::{Covariance, Run, Setup, Solution, CHANNELS};
+use params::{Kind, Param, Reference};
+use serde::Serialize;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use vibrissa_core::sensors::CHANNELS as NAMES;
+use vibrissa_core::sim::{Response, SensorNoise, SensorResponse};
+use vibrissa_core::whisker::Damping;
+use vibrissa_io::labelled::Labelled;
+use vibrissa_io::scenario::{CalibratedParameter, Calibration, ChannelValues, Document};
+
+/// Units of the observed channels, in [`NAMES`] order.
+pub const UNITS: [&str; CHANNELS] = ["rad", "rad", "N·m", "N", "N"];
+
+/// How the sensors' gains and offsets are fitted (see the [module documentation](self)).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GainHandling {
+    /// Solved in closed form inside every residual evaluation (variable projection).
+    #[default]
+    Projected,
+    /// Parameters of the Levenberg–Marquardt iterations beside the whisker's.
+    Joint,
+}
+
+/// Settings of a calibration.
+#[derive(Debug, Clone, Copy)]
+pub struct Settings {
+    /// How gains and offsets are fitted.
+    pub handling: GainHandling,
+    /// Most Levenberg–Marquardt iterations (Jacobians) of one fit.
+    pub max_iterations: usize,
+    /// Most rounds of fitting and re-estimating the noise levels per fit.
+    pub noise_rounds: usize,
+    /// Finite-difference step of the whisker parameters in their parametrisation (logarithms).
+    pub step: f64,
+    /// Relative standard error above which a parameter is not determined.
+    pub threshold: f64,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            handling: GainHandling::Projected,
+            max_iterations: 50,
+            noise_rounds: 3,
+            step: 0.03,
+            threshold: 0.5,
+        }
+    }
+}
+
+/// Where a running calibration is (for progress displays).
+#[derive(Debug, Clone)]
+pub struct Progress {
+    /// What is being fitted (`round 1 of 3, 7 parameters`).
+    pub stage: String,
+    /// Levenberg–Marquardt iteration of this fit.
+    pub iteration: usize,
+    /// Residual evaluations of this fit.
+    pub evaluations: usize,
+    /// Lowest weighted cost (sum of squared weighted residuals) so far.
+    pub cost: f64,
+}
+
+/// One parameter of a calibration's result.
+#[derive(Debug, Clone, Serialize)]
+pub struct ParameterFit {
+    /// Scenario key (`whisker.youngs_modulus`, `sensors.m0.gain`) or `time_offset`.
+    pub key: String,
+    /// SI unit of the values.
+    pub unit: &'static str,
+    /// Value in the nominal scenario (`None`: a clamped follicle).
+    pub nominal: Option<f64>,
+    /// Fitted value, or the nominal where not determined (infinite: a clamped follicle).
+    pub value: f64,
+    /// Standard error of `value` (determined parameters only).
+    pub std_error: Option<f64>,
+    /// Whether the recordings determined it.
+    pub determined: bool,
+    /// Why it was held, or how to read it.
+    pub note: Option<String>,
+}
+
+/// One channel of a calibration's result.
+#[derive(Debug, Clone, Serialize)]
+pub struct ChannelFit {
+    /// Channel name.
+    pub name: &'static str,
+    /// SI unit.
+    pub unit: &'static str,
+    /// Residual RMS with the nominal scenario and sensors.
+    pub rms_before: f64,
+    /// Residual RMS with the fitted scenario and sensors.
+    pub rms_after: f64,
+    /// Noise standard deviation the fit estimated (its residual RMS, floored).
+    pub noise: f64,
+}
+
+/// One recording with the nominal and fitted simulations, as the sensors would record them.
+#[derive(Debug, Clone)]
+pub struct RunFit {
+    /// Name in `truth.csv`.
+    pub file: String,
+    /// The labels.
+    pub labels: Vec<(String, f64)>,
+    /// Sample times of the recording, s.
+    pub t: Vec<f64>,
+    /// Recorded channels (`None`: not in the recording): `[channel][sample]`.
+    pub recorded: [Option<Vec<f64>>; CHANNELS],
+    /// The nominal scenario's channels.
+    pub nominal: [Vec<f64>; CHANNELS],
+    /// The fitted scenario's channels.
+    pub fitted: [Vec<f64>; CHANNELS],
+}
+
+/// A calibration's result.
+#[derive(Debug, Clone)]
+pub struct Fit {
+    /// Whisker parameters, then each channel's gain and offset.
+    pub parameters: Vec<ParameterFit>,
+    /// Channels present in the recordings.
+    pub channels: Vec<ChannelFit>,
+    /// The recordings with their simulations.
+    pub runs: Vec<RunFit>,
+    /// Levenberg–Marquardt iterations over all fits.
+    pub iterations: usize,
+    /// Simulations run.
+    pub simulations: usize,
+    /// Fits run (noise rounds and refits without undetermined parameters).
+    pub fits: usize,
+    /// `key=value` overrides that turn the nominal scenario into the fitted one.
+    pub overrides: Vec<String>,
+}
+
+impl Fit {
+    /// The record for a fitted scenario's `[calibration]` table; `labelled` names the folder.
+    pub fn record(&self, labelled: &str) -> Calibration {
+        let by_channel = |f: fn(&ChannelFit) -> f64| {
+            ChannelValues::from_array(std::array::from_fn(|c| {
+                self.channels.iter().find(|ch| ch.name == NAMES[c]).map(f)
+            }))
+        };
+        Calibration {
+            labelled: Some(labelled.to_string()),
+            recordings: Some(self.runs.len()),
+            rms_before: by_channel(|c| c.rms_before),
+            rms_after: by_channel(|c| c.rms_after),
+            noise: by_channel(|c| c.noise),
+            parameters: self
+                .parameters
+                .iter()
+                .map(|p| CalibratedParameter {
+                    key: p.key.clone(),
+                    nominal: p.nominal,
+                    value: p.value,
+                    std_error: p.std_error,
+                    determined: p.determined,
+                    note: p.note.clone(),
+                })
+                .collect(),
+        }
+    }
+
+    /// The fitted scenario: `nominal` with the fitted values and the `[calibration]` record.
+    pub fn document(&self, nominal: &Document, labelled: &str) -> Result<Document> {
+        let mut doc = nominal.clone();
+        for set in &self.overrides {
+            doc.set(set)?;
+        }
+        doc.set_calibration(&self.record(labelled))?;
+        // The result must load as a scenario.
+        doc.loaded()?;
+        Ok(doc)
+    }
+}
+
+/// Calibrates `nominal` on the labelled recordings `set`; `progress` hears of every residual
+/// evaluation.
+pub fn calibrate(
+    nominal: &Document,
+    set: &Labelled,
+    settings: &Settings,
+    progress: &mut dyn FnMut(&Progress),
+) -> Result<Fit> {
+    check_settings(settings)?;
+    let base = nominal.loaded()?.scenario;
+    let reference = Reference::of(&base)?;
+    let runs = prepare(nominal, set)?;
+    // The time offset is stepped by a quarter of the longest sample period.
+    let period = set.recordings.iter().map(|r| r.step).fold(0.0, f64::max);
+    let params = params::parameters(&base, &reference, &set.keys, settings.step, 0.25 * period);
+    let count = AtomicUsize::new(0);
+
+    // Channels with data, and the reference of the force scale.
+    let channels: Vec<usize> = (0..CHANNELS)
+        .filter(|&c| {
+            runs.iter().any(|r| {
+                r.y[c]
+                    .as_ref()
+                    .is_some_and(|y| y.iter().any(|v| v.is_finite()))
+            })
+        })
+        .collect();
+    let reference_channel = [2, 3, 4].into_iter().find(|c| channels.contains(c));
+    let nominal_resp = base.sensor_response.to_array();
+    let mut gain_free = [false; CHANNELS];
+    for &c in &channels {
+        gain_free[c] = Some(c) != reference_channel;
+    }
+    let mut notes: Vec<Option<String>> = vec![None; params.len()];
+    let mut gain_notes: [Option<String>; CHANNELS] = Default::default();
+    let mut free: Vec<bool> = vec![true; params.len()];
+    #[allow(unused_mut)]
+    if reference_channel.is_none() {
+        if let Some(i) = params.iter().position(|p| p.kind == Kind::Modulus) {
+            free[i] = false;
+            notes[i] = Some(
+                "held as the reference of the stiffness scale: without force channels, \
+                 the angles cannot tell it from the density and the follicle"
+                    .into(),
+            );
+        }
+    }
+    let held: Vec<Option<f64>> = params.iter().map(|p| p.x_nominal).collect();
+    // Noise levels start at 1% of each channel's range.
+    let ranges = ranges(&runs);
+    let mut sigma = [1.0; CHANNELS];
+    for &c in &channels {
+        sigma[c] = 0.01 * ranges[c];
+    }
+    let mut setup = Setup {
+        runs: &runs,
+        params: &params,
+        reference: &reference,
+        free,
+        held,
+        channels: channels.clone(),
+        sigma,
+        gain_free,
+        nominal: nominal_resp,
+        handling: settings.handling,
+        smooth: 1,
+        ys: Vec::new(),
+    };
+    setup.set_smoothing(1);
+
+    // The nominal scenario as it is, for the residuals before.
+    let x_nominal: Vec<Option<f64>> = params.iter().map(|p| p.x_nominal).collect();
+    let before = setup.simulate(&x_nominal, &count).ok_or_else(|| {
+        Error::Calibration("a labelled recording's nominal scenario does not simulate".into())
+    })?;
+    let rms_before = setup.rms(&before, &nominal_resp);
+
+    // Fit; hold the worst undetermined parameter and fit again, until all are determined.
+    let z: Vec<f64> = (0..params.len())
+        .filter(|&i| setup.free[i])
+        .map(|i| params[i].x_start)
+        .collect();
+    let (mut iterations, mut fits) = (0, 0);
+    let (mut z, mut resp) = best_start(
+        &setup,
+        &z,
+        settings,
+        &count,
+        &mut iterations,
+        &mut fits,
+        progress,
+    )?;
+    let (solution, cov) = loop {
+        let sol = fit_with_noise(
+            &mut setup,
+            &z,
+            &resp,
+            settings,
+            &ranges,
+            &count,
+            &mut fits,
+            &mut iterations,
+            progress,
+        )?;
+        let cov = fit::covariance(&setup, &sol, &count)?;
+        match worst_undetermined(&setup, &sol, &cov, settings, &reference) {
+            None => break (sol, cov),
+            Some((Held::Param(i), note)) => {
+                let x = setup.full_x(&sol.z);
+                setup.free[i] = false;
+                notes[i] = Some(note);
+                // Without a follicle spring its damping means nothing.
+                if params[i].kind == Kind::FollicleCompliance {
+                    if let Some(d) = params.iter().position(|p| p.kind == Kind::FollicleDamping) {
+                        if setup.free[d] {
+                            setup.free[d] = false;
+                            notes[d] = Some("no follicle spring to damp".into());
+                        }
+                    }
+                }
+                z = (0..params.len())
+                    .filter(|&k| setup.free[k])
+                    .map(|k| x[k].unwrap_or(params[k].x_start))
+                    .collect();
+                resp = sol.resp;
+            }
+            Some((Held::Gain(c), note)) => {
+                setup.gain_free[c] = false;
+                gain_notes[c] = Some(note);
+                z = sol.z.clone();
+                resp = sol.resp;
+            }
+        }
+    };
+
+    Ok(assemble(
+        &setup,
+        &solution,
+        &cov,
+        &before,
+        &rms_before,
+        &notes,
+        &gain_notes,
+        set,
+        reference_channel,
+        iterations,
+        fits,
+        count.load(Ordering::Relaxed),
+    ))
+}
+
+/// Density steps of the starting scan, ln ρ/ρ_nominal: −0.6 to 0.6 in steps of 0.15 (the first
+/// mode's frequency from 0.74 to 1.35 times the nominal's).
+const SCAN_DENSITY: (f64, f64, usize) = (-0.6, 0.6, 9);
+
+/// Follicle compliances of the starting scan, relative to the nominal chain's base joint
+/// (0: clamped, or rather a stiff spring just inside the parametrisation).
+const SCAN_FOLLICLE: [f64; 4] = [0.0, 0.3, 1.0, 3.0];
+
+/// Tip-to-base radius ratios of the starting scan, besides the parameter's own start.
+const SCAN_TAPER: [f64; 2] = [0.7, 0.5];
+
+/// Starting points that are fitted in full; the best fit is kept.
+const STARTS: usize = 4;
+
+/// The start of the final fit: the best of several short fits.
+///
+/// A least-squares fit of ringing is multimodal in its frequency: from a frequency off by more
+/// than about half a period over the ringing, a local fit locks onto the wrong number of
+/// periods, and a taper, a compliant follicle and a time offset can trade off against each
+/// other into a false minimum. So the cost (with the gains and offsets solved) is scanned over
+/// a grid of density × follicle compliance × taper, the other parameters at their starts, and a
+/// Levenberg–Marquardt fit runs from the plain start and from the [`STARTS`] best grid points;
+/// the lowest of their minima wins.
+fn best_start(
+    setup: &Setup,
+    z0: &[f64],
+    settings: &Settings,
+    count: &AtomicUsize,
+    iterations: &mut usize,
+    fits: &mut usize,
+    progress: &mut dyn FnMut(&Progress),
+) -> Result<(Vec<f64>, [Response; CHANNELS])> {
+    use rayon::prelude::*;
+    let free = setup.free_indices();
+    let slot = |kind: Kind| free.iter().position(|&i| setup.params[i].kind == kind);
+    let (density, follicle, taper) = (
+        slot(Kind::Density),
+        slot(Kind::FollicleCompliance),
+        slot(Kind::Taper),
+    );
+    let (lo, hi, n) = SCAN_DENSITY;
+    let densities: Vec<Option<f64>> = match density {
+        Some(_) => (0..n)
+            .map(|k| Some(lo + (hi - lo) * k as f64 / (n - 1) as f64))
+            .collect(),
+        None => vec![None],
+    };
+    let follicles: Vec<Option<f64>> = match follicle {
+        Some(_) => SCAN_FOLLICLE
+            .iter()
+            .map(|&u| Some(if u > 0.0 { u.ln() } else { -11.0 }))
+            .collect(),
+        None => vec![None],
+    };
+    let tapers: Vec<Option<f64>> = match taper {
+        Some(j) => std::iter::once(Some(z0[j]))
+            .chain(SCAN_TAPER.iter().map(|&q| Some(f64::ln(q))))
+            .collect(),
+        None => vec![None],
+    };
+    let mut points: Vec<Vec<f64>> = Vec::new();
+    for &r in &densities {
+        for &f in &follicles {
+            for &q in &tapers {
+                let mut p = z0.to_vec();
+                for (slot, value) in [(density, r), (follicle, f), (taper, q)] {
+                    if let (Some(j), Some(x)) = (slot, value) {
+                        p[j] = x;
+                    }
+                }
+                points.push(p);
+            }
+        }
+    }
+    let cost_at = |p: &Vec<f64>| match setup.simulate(&setup.full_x(p), count) {
+        Some(sims) => setup
+            .residual(&sims, &setup.solve_linear(&sims))
+            .norm_squared(),
+        None => f64::INFINITY,
+    };
+    let costs: Vec<f64> = points.par_iter().map(cost_at).collect();
+    let mut order: Vec<usize> = (0..points.len())
+        .filter(|&k| costs[k].is_finite())
+        .collect();
+    order.sort_by(|&a, &b| costs[a].total_cmp(&costs[b]));
+    progress(&Progress {
+        stage: format!("scan of {} starting points", points.len()),
+        iteration: 0,
+        evaluations: points.len(),
+        cost: order.first().map_or(f64::INFINITY, |&k| costs[k]),
+    });
+    let mut starts = vec![z0.to_vec()];
+    starts.extend(order.iter().take(STARTS).map(|&k| points[k].clone()));
+
+    let mut best: Option<(f64, Vec<f64>, [Response; CHANNELS])> = None;
+    let mut last_error = None;
+    for (k, start) in starts.iter().enumerate() {
+        let Some(sims) = setup.simulate(&setup.full_x(start), count) else {
+            continue;
+        };
+        let resp = setup.solve_linear(&sims);
+        let stage = format!("start {} of {}", k + 1, starts.len());
+        match fit::fit(
+            setup,
+            start,
+            &resp,
+            settings.max_iterations,
+            count,
+            &stage,
+            progress,
+        ) {
+            Ok(sol) => {
+                *fits += 1;
+                *iterations += sol.iterations;
+                let cost = setup.residual(&sol.sims, &sol.resp).norm_squared();
+                if best.as_ref().map_or(true, |b| cost < b.0) {
+                    best = Some((cost, sol.z, sol.resp));
+                }
+            }
+            Err(e) => last_error = Some(e),
+        }
+    }
+    match (best, last_error) {
+        (Some((_, z, resp)), _) => Ok((z, resp)),
+        (None, Some(e)) => Err(e),
+        (None, None) => Err(Error::Calibration(
+            "no starting point of the fit simulates".into(),
+        )),
+    }
+}
+
+/// Refuses settings out of range.
+fn check_settings(s: &Settings) -> Result<()> {
+    if s.max_iterations == 0 || s.noise_rounds == 0 {
+        return Err(Error::Setting(
+            "calibration: max_iterations and noise_rounds must be at least 1".into(),
+        ));
+    }
+    if !(s.step > 0.0 && s.step <= 0.3 && s.threshold > 0.0 && s.threshold.is_finite()) {
+        return Err(Error::Setting(format!(
+            "calibration: step must be in (0, 0.3] and threshold positive (got {} and {})",
+            s.step, s.threshold
+        )));
+    }
+    Ok(())
+}
+
+/// The recordings as runs: the nominal scenario with each one's labels, timed like it.
+fn prepare(nominal: &Document, set: &Labelled) -> Result<Vec<Run>> {
+    set.recordings
+        .iter()
+        .map(|rec| {
+            let mut scenario = nominal.loaded_with(&rec.overrides())?.scenario;
+            let n = rec.t().len();
+            scenario.sample_rate = rec.rate();
+            scenario.duration = (n - 1) as f64 / scenario.sample_rate;
+            scenario.process_noise = 0.0;
+            scenario.sensor_noise = SensorNoise::default();
+            scenario.sensor_response = SensorResponse::default();
+            let y = std::array::from_fn(|c| rec.channel(NAMES[c]).map(<[f64]>::to_vec));
+            Ok(Run {
+                file: rec.file.clone(),
+                scenario,
+                y,
+                n,
+            })
+        })
+        .collect()
+}
+
+/// Range (max − min) of each channel over all recordings (1 where it has no spread).
+fn ranges(runs: &[Run]) -> [f64; CHANNELS] {
+    std::array::from_fn(|c| {
+        let (lo, hi) = runs
+            .iter()
+            .filter_map(|r| r.y[c].as_ref())
+            .flatten()
+            .filter(|v| v.is_finite())
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
+                (lo.min(v), hi.max(v))
+            });
+        if hi > lo {
+            hi - lo
+        } else {
+            1.0
+        }
+    })
+}
+
+/// One fit in rounds: fit, set every channel's noise level to its residual RMS, fit again,
+/// until the levels settle (within 10%) or the rounds run out.
+#[allow(clippy::too_many_arguments)]
+fn fit_with_noise(
+    setup: &mut Setup,
+    z0: &[f64],
+    resp0: &[Response; CHANNELS],
+    settings: &Settings,
+    ranges: &[f64; CHANNELS],
+    count: &AtomicUsize,
+    fits: &mut usize,
+    iterations: &mut usize,
+    progress: &mut dyn FnMut(&Progress),
+) -> Result<Solution> {
+    let (mut z, mut resp) = (z0.to_vec(), *resp0);
+    let free = setup.free.iter().filter(|&&f| f).count();
+    let mut round = 0;
+    loop {
+        round += 1;
+        let stage = format!(
+            "fit {}, noise round {round}, {free} whisker parameters",
+            *fits + 1
+        );
+        let sol = fit::fit(
+            setup,
+            &z,
+            &resp,
+            settings.max_iterations,
+            count,
+            &stage,
+            progress,
+        )?;
+        *fits += 1;
+        *iterations += sol.iterations;
+        let rms = setup.rms(&sol.sims, &sol.resp);
+        let mut settled = true;
+        for &c in &setup.channels.clone() {
+            let new = rms[c].unwrap_or(setup.sigma[c]).max(1e-4 * ranges[c]);
+            if (new / setup.sigma[c] - 1.0).abs() > 0.1 {
+                settled = false;
+            }
+            setup.sigma[c] = new;
+        }
+        if settled || round >= settings.noise_rounds {
+            return Ok(sol);
+        }
+        z = sol.z;
+        resp = sol.resp;
+    }
+}
+
+/// What the determination check holds next.
+enum Held {
+    /// A whisker parameter (its index).
+    Param(usize),
+    /// A channel's gain.
+    Gain(usize),
+}
+
+/// The fitted quantity that is worst determined, if any is not determined, with the reason.
+fn worst_undetermined(
+    setup: &Setup,
+    sol: &Solution,
+    cov: &Covariance,
+    settings: &Settings,
+    reference: &Reference,
+) -> Option<(Held, String)> {
+    let free = setup.free_indices();
+    let gains: Vec<usize> = setup
+        .channels
+        .iter()
+        .copied()
+        .filter(|&c| setup.gain_free[c])
+        .collect();
+    let step = setup
+        .runs
+        .iter()
+        .map(|r| 1.0 / r.scenario.sample_rate)
+        .fold(0.0, f64::max);
+    let mut worst: Option<(f64, Held, String)> = None;
+    let mut consider = |badness: f64, held: Held, note: String| {
+        if badness > 1.0 && worst.as_ref().map_or(true, |w| badness > w.0) {
+            worst = Some((badness, held, note));
+        }
+    };
+    // Degenerate directions: the parameter that dominates each tiny singular value.
+    for &(rel, col) in &cov.weak {
+        if rel < 1e-6 {
+            if col < free.len() {
+                consider(
+                    f64::INFINITY,
+                    Held::Param(free[col]),
+                    "degenerate: the recordings cannot tell it from the other parameters".into(),
+                );
+            } else if col < free.len() + gains.len() {
+                consider(
+                    f64::INFINITY,
+                    Held::Gain(gains[col - free.len()]),
+                    "degenerate: the recordings cannot tell it from the other parameters".into(),
+                );
+            }
+        }
+    }
+    // Relative standard errors.
+    let sd = |j: usize| cov.cov[(j, j)].max(0.0).sqrt();
+    let x = setup.full_x(&sol.z);
+    for (j, &i) in free.iter().enumerate() {
+        let p = &setup.params[i];
+        let xi = x[i].unwrap_or(0.0);
+        let (badness, note) = match p.kind {
+            Kind::TimeOffset => (
+                sd(j) / step,
+                format!(
+                    "standard error {:.3e} s is more than a sample period",
+                    sd(j)
+                ),
+            ),
+            Kind::Taper => {
+                // The amount of taper, 1 − q, against its standard error (a uniform whisker
+                // is the bound: determined as uniform when the error is small).
+                let q = xi.exp();
+                let rel = if q < 1.0 {
+                    q * sd(j) / (1.0 - q)
+                } else {
+                    q * sd(j) / 0.05
+                };
+                (
+                    rel / settings.threshold,
+                    "the recordings do not resolve the taper: the nominal is kept".into(),
+                )
+            }
+            Kind::FollicleCompliance if params::at_bound(p, xi) => (
+                f64::INFINITY,
+                "stiffer than the recordings resolve: the nominal follicle is kept".into(),
+            ),
+            Kind::FollicleCompliance => (
+                sd(j) / settings.threshold,
+                "the recordings do not resolve its compliance: the nominal follicle is kept".into(),
+            ),
+            _ if params::at_bound(p, xi) => (
+                f64::INFINITY,
+                "ran to the bound of its range: held at the nominal".into(),
+            ),
+            _ => (
+                sd(j) / settings.threshold,
+                format!(
+                    "relative standard error {:.0}% above {:.0}%: held at the nominal",
+                    100.0 * sd(j),
+                    100.0 * settings.threshold
+                ),
+            ),
+        };
+        consider(badness, Held::Param(i), note);
+    }
+    for (k, &c) in gains.iter().enumerate() {
+        let g = sol.resp[c].gain;
+        let rel = sd(free.len() + k) / g.abs();
+        consider(
+            rel / settings.threshold,
+            Held::Gain(c),
+            format!(
+                "relative standard error {:.0}%: held at the nominal",
+                100.0 * rel
+            ),
+        );
+    }
+    let _ = reference;
+    worst.map(|(_, h, n)| (h, n))
+}
+
+/// The result at the final solution.
+#[allow(clippy::too_many_arguments)]
+fn assemble(
+    setup: &Setup,
+    sol: &Solution,
+    cov: &Covariance,
+    before: &fit::Sims,
+    rms_before: &[Option<f64>; CHANNELS],
+    notes: &[Option<String>],
+    gain_notes: &[Option<String>; CHANNELS],
+    set: &Labelled,
+    reference_channel: Option<usize>,
+    iterations: usize,
+    fits: usize,
+    simulations: usize,
+) -> Fit {
+    let params = setup.params;
+    let x = setup.full_x(&sol.z);
+    let phys = params::physical(params, &x, &setup.free, setup.reference);
+    let free = setup.free_indices();
+    let p = free.len();
+
+    // Whisker parameters: values, and standard errors by the delta method.
+    let mut parameters = Vec::new();
+    for (i, param) in params.iter().enumerate() {
+        let (value, grad) = &phys[i];
+        let std_error = setup.free[i].then(|| {
+            let mut var = 0.0;
+            for (a, &ia) in free.iter().enumerate() {
+                for (b, &ib) in free.iter().enumerate() {
+                    var += grad[ia] * cov.cov[(a, b)] * grad[ib];
+                }
+            }
+            var.max(0.0).sqrt()
+        });
+        let value = match (param.kind, setup.free[i], param.nominal) {
+            (Kind::FollicleCompliance, false, None) => f64::INFINITY,
+            _ => *value,
+        };
+        parameters.push(ParameterFit {
+            key: param.key.clone(),
+            unit: unit(param),
+            nominal: param.nominal,
+            value,
+            std_error,
+            determined: setup.free[i],
+            note: notes[i].clone().or_else(|| {
+                (param.kind == Kind::FollicleCompliance && param.nominal.is_none() && setup.free[i])
+                    .then(|| "the nominal follicle is clamped; the recordings show a spring".into())
+            }),
+        });
+    }
+
+    // Gains and offsets.
+    let gains: Vec<usize> = setup
+        .channels
+        .iter()
+        .copied()
+        .filter(|&c| setup.gain_free[c])
+        .collect();
+    for &c in &setup.channels {
+        let k = gains.iter().position(|&g| g == c);
+        let note = if Some(c) == reference_channel {
+            Some(
+                "reference of the force scale, held: the recordings cannot tell a common gain \
+                 of the force channels from the whisker's stiffness and mass"
+                    .to_string(),
+            )
+        } else {
+            gain_notes[c].clone()
+        };
+        parameters.push(ParameterFit {
+            key: format!("sensors.{}.gain", NAMES[c]),
+            unit: "1",
+            nominal: Some(setup.nominal[c].gain),
+            value: sol.resp[c].gain,
+            std_error: k.map(|k| cov.cov[(p + k, p + k)].max(0.0).sqrt()),
+            determined: setup.gain_free[c],
+            note,
+        });
+    }
+    for (k, &c) in setup.channels.iter().enumerate() {
+        let j = p + gains.len() + k;
+        parameters.push(ParameterFit {
+            key: format!("sensors.{}.offset", NAMES[c]),
+            unit: UNITS[c],
+            nominal: Some(setup.nominal[c].offset),
+            value: sol.resp[c].offset,
+            std_error: Some(cov.cov[(j, j)].max(0.0).sqrt()),
+            determined: true,
+            note: None,
+        });
+    }
+
+    // Channels before and after.
+    let rms_after = setup.rms(&sol.sims, &sol.resp);
+    let channels = setup
+        .channels
+        .iter()
+        .map(|&c| ChannelFit {
+            name: NAMES[c],
+            unit: UNITS[c],
+            rms_before: rms_before[c].unwrap_or(f64::NAN),
+            rms_after: rms_after[c].unwrap_or(f64::NAN),
+            noise: setup.sigma[c],
+        })
+        .collect();
+
+    // The recordings with both simulations, as the sensors record them.
+    let record = |sims: &[Vec<f64>; CHANNELS], resp: &[Response; CHANNELS]| {
+        std::array::from_fn(|c| sims[c].iter().map(|&v| resp[c].apply(v)).collect())
+    };
+    let runs = setup
+        .runs
+        .iter()
+        .zip(&set.recordings)
+        .enumerate()
+        .map(|(r, (run, rec))| RunFit {
+            file: run.file.clone(),
+            labels: rec.labels.clone(),
+            t: rec.t().to_vec(),
+            recorded: run.y.clone(),
+            nominal: record(&before[r], &setup.nominal),
+            fitted: record(&sol.sims[r], &sol.resp),
+        })
+        .collect();
+
+    Fit {
+        overrides: overrides(setup, &phys, &sol.resp),
+        parameters,
+        channels,
+        runs,
+        iterations,
+        simulations,
+        fits,
+    }
+}
+
+/// SI unit of a whisker parameter.
+fn unit(p: &Param) -> &'static str {
+    match p.kind {
+        Kind::Modulus => "Pa",
+        Kind::Density => "kg/m³",
+        Kind::Taper => "m",
+        Kind::FollicleCompliance => "N·m/rad",
+        Kind::FollicleDamping => "N·m·s/rad",
+        Kind::Damping if p.key.ends_with(".beta") => "s",
+        Kind::Damping => "1",
+        Kind::TimeOffset => "s",
+    }
+}
+
+/// The overrides that write the fitted values into the nominal scenario: determined whisker
+/// parameters, and every channel's gain and offset.
+fn overrides(setup: &Setup, phys: &[(f64, Vec<f64>)], resp: &[Response; CHANNELS]) -> Vec<String> {
+    let params = setup.params;
+    let value = |kind: Kind| {
+        params
+            .iter()
+            .position(|p| p.kind == kind)
+            .map(|i| (setup.free[i], phys[i].0))
+    };
+    let mut out = Vec::new();
+    for (i, p) in params.iter().enumerate() {
+        if !setup.free[i] {
+            continue;
+        }
+        let v = phys[i].0;
+        match p.kind {
+            Kind::Modulus | Kind::Density | Kind::Taper => out.push(format!("{}={v:?}", p.key)),
+            Kind::FollicleCompliance => {
+                let damping = value(Kind::FollicleDamping).map_or(0.0, |(_, d)| d);
+                out.push(format!(
+                    "whisker.follicle={{ kind = \"spring\", stiffness = {v:?}, damping = {damping:?} }}"
+                ));
+            }
+            Kind::Damping => {
+                let kind = match setup.reference.whisker.damping {
+                    Damping::ModalRatio { .. } => "modal_ratio",
+                    Damping::SegmentQ { .. } => "segment_q",
+                    Damping::StiffnessProportional { .. } => "stiffness_proportional",
+                    Damping::None => continue,
+                };
+                let name = p.key.rsplit('.').next().unwrap_or("ratio");
+                out.push(format!(
+                    "whisker.damping={{ kind = \"{kind}\", {name} = {v:?} }}"
+                ));
+            }
+            Kind::FollicleDamping | Kind::TimeOffset => {}
+        }
+    }
+    for &c in &setup.channels {
+        out.push(format!(
+            "sensors.{}={{ gain = {:?}, offset = {:?} }}",
+            NAMES[c], resp[c].gain, resp[c].offset
+        ));
+    }
+    out
+}
