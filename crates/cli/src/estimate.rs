@@ -407,7 +407,7 @@ pub(crate) fn read_recording(
             );
         }
     }
-    let rate = vibrissa_io::labelled::sample_rate(t);
+    let rate = vibrissa_io::labelled::sample_rate(&t);
     let mut values = Vec::with_capacity(CHANNELS.len());
     for (c, ch) in CHANNELS.iter().enumerate() {
         match series.column(ch) {

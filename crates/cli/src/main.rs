@@ -5,6 +5,7 @@
 
 mod bench;
 mod bench_pf;
+mod calibrate;
 mod estimate;
 mod estimate_pf;
 mod experiment;
@@ -69,10 +70,19 @@ enum Command {
     Experiment(experiment::Args),
     /// Estimate the object's distance (and speed) from recorded time series.
     ///
-    /// Reads contract CSV files (t, theta01, theta12 required; 151 samples at 1 kHz), trains
-    /// the chosen method once and prints one estimate per file (JSON Lines with --json and
-    /// several files). `--list` names the methods.
+    /// Reads contract CSV files (t, theta01, theta12 required; any constant sample rate and
+    /// length), trains the chosen method on simulations of the scenario (`--scenario`, e.g. the
+    /// output of `calibrate`, or `--experiment e1|e2`) once per timing and prints one estimate
+    /// per file (JSON Lines with --json and several files). `--list` names the methods.
     Estimate(estimate::Args),
+    /// Fit a nominal scenario's whisker and sensors to labelled recordings.
+    ///
+    /// Fits Young's modulus, density, taper, follicle stiffness and damping, the whisker's
+    /// damping, a time offset and each channel's gain and offset by maximum likelihood with the
+    /// simulator in the loop; prints each value with its standard error (or why it was held at
+    /// the nominal) and the residual RMS per channel before and after. Writes the fitted
+    /// scenario, which every command accepts, only if the fit succeeds.
+    Calibrate(calibrate::Args),
     /// Measure the beam-theory estimators of contact distance (M/F, Birdwell's and the chain's
     /// angle pairs, Kaneko's rotation and frequency methods) on whisks against stationary pegs.
     ///
@@ -107,6 +117,7 @@ fn run() -> Result<()> {
         Command::Experiment(args) => experiment::run(args),
         Command::Estimate(args) => estimate::run(args),
         Command::Inverse(args) => inverse::run(args),
+        Command::Calibrate(args) => calibrate::run(args),
     }
 }
 

@@ -1,0 +1,290 @@
+//! `vibrissa calibrate`: fits the whisker and sensor parameters of a nominal scenario to
+//! labelled recordings and writes the fitted scenario.
+//!
+//! The fit itself is [`vibrissa_infer::calibrate`]; this command reads the folder, shows the
+//! fit's progress, prints what was fitted (value, standard error, or why a parameter was held)
+//! and the residual RMS per channel before and after, draws the fitted runs over the recordings
+//! (`--plot`), and writes `--out` only when everything succeeded.
+
+use crate::files::Pending;
+use crate::output::{sig, Align, FormatArgs, Render, Table};
+use crate::plot::{self, Axis, Curve, Panel};
+use crate::progress::Progress;
+use anyhow::{bail, Context, Result};
+use serde::Serialize;
+use std::io::{self, Write};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+use vibrissa_infer::calibrate::{calibrate, ChannelFit, Fit, ParameterFit, Settings, UNITS};
+use vibrissa_io::labelled::{read_labelled, Options};
+use vibrissa_io::scenario::Document;
+
+/// Arguments of `vibrissa calibrate`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The nominal scenario: what is believed about the whisker, its sensors and the
+    /// experiment (a TOML file, or the built-in e1 or e2).
+    #[arg(long, value_name = "FILE.toml")]
+    pub scenario: String,
+    /// Override a key of the nominal scenario (repeatable), e.g. `--set whisker.length=0.04`.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub sets: Vec<String>,
+    /// Folder of labelled recordings: CSV files and `truth.csv` (a `file` column, then one
+    /// column per label named by its scenario key, e.g. `file,d,v`).
+    #[arg(long, value_name = "DIR")]
+    pub labelled: PathBuf,
+    /// Where the fitted scenario goes (TOML): the nominal with the fitted values and a
+    /// `[calibration]` table of standard errors; written only if the fit succeeds.
+    #[arg(long, value_name = "FILE.toml")]
+    pub out: PathBuf,
+    /// Skip CSV files in the folder that `truth.csv` does not name (by default an error).
+    #[arg(long)]
+    pub ignore_unlisted: bool,
+    /// Draw the recordings with the nominal and fitted simulations into this PNG file.
+    #[arg(long, value_name = "FILE.png")]
+    pub plot: Option<PathBuf>,
+    /// Most Levenberg–Marquardt iterations of one fit.
+    #[arg(long, default_value_t = Settings::default().max_iterations)]
+    pub max_iterations: usize,
+    #[command(flatten)]
+    pub format: FormatArgs,
+}
+
+/// What `calibrate` prints.
+#[derive(Debug, Serialize)]
+struct Report {
+    /// The nominal scenario.
+    nominal: String,
+    /// The folder fitted.
+    labelled: String,
+    /// The fitted scenario written.
+    out: String,
+    /// Recordings fitted.
+    recordings: usize,
+    /// Recordings skipped (not named in truth.csv).
+    ignored: Vec<String>,
+    /// Every parameter considered.
+    parameters: Vec<ParameterFit>,
+    /// Residuals per channel.
+    channels: Vec<ChannelFit>,
+    /// Levenberg–Marquardt iterations, fits and simulations.
+    iterations: usize,
+    fits: usize,
+    simulations: usize,
+    /// Wall-clock time of the fit, s.
+    seconds: f64,
+}
+
+/// Runs `vibrissa calibrate`.
+pub fn run(args: &Args) -> Result<()> {
+    if !matches!(args.out.extension().and_then(|e| e.to_str()), Some("toml")) {
+        bail!(
+            "--out `{}`: the fitted scenario is a TOML file; give a name ending in .toml",
+            args.out.display()
+        );
+    }
+    if let Some(png) = &args.plot {
+        plot::check_png(png)?;
+    }
+    if args.max_iterations == 0 {
+        bail!("--max-iterations must be at least 1");
+    }
+    let nominal = Document::load(&args.scenario, &args.sets)?;
+    nominal
+        .loaded()
+        .with_context(|| format!("the nominal scenario `{}`", args.scenario))?;
+    let options = Options {
+        ignore_unlisted: args.ignore_unlisted,
+    };
+    let set = read_labelled(&args.labelled, &nominal, &options)?;
+    for name in &set.ignored {
+        eprintln!("note: {name} is not named in truth.csv; skipped");
+    }
+
+    let settings = Settings {
+        max_iterations: args.max_iterations,
+        ..Settings::default()
+    };
+    let start = Instant::now();
+    let mut progress = Progress::fraction(Duration::ZERO);
+    let mut stage = String::new();
+    let fit = calibrate(&nominal, &set, &settings, &mut |p| {
+        if p.stage != stage {
+            stage.clone_from(&p.stage);
+            progress.message(&p.stage);
+        }
+    });
+    progress.finish();
+    let fit = fit.with_context(|| {
+        format!(
+            "calibration on {} failed; {} was not written",
+            args.labelled.display(),
+            args.out.display()
+        )
+    })?;
+    let seconds = start.elapsed().as_secs_f64();
+
+    let labelled = args.labelled.display().to_string();
+    let fitted = fit.document(&nominal, &labelled)?;
+    let figure = match &args.plot {
+        Some(png) => Some(draw(png, &fit, &args.scenario)?),
+        None => None,
+    };
+    fitted
+        .write(&args.out)
+        .with_context(|| format!("cannot write the fitted scenario {}", args.out.display()))?;
+    if let Some(figure) = figure {
+        figure.commit()?;
+    }
+
+    let report = Report {
+        nominal: nominal.origin().to_string(),
+        labelled,
+        out: args.out.display().to_string(),
+        recordings: set.recordings.len(),
+        ignored: set.ignored.clone(),
+        parameters: fit.parameters.clone(),
+        channels: fit.channels.clone(),
+        iterations: fit.iterations,
+        fits: fit.fits,
+        simulations: fit.simulations,
+        seconds,
+    };
+    args.format.format().print(&report)?;
+    Ok(())
+}
+
+impl Render for Report {
+    fn render(&self, out: &mut dyn Write) -> io::Result<()> {
+        writeln!(
+            out,
+            "calibrated {} on {} recordings in {} ({:.1} s, {} simulations)",
+            self.nominal, self.recordings, self.labelled, self.seconds, self.simulations
+        )?;
+        writeln!(out, "\nparameters:")?;
+        let mut table = Table::new(&[
+            ("key", Align::Left),
+            ("nominal", Align::Right),
+            ("fitted", Align::Right),
+            ("std. error", Align::Right),
+            ("unit", Align::Left),
+        ]);
+        let mut notes = Vec::new();
+        for p in &self.parameters {
+            let nominal = p.nominal.map_or("clamped".to_string(), |v| sig(v, 4));
+            let (value, error) = if p.determined {
+                (
+                    sig(p.value, 5),
+                    p.std_error.map_or("-".to_string(), |e| sig(e, 2)),
+                )
+            } else {
+                ("held".to_string(), "-".to_string())
+            };
+            table.row(vec![
+                p.key.clone(),
+                nominal,
+                value,
+                error,
+                p.unit.to_string(),
+            ]);
+            if let Some(note) = &p.note {
+                notes.push(format!("{}: {note}", p.key));
+            }
+        }
+        table.write(out, "  ")?;
+        for note in notes {
+            writeln!(out, "  - {note}")?;
+        }
+        writeln!(out, "\nresidual RMS per channel:")?;
+        let mut table = Table::new(&[
+            ("channel", Align::Left),
+            ("nominal", Align::Right),
+            ("fitted", Align::Right),
+            ("noise", Align::Right),
+            ("unit", Align::Left),
+        ]);
+        for c in &self.channels {
+            table.row(vec![
+                c.name.to_string(),
+                sig(c.rms_before, 3),
+                sig(c.rms_after, 3),
+                sig(c.noise, 3),
+                c.unit.to_string(),
+            ]);
+        }
+        table.write(out, "  ")?;
+        writeln!(out, "\nwrote {}", self.out)
+    }
+}
+
+/// The recordings one after another (a gap between them), with the nominal and the fitted
+/// simulations, one panel per channel.
+fn draw(png: &Path, fit: &Fit, nominal: &str) -> Result<Pending> {
+    let mut t = Vec::new();
+    let mut recorded: Vec<Vec<f64>> = vec![Vec::new(); UNITS.len()];
+    let mut before = recorded.clone();
+    let mut after = recorded.clone();
+    let mut offset = 0.0;
+    for run in &fit.runs {
+        let (Some(&t0), Some(&t1)) = (run.t.first(), run.t.last()) else {
+            continue;
+        };
+        let gap = 0.1 * (t1 - t0);
+        for &tk in &run.t {
+            t.push(offset + tk - t0);
+        }
+        t.push(offset + (t1 - t0) + 0.5 * gap);
+        for c in 0..UNITS.len() {
+            let n = run.t.len();
+            match &run.recorded[c] {
+                Some(y) => recorded[c].extend_from_slice(y),
+                None => recorded[c].extend(std::iter::repeat(f64::NAN).take(n)),
+            }
+            before[c].extend_from_slice(&run.nominal[c]);
+            after[c].extend_from_slice(&run.fitted[c]);
+            for v in [&mut recorded[c], &mut before[c], &mut after[c]] {
+                v.push(f64::NAN);
+            }
+        }
+        offset += (t1 - t0) + gap;
+    }
+    let names = ["θ01", "θ12", "m0", "fx", "fy"];
+    let panels: Vec<Panel> = (0..UNITS.len())
+        .filter(|&c| recorded[c].iter().any(|v| v.is_finite()))
+        .map(|c| Panel {
+            quantity: names[c],
+            unit: UNITS[c],
+            curves: vec![
+                Curve {
+                    name: "recorded",
+                    values: &recorded[c],
+                    dashed: false,
+                },
+                Curve {
+                    name: "nominal",
+                    values: &before[c],
+                    dashed: true,
+                },
+                Curve {
+                    name: "fitted",
+                    values: &after[c],
+                    dashed: false,
+                },
+            ],
+        })
+        .collect();
+    plot::render_series(
+        png,
+        &format!(
+            "calibration of {nominal}: {} recordings, one after another",
+            fit.runs.len()
+        ),
+        &Axis {
+            quantity: "t",
+            unit: "s",
+            values: &t,
+        },
+        &panels,
+        None,
+    )
+}
