@@ -43,6 +43,11 @@ pub struct Args {
     /// Draw the recordings with the nominal and fitted simulations into this PNG file.
     #[arg(long, value_name = "FILE.png")]
     pub plot: Option<PathBuf>,
+    /// How well the sensors' gains are known beforehand: the prior standard deviation of each
+    /// fitted gain about the nominal scenario's, relative (0.1 = ±10%; 0: no prior, maximum
+    /// likelihood alone, which lets the angle gains trade against the follicle and the taper).
+    #[arg(long, default_value_t = Settings::default().gain_prior, value_name = "FRACTION")]
+    pub gain_prior: f64,
     /// Most Levenberg–Marquardt iterations of one fit.
     #[arg(long, default_value_t = Settings::default().max_iterations)]
     pub max_iterations: usize,
@@ -103,6 +108,7 @@ pub fn run(args: &Args) -> Result<()> {
 
     let settings = Settings {
         max_iterations: args.max_iterations,
+        gain_prior: args.gain_prior,
         ..Settings::default()
     };
     let start = Instant::now();

@@ -56,6 +56,8 @@ pub(super) struct Setup<'a> {
     pub nominal: [Response; CHANNELS],
     /// How gains and offsets are fitted.
     pub handling: GainHandling,
+    /// Prior standard deviation of a free gain about its nominal value, relative (0: none).
+    pub gain_prior: f64,
     /// Width of the moving average applied to recorded and simulated channels, samples (1: none).
     pub smooth: usize,
     /// The recorded channels as fitted (smoothed by `smooth`): `[run][channel][sample]`.
@@ -114,8 +116,27 @@ impl Setup<'_> {
             .collect()
     }
 
-    /// Number of residuals.
+    /// Number of residuals: every recorded sample, then one prior term per free gain.
     pub fn residual_count(&self) -> usize {
+        self.data_count() + self.prior_count()
+    }
+
+    /// Prior terms: one per free gain when gains have a prior.
+    fn prior_count(&self) -> usize {
+        if self.gain_prior > 0.0 {
+            self.gains().len()
+        } else {
+            0
+        }
+    }
+
+    /// Prior standard deviation of channel `c`'s gain, absolute.
+    fn prior_sd(&self, c: usize) -> f64 {
+        self.gain_prior * self.nominal[c].gain.abs().max(f64::MIN_POSITIVE)
+    }
+
+    /// Number of recorded samples over all channels.
+    fn data_count(&self) -> usize {
         self.channels
             .iter()
             .map(|&c| {
@@ -165,11 +186,20 @@ impl Setup<'_> {
             if n == 0.0 {
                 continue;
             }
-            let det = n * ss - s1 * s1;
-            let gain = if self.gain_free[c] && det > 1e-12 * n * ss {
-                (n * sy - s1 * y1) / det
+            // Normal equations of (gain, offset), the gain's prior added in the channel's
+            // weighting (σ² of the channel times the prior's precision).
+            let g0 = self.nominal[c].gain;
+            let p = if self.gain_prior > 0.0 {
+                (self.sigma[c] / self.prior_sd(c)).powi(2)
             } else {
-                self.nominal[c].gain
+                0.0
+            };
+            let (a11, b1) = (ss + p, sy + p * g0);
+            let det = n * a11 - s1 * s1;
+            let gain = if self.gain_free[c] && det > 1e-12 * n * a11 {
+                (n * b1 - s1 * y1) / det
+            } else {
+                g0
             };
             out[c] = Response {
                 gain,
@@ -193,6 +223,11 @@ impl Setup<'_> {
                         0.0
                     });
                 }
+            }
+        }
+        if self.gain_prior > 0.0 {
+            for c in self.gains() {
+                e.push((resp[c].gain - self.nominal[c].gain) / self.prior_sd(c));
             }
         }
         DVector::from_vec(e)
@@ -324,6 +359,12 @@ impl Setup<'_> {
                     }
                     row += 1;
                 }
+            }
+        }
+        if self.gain_prior > 0.0 {
+            for c in self.gains() {
+                out[c].0[row] = 1.0 / self.prior_sd(c);
+                row += 1;
             }
         }
         out

@@ -121,6 +121,9 @@ pub struct Settings {
     pub step: f64,
     /// Relative standard error above which a parameter is not determined.
     pub threshold: f64,
+    /// Prior standard deviation of each fitted sensor gain about its nominal value, relative
+    /// (0.1: the gains are known to about ±10%); 0 fits the gains by maximum likelihood alone.
+    pub gain_prior: f64,
 }
 
 impl Default for Settings {
@@ -131,6 +134,7 @@ impl Default for Settings {
             noise_rounds: 3,
             step: 0.03,
             threshold: 0.5,
+            gain_prior: 0.1,
         }
     }
 }
@@ -325,6 +329,7 @@ pub fn calibrate(
         gain_free,
         nominal: nominal_resp,
         handling: settings.handling,
+        gain_prior: settings.gain_prior,
         smooth: 1,
         ys: Vec::new(),
     };
@@ -548,6 +553,12 @@ fn check_settings(s: &Settings) -> Result<()> {
         return Err(Error::Setting(
             "calibration: max_iterations and noise_rounds must be at least 1".into(),
         ));
+    }
+    if !(s.gain_prior >= 0.0 && s.gain_prior.is_finite()) {
+        return Err(Error::Setting(format!(
+            "calibration: gain_prior must be a finite number ≥ 0 (got {})",
+            s.gain_prior
+        )));
     }
     if !(s.step > 0.0 && s.step <= 0.3 && s.threshold > 0.0 && s.threshold.is_finite()) {
         return Err(Error::Setting(format!(

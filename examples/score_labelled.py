@@ -1,0 +1,66 @@
+#!/usr/bin/env python3
+"""Scores `vibrissa estimate` on a folder of labelled recordings (truth.csv beside the CSVs).
+
+    python3 examples/score_labelled.py --labelled DIR --scenario FILE.toml [--method knn ...]
+        [--vibrissa target/release/vibrissa]
+
+Prints, per method and per labelled unknown, the mean absolute error and the share of files
+whose 90% interval holds the truth. Needs only the Python standard library.
+"""
+import argparse
+import csv
+import json
+import os
+import subprocess
+import sys
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--labelled", required=True, help="folder with truth.csv and the recordings")
+    ap.add_argument("--scenario", required=True, help="scenario file (or e1/e2) the methods train on")
+    ap.add_argument("--method", action="append", help="method(s); default: every method but pf")
+    ap.add_argument("--vibrissa", default="target/release/vibrissa", help="the vibrissa binary")
+    ap.add_argument("--variant", help="passed to estimate (clean or noisy)")
+    a = ap.parse_args()
+
+    with open(os.path.join(a.labelled, "truth.csv"), newline="") as f:
+        rows = list(csv.DictReader(f))
+    if not rows or "file" not in rows[0]:
+        sys.exit(f"{a.labelled}/truth.csv: needs a `file` column and one column per unknown")
+    keys = [k for k in rows[0] if k != "file"]
+    files = [os.path.join(a.labelled, r["file"]) for r in rows]
+    methods = a.method or [
+        "template", "template-interp", "template-warp", "shift", "emulator", "knn", "krr",
+        "krr-local",
+    ]
+
+    print(f"{len(files)} recordings in {a.labelled}, scenario {a.scenario}")
+    print(f"{'method':10}" + "".join(f"{'MAE ' + k:>14}{'cover ' + k:>12}" for k in keys))
+    for m in methods:
+        cmd = [a.vibrissa, "estimate", "--scenario", a.scenario, "--method", m, "--json"]
+        if a.variant:
+            cmd += ["--variant", a.variant]
+        for f in files:
+            cmd += ["--obs", f]
+        out = subprocess.run(cmd, capture_output=True, text=True)
+        if out.returncode != 0:
+            print(f"{m:10} failed: {out.stderr.strip().splitlines()[-1]}")
+            continue
+        text = out.stdout.strip()
+        ests = [json.loads(line) for line in text.splitlines()] if len(files) > 1 else [json.loads(text)]
+        line = f"{m:10}"
+        for k in keys:
+            errs, cover = [], []
+            for r, e in zip(rows, ests):
+                truth = float(r[k])
+                errs.append(abs(e[k]["mean"] - truth))
+                lo, hi = e[k]["ci90"]
+                cover.append(lo <= truth <= hi)
+            mae = sum(errs) / len(errs)
+            line += f"{mae:14.4g}{100 * sum(cover) / len(cover):11.0f}%"
+        print(line)
+
+
+if __name__ == "__main__":
+    main()
