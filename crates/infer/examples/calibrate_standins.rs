@@ -2,7 +2,8 @@
 //!
 //! ```sh
 //! cargo run --release -p vibrissa-infer --example calibrate_standins -- \
-//!     [--seeds 1..20] [--segments 20] [--discretisation gregory] [--nominal e2] [--out DIR]
+//!     [--seeds 1..20] [--segments 20] [--discretisation gregory] [--nominal e2] [--out DIR] \
+//!     [--calib-noise 0] [--step 0.03] [--gain-prior 0.1]
 //! ```
 //!
 //! For every seed: draw a stand-in whisker from the nominal scenario (`vibrissa_infer::standin`),
@@ -30,6 +31,7 @@ fn main() {
 fn run() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);
     let (mut seeds, mut nominal, mut out) = ((1u64, 20u64), "e2".to_string(), None);
+    let mut settings = Settings::default();
     let mut options = Options {
         segments: 20,
         discretisation: Discretisation::Gregory,
@@ -49,6 +51,8 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
             "--nominal" => nominal = value()?,
             "--out" => out = Some(PathBuf::from(value()?)),
             "--calib-noise" => options.calib_noise = value()?.parse()?,
+            "--step" => settings.step = value()?.parse()?,
+            "--gain-prior" => settings.gain_prior = value()?.parse()?,
             _ => return Err(format!("unknown option {flag}").into()),
         }
     }
@@ -64,7 +68,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         let truth = standin.true_values()?;
         let set = read_labelled(&dir.join("calib"), &doc, &LabelledOptions::default())?;
         let start = Instant::now();
-        let fit = match calibrate(&doc, &set, &Settings::default(), &mut |_| {}) {
+        let fit = match calibrate(&doc, &set, &settings, &mut |_| {}) {
             Ok(f) => f,
             Err(e) => {
                 println!("seed {seed}: {e}");

@@ -621,7 +621,13 @@ pub(super) fn covariance(setup: &Setup, sol: &Solution, count: &AtomicUsize) -> 
         .ok_or_else(|| Error::Calibration("a simulation failed next to the solution".into()))?;
     let e = setup.residual(&sol.sims, &sol.resp);
     let (m, p) = jac.shape();
-    let s2 = e.norm_squared() / (m.saturating_sub(p)).max(1) as f64;
+    // Residual variance per degree of freedom, inflated for correlated residuals: what a fit
+    // leaves is rarely white (a model that cannot follow a release event leaves a run of
+    // same-signed residuals), and n correlated residuals carry the information of fewer
+    // independent ones. With r the lag-1 autocorrelation of the residuals (an AR(1) picture),
+    // the variance of a fitted quantity grows by (1 + r)/(1 − r).
+    let r = lag1_autocorrelation(e.as_slice()).clamp(0.0, 0.99);
+    let s2 = e.norm_squared() / (m.saturating_sub(p)).max(1) as f64 * (1.0 + r) / (1.0 - r);
 
     // Column-normalised Jacobian: its singular values show degenerate combinations.
     let norms: Vec<f64> = (0..p).map(|j| jac.column(j).norm()).collect();
@@ -680,4 +686,15 @@ pub(super) fn covariance(setup: &Setup, sol: &Solution, count: &AtomicUsize) -> 
         }
     }
     Ok(Covariance { cov, weak })
+}
+
+/// Lag-1 autocorrelation of `e` (consecutive entries; the joins between recordings and channels
+/// are few against the samples and are not treated apart).
+fn lag1_autocorrelation(e: &[f64]) -> f64 {
+    let ss: f64 = e.iter().map(|x| x * x).sum();
+    if e.len() < 3 || ss <= 0.0 {
+        return 0.0;
+    }
+    let lag: f64 = e.windows(2).map(|w| w[0] * w[1]).sum();
+    lag / ss
 }

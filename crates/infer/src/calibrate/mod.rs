@@ -72,7 +72,9 @@
 //!
 //! At the solution the covariance is `s²·(JᵀJ)⁻¹` with `J` the Jacobian of the weighted
 //! residuals with respect to every fitted quantity (whisker parameters, free gains, offsets) and
-//! `s²` the residual variance per degree of freedom; errors of the physical values follow by the
+//! `s²` the residual variance per degree of freedom, times `(1 + r)/(1 − r)` with `r` the
+//! residuals' lag-1 autocorrelation (correlated residuals, as a model that is slightly off
+//! leaves them, carry less information than as many independent ones); errors of the physical values follow by the
 //! delta method. A parameter is not determined when a singular value of the column-normalised
 //! Jacobian below 1e-6 of the largest is dominated by it, or when its relative standard error
 //! exceeds [`Settings::threshold`] (for the follicle, its compliance; for the taper, the amount
@@ -348,6 +350,14 @@ pub fn calibrate(
         .map(|i| params[i].x_start)
         .collect();
     let (mut iterations, mut fits) = (0, 0);
+    // The search for a start holds the gains near their nominal values (a tight prior): gains
+    // far off let the angle channels trade against the taper and the follicle into false
+    // minima. The final fits then use the prior asked for.
+    if settings.gain_prior > 0.0 {
+        setup.gain_prior = settings.gain_prior.min(START_GAIN_PRIOR);
+    } else {
+        setup.gain_prior = START_GAIN_PRIOR;
+    }
     let (mut z, mut resp) = best_start(
         &setup,
         &z,
@@ -357,6 +367,7 @@ pub fn calibrate(
         &mut fits,
         progress,
     )?;
+    setup.gain_prior = settings.gain_prior;
     let (solution, cov) = loop {
         let sol = fit_with_noise(
             &mut setup,
@@ -420,15 +431,22 @@ pub fn calibrate(
 /// mode's frequency from 0.74 to 1.35 times the nominal's).
 const SCAN_DENSITY: (f64, f64, usize) = (-0.6, 0.6, 9);
 
+/// Modulus steps of the starting scan, ln E/E_nominal (the density moves with it, so that
+/// these change the forces at a given frequency).
+const SCAN_MODULUS: [f64; 3] = [-0.2, 0.0, 0.2];
+
 /// Follicle compliances of the starting scan, relative to the nominal chain's base joint
 /// (0: clamped, or rather a stiff spring just inside the parametrisation).
-const SCAN_FOLLICLE: [f64; 4] = [0.0, 0.3, 1.0, 3.0];
+const SCAN_FOLLICLE: [f64; 9] = [0.0, 0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5, 3.0];
 
 /// Tip-to-base radius ratios of the starting scan, besides the parameter's own start.
 const SCAN_TAPER: [f64; 2] = [0.7, 0.5];
 
+/// Relative prior standard deviation of the gains while the start is searched for.
+const START_GAIN_PRIOR: f64 = 0.01;
+
 /// Starting points that are fitted in full; the best fit is kept.
-const STARTS: usize = 4;
+const STARTS: usize = 8;
 
 /// The start of the final fit: the best of several short fits.
 ///
@@ -451,11 +469,16 @@ fn best_start(
     use rayon::prelude::*;
     let free = setup.free_indices();
     let slot = |kind: Kind| free.iter().position(|&i| setup.params[i].kind == kind);
-    let (density, follicle, taper) = (
+    let (modulus, density, follicle, taper) = (
+        slot(Kind::Modulus),
         slot(Kind::Density),
         slot(Kind::FollicleCompliance),
         slot(Kind::Taper),
     );
+    let moduli: Vec<Option<f64>> = match modulus {
+        Some(_) => SCAN_MODULUS.iter().map(|&x| Some(x)).collect(),
+        None => vec![None],
+    };
     let (lo, hi, n) = SCAN_DENSITY;
     let densities: Vec<Option<f64>> = match density {
         Some(_) => (0..n)
@@ -477,16 +500,23 @@ fn best_start(
         None => vec![None],
     };
     let mut points: Vec<Vec<f64>> = Vec::new();
-    for &r in &densities {
-        for &f in &follicles {
-            for &q in &tapers {
-                let mut p = z0.to_vec();
-                for (slot, value) in [(density, r), (follicle, f), (taper, q)] {
-                    if let (Some(j), Some(x)) = (slot, value) {
-                        p[j] = x;
+    for &e in &moduli {
+        for &r in &densities {
+            for &f in &follicles {
+                for &q in &tapers {
+                    let mut p = z0.to_vec();
+                    for (slot, value) in [(modulus, e), (density, r), (follicle, f), (taper, q)] {
+                        if let (Some(j), Some(x)) = (slot, value) {
+                            // Density relative to the modulus: the scan's frequency axis.
+                            p[j] = x + if slot == density {
+                                e.unwrap_or(0.0)
+                            } else {
+                                0.0
+                            };
+                        }
                     }
+                    points.push(p);
                 }
-                points.push(p);
             }
         }
     }
