@@ -48,6 +48,9 @@ pub struct Options {
     pub eval_noise: f64,
     /// Noise of the template strikes in `calib/`, likewise (0: clean).
     pub calib_noise: f64,
+    /// Whether the whisker and sensors are perturbed; without, the stand-in is the nominal
+    /// scenario itself (segments and discretisation as given here), a reference to compare with.
+    pub perturb: bool,
 }
 
 impl Default for Options {
@@ -58,6 +61,7 @@ impl Default for Options {
             off_grid: 20,
             eval_noise: 0.03,
             calib_noise: 0.0,
+            perturb: true,
         }
     }
 }
@@ -93,6 +97,16 @@ pub fn make(nominal: &Document, seed: u64, options: &Options) -> Result<Standin>
         .scenario;
     let mut rng = Rng::stream(seed, 0x57A4D);
     let mut truth = base.clone();
+    if !options.perturb {
+        truth.segments = options.segments;
+        truth.discretisation = options.discretisation;
+        return Ok(Standin {
+            seed,
+            nominal: nominal.clone(),
+            truth,
+            offset_fractions: [0.0; 5],
+        });
+    }
     let w = &mut truth.whisker;
 
     // Material and damping off by 10–25% either way.
