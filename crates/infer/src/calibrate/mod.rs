@@ -334,6 +334,7 @@ pub fn calibrate(
         gain_prior: settings.gain_prior,
         smooth: 1,
         ys: Vec::new(),
+        weights: Vec::new(),
     };
     setup.set_smoothing(1);
 
@@ -675,15 +676,8 @@ fn fit_with_noise(
         )?;
         *fits += 1;
         *iterations += sol.iterations;
-        let rms = setup.rms(&sol.sims, &sol.resp);
-        let mut settled = true;
-        for &c in &setup.channels.clone() {
-            let new = rms[c].unwrap_or(setup.sigma[c]).max(1e-4 * ranges[c]);
-            if (new / setup.sigma[c] - 1.0).abs() > 0.1 {
-                settled = false;
-            }
-            setup.sigma[c] = new;
-        }
+        let floor: [f64; CHANNELS] = std::array::from_fn(|c| 1e-4 * ranges[c]);
+        let settled = setup.reweight(&sol.sims, &sol.resp, &floor) <= 0.1;
         if settled || round >= settings.noise_rounds {
             return Ok(sol);
         }
