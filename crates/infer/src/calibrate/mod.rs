@@ -25,15 +25,15 @@
 //! | `whisker.youngs_modulus` | `ln(E/E_nominal)` | nominal |
 //! | `whisker.density` | `ln(ρ/ρ_nominal)` | nominal |
 //! | `whisker.tip_radius` | `ln(tip/base radius)`, at most 0 | nominal |
-//! | `whisker.follicle.stiffness` | `ln(k0/k_f)`, k0 the nominal chain's base joint | nominal (clamped: k0/5) |
+//! | `whisker.follicle.stiffness` | `ln(k0/k_f)`, k0 the nominal chain's base joint; at most −8 is clamped | nominal |
 //! | `whisker.follicle.damping` | `ln(c_f/(k_f·β0))`, β0 the whisker's own stiffness-proportional coefficient | nominal (clamped: 0) |
 //! | `whisker.damping.ratio` (or `.q`, `.beta`) | `ln(value/nominal)` | nominal |
 //! | `time_offset` | the recording's first sample on the simulation's clock, s | 0 |
 //!
-//! A clamped follicle or a uniform whisker is the boundary of its parametrisation (x → ±∞), so
-//! the fit starts a little inside and may run back out; if it does, or the recordings do not
-//! resolve the parameter, the parameter is reported as not determined and the nominal (clamped,
-//! uniform) is kept. `time_offset` is fitted only with a fixed base (it moves the objects along
+//! A clamped follicle and a uniform whisker are bounds of their parametrisations: the fit starts
+//! there when the nominal is clamped or uniform, differences turn one-sided there, and steps stop
+//! there. A follicle that ends at its bound (clamped) is reported as not determined and kept
+//! clamped; a taper that ends uniform is determined when its standard error is small. `time_offset` is fitted only with a fixed base (it moves the objects along
 //! their paths). A parameter set by the recordings' labels is not fitted.
 //!
 //! The simulated channels are unchanged when E, ρ, the follicle's stiffness and damping are all
@@ -437,7 +437,7 @@ const SCAN_DENSITY: (f64, f64, usize) = (-0.6, 0.6, 9);
 const SCAN_MODULUS: [f64; 3] = [-0.2, 0.0, 0.2];
 
 /// Follicle compliances of the starting scan, relative to the nominal chain's base joint
-/// (0: clamped, or rather a stiff spring just inside the parametrisation).
+/// (0: clamped, the lower bound of the parametrisation).
 const SCAN_FOLLICLE: [f64; 9] = [0.0, 0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5, 3.0];
 
 /// Tip-to-base radius ratios of the starting scan, besides the parameter's own start.
@@ -490,7 +490,7 @@ fn best_start(
     let follicles: Vec<Option<f64>> = match follicle {
         Some(_) => SCAN_FOLLICLE
             .iter()
-            .map(|&u| Some(if u > 0.0 { u.ln() } else { -11.0 }))
+            .map(|&u| Some(if u > 0.0 { u.ln() } else { params::CLAMPED }))
             .collect(),
         None => vec![None],
     };

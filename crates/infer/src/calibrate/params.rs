@@ -28,13 +28,18 @@ pub(super) enum Kind {
     TimeOffset,
 }
 
+/// Log compliance of the follicle (relative to the base joint) at and below which it is clamped.
+pub(super) const CLAMPED: f64 = -8.0;
+
 /// Bounds on `x` by kind: values beyond them are simulated as the bound (the fit sees a flat
 /// cost there and reports the parameter as not determined).
 pub(super) fn bounds(kind: Kind) -> (f64, f64) {
     match kind {
         Kind::Modulus | Kind::Density | Kind::Damping => (-3.0, 3.0),
         Kind::Taper => (0.1f64.ln(), 0.0),
-        Kind::FollicleCompliance => (-12.0, 6.0),
+        // At the lower bound the follicle is clamped (a spring 3000 times stiffer than the base
+        // joint moves it by nothing a recording resolves).
+        Kind::FollicleCompliance => (CLAMPED, 6.0),
         Kind::FollicleDamping => (-8.0, 8.0),
         Kind::TimeOffset => (-f64::INFINITY, f64::INFINITY),
     }
@@ -151,8 +156,8 @@ pub(super) fn parameters(
         x_taper,
         step,
     );
-    // A clamped follicle starts as a spring with a fifth of the base joint's compliance, damped
-    // in proportion like the whisker.
+    // A clamped follicle starts clamped: the lower bound of the compliance (the search for a
+    // start tries springs).
     let (x_f, x_d, k_nom, c_nom) = match w.follicle {
         Follicle::Clamped => (None, None, None, None),
         Follicle::Spring { stiffness, damping } => {
@@ -170,7 +175,7 @@ pub(super) fn parameters(
         "whisker.follicle.stiffness",
         k_nom,
         x_f,
-        x_f.unwrap_or(0.2f64.ln()),
+        x_f.unwrap_or(CLAMPED),
         step,
     );
     // (Held with a clamped nominal, the damping is k_f·β0 if the stiffness is fitted.)
@@ -234,7 +239,9 @@ pub(super) fn apply(
     if let Some(x) = value(Kind::Taper) {
         w.tip_radius = w.base_radius * x.exp();
     }
-    if let Some(x) = value(Kind::FollicleCompliance) {
+    if value(Kind::FollicleCompliance).is_some_and(|x| x <= CLAMPED) {
+        w.follicle = Follicle::Clamped;
+    } else if let Some(x) = value(Kind::FollicleCompliance) {
         let stiffness = reference.k0 * (-x).exp();
         let tau = match (value(Kind::FollicleDamping), w.follicle) {
             (Some(xd), _) => reference.beta0 * xd.exp(),

@@ -153,8 +153,14 @@ impl Calibration {
         }
         for (k, p) in self.parameters.iter().enumerate() {
             let at = |f: &str| format!("calibration.parameters[{k}].{f}");
-            if !p.value.is_finite() || p.nominal.is_some_and(|x| !x.is_finite()) {
-                return bad(at("value"), "and nominal must be finite numbers");
+            // A clamped follicle has no nominal stiffness and, kept clamped, an infinite one.
+            let clamped = p.value == f64::INFINITY && p.nominal.is_none();
+            if !(p.value.is_finite() || clamped) || p.nominal.is_some_and(|x| !x.is_finite()) {
+                return bad(
+                    at("value"),
+                    "and nominal must be finite numbers (value = inf only without a nominal: \
+                     a clamped follicle)",
+                );
             }
             if p.std_error.is_some_and(|x| !(x.is_finite() && x >= 0.0)) {
                 return bad(at("std_error"), "must be a finite number >= 0");
