@@ -94,6 +94,13 @@ pub fn run(args: &Args) -> Result<()> {
     if args.max_iterations == 0 {
         bail!("--max-iterations must be at least 1");
     }
+    if !(args.gain_prior >= 0.0 && args.gain_prior.is_finite()) {
+        bail!(
+            "--gain-prior {}: give the gains' relative prior standard deviation, a number ≥ 0 \
+             (0.1 = known to ±10%; 0 = no prior)",
+            args.gain_prior
+        );
+    }
     let nominal = Document::load(&args.scenario, &args.sets)?;
     nominal
         .loaded()
