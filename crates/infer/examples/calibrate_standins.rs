@@ -3,7 +3,7 @@
 //! ```sh
 //! cargo run --release -p vibrissa-infer --example calibrate_standins -- \
 //!     [--seeds 1..20] [--segments 20] [--discretisation gregory] [--nominal e2] [--out DIR] \
-//!     [--calib-noise 0] [--step 0.03] [--gain-prior 0.1]
+//!     [--calib-noise 0] [--step 0.03] [--gain-prior 0.1] [--noise-rounds 3]
 //! ```
 //!
 //! For every seed: draw a stand-in whisker from the nominal scenario (`vibrissa_infer::standin`),
@@ -53,6 +53,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
             "--calib-noise" => options.calib_noise = value()?.parse()?,
             "--step" => settings.step = value()?.parse()?,
             "--gain-prior" => settings.gain_prior = value()?.parse()?,
+            "--noise-rounds" => settings.noise_rounds = value()?.parse()?,
             _ => return Err(format!("unknown option {flag}").into()),
         }
     }
