@@ -223,7 +223,8 @@ pub fn evaluate_with(
     // Templates that the grid does not hold are simulated on their own.
     let template_p = family.templates();
     if templates.len() != template_p.len() {
-        templates = family.simulate_all(&template_p, &estimated_noise, seed.wrapping_add(4), &|| {})?;
+        templates =
+            family.simulate_all(&template_p, &estimated_noise, seed.wrapping_add(4), &|| {})?;
     }
     let evaluated: Vec<&Sample> = grid_runs
         .iter()

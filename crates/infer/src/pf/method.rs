@@ -3,8 +3,7 @@
 use super::config::{Config, Injection, Prior};
 use super::filter::run;
 use super::likelihood::{
-    observation_sigma, temper_for, TransitionModel, FINE_TEMPER, MODEL_ERROR,
-    UNKNOWN_START_TEMPER,
+    observation_sigma, temper_for, TransitionModel, FINE_TEMPER, MODEL_ERROR, UNKNOWN_START_TEMPER,
 };
 use super::posterior::{Observations, Posterior};
 use crate::error::{Error, Result};
@@ -49,6 +48,7 @@ pub struct Pf {
     /// and `temper`.
     pub model: TransitionModel,
     sigma: Option<[f64; 5]>,
+    sensor: Option<[f64; 5]>,
     family: Option<crate::Family>,
 }
 
@@ -80,6 +80,7 @@ impl Pf {
             inject: None,
             model: TransitionModel::Coarse,
             sigma: None,
+            sensor: None,
             family: None,
         }
     }
@@ -99,6 +100,12 @@ impl Pf {
                 self.temper = FINE_TEMPER;
             }
         }
+    }
+
+    /// The sensor noise per channel that [`crate::Method::fit`] took (the training data's,
+    /// floored at [`SENSOR_FLOOR`]), SI, if fitted.
+    pub fn sensor_noise(&self) -> Option<[f64; 5]> {
+        self.sensor
     }
 
     /// The observation noise found by [`crate::Method::fit`], if fitted.
@@ -184,6 +191,7 @@ impl crate::Method for Pf {
             self.temper
         };
         self.sigma = Some(observation_sigma(sensor, model, temper));
+        self.sensor = Some(sensor);
         self.family = Some(training.family.clone());
         if let Some((_, m)) = &mut self.inject {
             let m = std::sync::Arc::get_mut(m).ok_or_else(|| Error::Fit {
