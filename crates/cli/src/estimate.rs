@@ -427,11 +427,14 @@ pub(crate) fn named_noise(level: &[f64; 5], channels: &[usize]) -> Vec<(String, 
         .collect()
 }
 
+/// What a fitted method is kept by: sample rate (Hz), samples, sensor noise per channel.
+type TrainedKey = (f64, usize, [f64; 5]);
+
 /// Methods trained per timing (sample rate and length) and noise level of the recordings.
 #[derive(Default)]
 pub(crate) struct Trained {
     /// `(rate, samples, sensor noise)` → the fitted method.
-    fitted: Vec<((f64, usize, [f64; 5]), Box<dyn Method>)>,
+    fitted: Vec<(TrainedKey, Box<dyn Method>)>,
     /// Wall time of all training, s.
     pub seconds: f64,
     /// Simulated runs trained on, over all timings.

@@ -15,6 +15,9 @@ use vibrissa_infer::CHANNELS;
 
 type Res<T> = Result<T, Box<dyn std::error::Error>>;
 
+/// Recordings (channel-major each) and their true noise per channel, if stated.
+type Set = (Vec<Vec<Vec<f64>>>, Option<[f64; 5]>);
+
 fn main() {
     if let Err(e) = run() {
         eprintln!("error: {e}");
@@ -23,7 +26,7 @@ fn main() {
 }
 
 /// The recordings of `dir/eval` (channel-major) and their true noise, if stated.
-fn read(dir: &Path) -> Res<(Vec<Vec<Vec<f64>>>, Option<[f64; 5]>)> {
+fn read(dir: &Path) -> Res<Set> {
     let eval = dir.join("eval");
     let truth = std::fs::read_to_string(eval.join("truth.csv"))?;
     let mut runs = Vec::new();
