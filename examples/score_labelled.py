@@ -2,7 +2,7 @@
 """Scores `vibrissa estimate` on a folder of labelled recordings (truth.csv beside the CSVs).
 
     python3 examples/score_labelled.py --labelled DIR --scenario FILE.toml [--method knn ...]
-        [--vibrissa target/release/vibrissa]
+        [--vibrissa target/release/vibrissa] [--noise auto|none|CHANNEL=SIGMA,...]
 
 Prints, per method and per labelled unknown, the mean absolute error and the share of files
 whose 90% interval holds the truth. Needs only the Python standard library.
@@ -21,7 +21,8 @@ def main():
     ap.add_argument("--scenario", required=True, help="scenario file (or e1/e2) the methods train on")
     ap.add_argument("--method", action="append", help="method(s); default: every method but pf")
     ap.add_argument("--vibrissa", default="target/release/vibrissa", help="the vibrissa binary")
-    ap.add_argument("--variant", help="passed to estimate (clean or noisy)")
+    ap.add_argument("--noise", help="passed to estimate (default: the recordings' noise is "
+                    "estimated from them)")
     a = ap.parse_args()
 
     with open(os.path.join(a.labelled, "truth.csv"), newline="") as f:
@@ -39,8 +40,8 @@ def main():
     print(f"{'method':10}" + "".join(f"{'MAE ' + k:>14}{'cover ' + k:>12}" for k in keys))
     for m in methods:
         cmd = [a.vibrissa, "estimate", "--scenario", a.scenario, "--method", m, "--json"]
-        if a.variant:
-            cmd += ["--variant", a.variant]
+        if a.noise:
+            cmd += ["--noise", a.noise]
         for f in files:
             cmd += ["--obs", f]
         out = subprocess.run(cmd, capture_output=True, text=True)

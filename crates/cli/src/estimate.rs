@@ -6,7 +6,7 @@
 //! estimate per file in the contract's JSON form, named by the family's unknowns.
 
 use crate::output::{sig, FormatArgs, Render};
-use anyhow::{bail, Context, Result};
+use anyhow::{anyhow, bail, Context, Result};
 use serde::Serialize;
 use serde_json::{json, Map, Value};
 use std::io::{self, Write};
@@ -34,9 +34,14 @@ pub struct Args {
     /// Time-series CSV files in the contract's columns (t, theta01, theta12 required).
     #[arg(long, value_name = "FILE.csv", num_args = 1.., required_unless_present = "list")]
     pub(crate) obs: Vec<PathBuf>,
-    /// Which runs to train on: clean or noisy.
-    #[arg(long, default_value = "clean")]
-    pub(crate) variant: String,
+    /// The recordings' sensor noise: `auto` (estimated from the recordings, for every channel the
+    /// scenario's [sensor_noise] does not state), `none` (clean recordings), or CHANNEL=SIGMA,...
+    /// (SI; the channels not named as with auto).
+    #[arg(long, value_name = "auto|none|CH=SIGMA,...", default_value = "auto")]
+    pub(crate) noise: String,
+    /// Deprecated and ignored: the noise is estimated from the recordings (see --noise).
+    #[arg(long, value_name = "clean|noisy", hide = true)]
+    pub(crate) variant: Option<String>,
     /// Seed of the training runs.
     #[arg(long, default_value_t = 1)]
     pub(crate) seed: u64,
@@ -82,8 +87,18 @@ struct Row {
     value: Map<String, Value>,
 }
 
-/// One file's path, its named estimates and the seconds the estimate took.
-pub(crate) type FileEstimate = (PathBuf, Vec<(String, Estimate)>, f64);
+/// One file's estimate.
+#[derive(Debug, Clone, Serialize)]
+pub(crate) struct FileEstimate {
+    /// The recording.
+    pub file: PathBuf,
+    /// Its estimates, named by unknown.
+    pub estimates: Vec<(String, Estimate)>,
+    /// Seconds the estimate took.
+    pub seconds: f64,
+    /// The sensor noise the method used per channel it reads, SI.
+    pub noise: Vec<(String, f64)>,
+}
 
 /// Estimates for one or more files.
 #[derive(Debug, Serialize)]
@@ -101,7 +116,8 @@ impl Render for Report {
             "method {} (trained on {} runs in {:.2} s)",
             self.method, self.train_runs, self.train_seconds
         )?;
-        for (file, est, secs) in &self.rows {
+        for row in &self.rows {
+            let (file, est, secs) = (&row.file, &row.estimates, row.seconds);
             let parts: Vec<String> = est
                 .iter()
                 .map(|(n, e)| match n.as_str() {
@@ -172,9 +188,16 @@ pub fn run(args: &Args) -> Result<()> {
         return Ok(format.print(&list)?);
     }
     let family = family_of(args)?;
-    let variant = Variant::parse(&args.variant)?;
+    if let Some(v) = &args.variant {
+        Variant::parse(v)?;
+        eprintln!(
+            "warning: --variant is deprecated and ignored: the sensor noise is estimated from the \
+             recordings (state it with --noise CHANNEL=SIGMA,... or --noise none for clean ones)"
+        );
+    }
+    let stated = stated_noise(&family, &args.noise)?;
     if args.method.as_deref() == Some("pf") {
-        return crate::estimate_pf::run(args, &family, variant);
+        return crate::estimate_pf::run(args, &family, &stated);
     }
     if args.trace.is_some()
         || args.inject.is_some()
@@ -194,11 +217,13 @@ pub fn run(args: &Args) -> Result<()> {
         .map(|f| read_recording(f, &needs, Some(probe.name())))
         .collect::<Result<Vec<_>>>()?;
 
-    // Train once per distinct timing, on the family's runs at that rate and length.
+    // The sensor noise of every recording, then training once per distinct timing and noise
+    // level, on the family's runs at that rate and length with that noise.
+    let levels = noise_levels(&args.obs, &recordings, &needs, &stated)?;
     let mut trained = Trained::default();
     let mut rows = Vec::new();
-    for (file, rec) in args.obs.iter().zip(&recordings) {
-        let method = trained.get(&family, rec, name, variant, args.seed)?;
+    for ((file, rec), level) in args.obs.iter().zip(&recordings).zip(&levels) {
+        let method = trained.get(&family, rec, level, name, args.seed)?;
         let t = Instant::now();
         let est = method
             .predict(&rec.values)
@@ -210,7 +235,12 @@ pub fn run(args: &Args) -> Result<()> {
             .map(|n| n.to_string())
             .zip(est)
             .collect();
-        rows.push((file.clone(), named, secs));
+        rows.push(FileEstimate {
+            file: file.clone(),
+            estimates: named,
+            seconds: secs,
+            noise: named_noise(level, &needs),
+        });
     }
     let report = Report {
         rows,
@@ -242,19 +272,28 @@ pub(crate) fn print_json_rows(rows: &[FileEstimate], method: &str, lines: bool) 
 fn print_json(report: &Report, lines: bool) -> Result<()> {
     let stdout = io::stdout();
     let mut out = stdout.lock();
-    for (file, est, secs) in &report.rows {
+    for row in &report.rows {
         let mut obj = Map::new();
         if lines {
-            obj.insert("file".into(), json!(file.display().to_string()));
+            obj.insert("file".into(), json!(row.file.display().to_string()));
         }
-        for (n, e) in est {
+        for (n, e) in &row.estimates {
             obj.insert(
                 n.clone(),
                 json!({"mean": e.mean, "std": e.std, "ci90": e.ci90}),
             );
         }
         obj.insert("method".into(), json!(report.method));
-        obj.insert("seconds".into(), json!(secs));
+        obj.insert("seconds".into(), json!(row.seconds));
+        obj.insert(
+            "noise".into(),
+            Value::Object(
+                row.noise
+                    .iter()
+                    .map(|(c, x)| (c.clone(), json!(x)))
+                    .collect(),
+            ),
+        );
         let row = Row { value: obj };
         if lines {
             serde_json::to_writer(&mut out, &row)?;
@@ -289,11 +328,113 @@ pub(crate) fn family_of(args: &Args) -> Result<Family> {
     Ok(Family::open(spec, &args.sets)?)
 }
 
-/// Methods trained per timing (sample rate and length) of the recordings.
+/// The sensor noise the recordings are taken to have per channel of [`CHANNELS`]: the
+/// scenario's stated channels, overridden by `--noise` (`auto`: none; `none`: every channel 0;
+/// `CHANNEL=SIGMA,...`: those channels). `None`: estimated from the recordings.
+pub(crate) fn stated_noise(family: &Family, noise: &str) -> Result<[Option<f64>; 5]> {
+    let given =
+        vibrissa_infer::noise::parse_statement(noise).map_err(|e| anyhow!("--noise: {e}"))?;
+    let mut stated = family.stated_noise();
+    for (c, g) in given.iter().enumerate() {
+        if g.is_some() {
+            stated[c] = *g;
+        }
+    }
+    Ok(stated)
+}
+
+/// The sensor noise level of every recording on the channels `needs` (see
+/// [`vibrissa_infer::noise::batch_levels`]): recordings that agree share their pooled estimate;
+/// one that does not gets its own, with a warning. Prints the levels on standard error.
+pub(crate) fn noise_levels(
+    files: &[PathBuf],
+    recordings: &[Recording],
+    needs: &[usize],
+    stated: &[Option<f64>; 5],
+) -> Result<Vec<[f64; 5]>> {
+    let estimated: Vec<usize> = needs
+        .iter()
+        .copied()
+        .filter(|&c| stated[c].is_none())
+        .collect();
+    // Each file alone first, so that a channel too short to measure is named with its file.
+    for (file, rec) in files.iter().zip(recordings) {
+        vibrissa_infer::noise::estimate(&rec.values, &estimated).with_context(|| {
+            format!(
+                "`{}`: cannot estimate its sensor noise; state it with --noise CHANNEL=SIGMA,... \
+                 or in the scenario's [sensor_noise]",
+                file.display()
+            )
+        })?;
+    }
+    let series: Vec<&[Vec<f64>]> = recordings.iter().map(|r| &r.values[..]).collect();
+    let batch = vibrissa_infer::noise::batch_levels(&series, needs, stated)?;
+    for ((file, source), own) in files.iter().zip(&batch.sources).zip(&batch.own) {
+        if *source == vibrissa_infer::noise::Source::Own && files.len() > 1 {
+            eprintln!(
+                "warning: `{}`: its sensor noise ({}) differs from the rest of the batch's by more \
+                 than a factor {}; it is estimated from this file alone",
+                file.display(),
+                describe_noise(own, &estimated),
+                vibrissa_infer::noise::AGREEMENT
+            );
+        }
+    }
+    let shared = batch
+        .sources
+        .iter()
+        .filter(|s| **s == vibrissa_infer::noise::Source::Batch)
+        .count();
+    let what = if estimated.is_empty() {
+        "as stated".to_string()
+    } else if files.len() == 1 {
+        "estimated from the recording".to_string()
+    } else {
+        format!("estimated from {shared} of the recordings, pooled")
+    };
+    match batch
+        .sources
+        .iter()
+        .position(|s| *s == vibrissa_infer::noise::Source::Batch)
+    {
+        Some(k) => eprintln!(
+            "sensor noise {what}: {}",
+            describe_noise(&batch.levels[k], needs)
+        ),
+        None if files.len() == 1 || estimated.is_empty() => eprintln!(
+            "sensor noise {what}: {}",
+            describe_noise(&batch.levels[0], needs)
+        ),
+        None => eprintln!("sensor noise estimated from each recording alone"),
+    }
+    Ok(batch.levels)
+}
+
+/// `theta01 1.2e-3, …` for messages.
+pub(crate) fn describe_noise(level: &[f64; 5], channels: &[usize]) -> String {
+    channels
+        .iter()
+        .map(|&c| format!("{} {}", CHANNELS[c], sig(level[c], 3)))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The noise of `channels`, named, for the estimate's `"noise"`.
+pub(crate) fn named_noise(level: &[f64; 5], channels: &[usize]) -> Vec<(String, f64)> {
+    channels
+        .iter()
+        .map(|&c| (CHANNELS[c].to_string(), level[c]))
+        .collect()
+}
+
+/// What a fitted method is kept by: sample rate (Hz), samples, sensor noise per channel.
+type TrainedKey = (f64, usize, [f64; 5]);
+
+/// Methods trained per timing (sample rate and length) and noise level of the recordings.
 #[derive(Default)]
 pub(crate) struct Trained {
-    /// `(rate, samples)` → the fitted method.
-    fitted: Vec<((f64, usize), Box<dyn Method>)>,
+    /// `(rate, samples, sensor noise)` → the fitted method.
+    fitted: Vec<(TrainedKey, Box<dyn Method>)>,
     /// Wall time of all training, s.
     pub seconds: f64,
     /// Simulated runs trained on, over all timings.
@@ -301,20 +442,21 @@ pub(crate) struct Trained {
 }
 
 impl Trained {
-    /// The method `name` fitted on `family`'s runs at `rec`'s timing (trained on first use).
+    /// The method `name` fitted on `family`'s runs at `rec`'s timing with the sensor noise
+    /// `noise` (trained on first use).
     pub(crate) fn get(
         &mut self,
         family: &Family,
         rec: &Recording,
+        noise: &[f64; 5],
         name: &str,
-        variant: Variant,
         seed: u64,
     ) -> Result<&dyn Method> {
-        let key = (rec.rate, rec.t.len());
+        let key = (rec.rate, rec.t.len(), *noise);
         let found = self
             .fitted
             .iter()
-            .position(|(k, _)| (k.0 - key.0).abs() <= 1e-9 * key.0 && k.1 == key.1);
+            .position(|(k, _)| (k.0 - key.0).abs() <= 1e-9 * key.0 && k.1 == key.1 && k.2 == key.2);
         let k = match found {
             Some(k) => k,
             None => {
@@ -322,13 +464,15 @@ impl Trained {
                 let mut method = methods::by_name(name)?;
                 let t0 = Instant::now();
                 eprintln!(
-                    "training {} ({} budget) on {}-sample runs at {} Hz…",
+                    "training {} ({} budget) on {}-sample runs at {} Hz with sensor noise {}…",
                     method.name(),
                     method.budget().name(),
                     key.1,
-                    sig(key.0, 6)
+                    sig(key.0, 6),
+                    describe_noise(noise, &method.channels())
                 );
-                let training = training_for(&timed, variant, method.as_ref(), seed)?;
+                let noise = timed.training_noise(*noise);
+                let training = training_for(&timed, &noise, method.as_ref(), seed)?;
                 method.fit(&training)?;
                 let secs = t0.elapsed().as_secs_f64();
                 let runs = training.samples.len() + training.calibration.len();

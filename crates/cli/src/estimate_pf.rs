@@ -5,7 +5,9 @@
 //! warning. `--trace` writes the posterior at every sample and plots it. A run whose effective
 //! sample size fell below 1% of the particles gets a warning: its posterior may be too narrow.
 
-use crate::estimate::{print_json_rows, read_recording, Args, FileEstimate, Trained};
+use crate::estimate::{
+    named_noise, noise_levels, print_json_rows, read_recording, Args, FileEstimate, Trained,
+};
 use crate::files;
 use crate::plot::{render_series, Axis, Curve, Panel};
 use anyhow::{bail, Context, Result};
@@ -14,7 +16,7 @@ use std::path::Path;
 use std::time::Instant;
 use vibrissa_infer::pf::{self, Injection, Observations, Pf, Posterior, TransitionModel};
 use vibrissa_infer::Method;
-use vibrissa_infer::{methods, training_for, Family, Variant, CHANNELS};
+use vibrissa_infer::{methods, training_for, Family, CHANNELS};
 
 /// Channels of the contract that the filter's model cannot produce.
 const UNOBSERVABLE: [&str; 4] = ["contact", "cx", "cy", "s"];
@@ -26,7 +28,7 @@ const INJECT_FRACTION: f64 = 0.5;
 const COLLAPSE_SHARE: f64 = 0.01;
 
 /// Runs the filter on every `--obs` file and prints the contract's estimates.
-pub fn run(args: &Args, family: &Family, variant: Variant) -> Result<()> {
+pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()> {
     if args.particles == 0 {
         bail!("--particles must be at least 1 (got 0)");
     }
@@ -70,8 +72,9 @@ pub fn run(args: &Args, family: &Family, variant: Variant) -> Result<()> {
         })
         .collect::<Result<Vec<_>>>()?;
 
-    // Fit: the sensor noise from the training runs (and the injected method, if any).
-    let t0 = Instant::now();
+    // The sensor noise of every recording (the filter is fitted to each level: no runs).
+    let recordings: Vec<_> = obs.iter().map(|(_, _, rec)| rec.clone()).collect();
+    let levels = noise_levels(&args.obs, &recordings, &channels, stated)?;
     let mut filter = Pf::new(args.particles);
     filter.set_model(
         TransitionModel::from_name(&args.pf_model)
@@ -86,23 +89,29 @@ pub fn run(args: &Args, family: &Family, variant: Variant) -> Result<()> {
         methods::by_name(name)?;
     }
     let mut inject = Trained::default();
-    eprintln!("training pf ({} particles)…", args.particles);
-    let training = training_for(family, variant, &filter, args.seed)?;
-    filter.fit(&training)?;
-    let sigma = filter.sigma().context("the filter was not fitted")?;
-    eprintln!(
-        "trained in {:.2} s; observation noise {}",
-        t0.elapsed().as_secs_f64(),
-        channels
-            .iter()
-            .map(|&c| format!("{} {:.3e}", CHANNELS[c], sigma[c]))
-            .collect::<Vec<_>>()
-            .join(", ")
-    );
 
     let mut rows: Vec<FileEstimate> = Vec::new();
     let mut posteriors = Vec::new();
-    for (file, (o, segments, rec)) in args.obs.iter().zip(&obs) {
+    let mut fitted_at: Option<[f64; 5]> = None;
+    for ((file, (o, segments, rec)), level) in args.obs.iter().zip(&obs).zip(&levels) {
+        if fitted_at != Some(*level) {
+            let training =
+                training_for(family, &family.training_noise(*level), &filter, args.seed)?;
+            filter.fit(&training)?;
+            let sigma = filter.sigma().context("the filter was not fitted")?;
+            eprintln!(
+                "pf ({} particles): observation noise {}",
+                args.particles,
+                channels
+                    .iter()
+                    .map(|&c| format!("{} {:.3e}", CHANNELS[c], sigma[c]))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+            fitted_at = Some(*level);
+        }
+        let sigma = filter.sigma().context("the filter was not fitted")?;
+        let sensor = filter.sensor_noise().context("the filter was not fitted")?;
         let start = Instant::now();
         let mut config = filter.config(family, sigma)?;
         config.channels = channels.clone();
@@ -117,7 +126,7 @@ pub fn run(args: &Args, family: &Family, variant: Variant) -> Result<()> {
         }
         config.check().context("--prior")?;
         if let Some(name) = &args.inject {
-            let m = inject.get(family, rec, name, variant, args.seed)?;
+            let m = inject.get(family, rec, level, name, args.seed)?;
             let e = m.predict(&o.values).with_context(|| {
                 format!(
                     "--inject {}: cannot estimate from `{}`",
@@ -169,7 +178,12 @@ pub fn run(args: &Args, family: &Family, variant: Variant) -> Result<()> {
             .map(|n| n.to_string())
             .zip(post.last().iter().copied())
             .collect();
-        rows.push((file.clone(), named, secs));
+        rows.push(FileEstimate {
+            file: file.clone(),
+            estimates: named,
+            seconds: secs,
+            noise: named_noise(&sensor, &channels),
+        });
         posteriors.push(post);
     }
 
@@ -180,7 +194,8 @@ pub fn run(args: &Args, family: &Family, variant: Variant) -> Result<()> {
     match args.format.format() {
         crate::output::Format::Json => print_json_rows(&rows, "pf", args.obs.len() > 1)?,
         crate::output::Format::Human => {
-            for ((file, est, secs), post) in rows.iter().zip(&posteriors) {
+            for (row, post) in rows.iter().zip(&posteriors) {
+                let (file, est, secs) = (&row.file, &row.estimates, row.seconds);
                 let parts: Vec<String> = est
                     .iter()
                     .map(|(n, e)| {

@@ -32,7 +32,9 @@ pub struct Args {
     /// Overrides of the scenario's keys (key=value).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     sets: Vec<String>,
-    /// clean, or noisy (sensor noise of 5% of each channel's range, plus process noise).
+    /// The recordings to make: clean, or noisy (sensor noise of 5% of each channel's range, plus
+    /// process noise). The estimators are not told: they measure the sensor noise on the
+    /// recordings.
     #[arg(long, default_value = "clean")]
     variant: String,
     /// Output folder (default: experiment-<EXPERIMENT>-<VARIANT>).
@@ -286,9 +288,20 @@ impl Render for Report {
         t.write(out, "  ")?;
         writeln!(
             out,
-            "noise: sensor σ = [{}] (theta01, theta12 rad; m0 N·m; fx, fy N), process {} N·s^½·m^-½",
+            "noise: recordings made with sensor σ = [{}] (theta01, theta12 rad; m0 N·m; fx, fy N), process {} N·s^½·m^-½",
             ev.noise.sensor.iter().map(|s| sig(*s, 3)).collect::<Vec<_>>().join(", "),
             sig(ev.noise.process, 2)
+        )?;
+        writeln!(
+            out,
+            "       estimators measured σ = [{}] on them, and train with process {}",
+            ev.estimated_noise
+                .sensor
+                .iter()
+                .map(|s| sig(*s, 3))
+                .collect::<Vec<_>>()
+                .join(", "),
+            sig(ev.estimated_noise.process, 2)
         )?;
         writeln!(out, "wall time {:.2} s; files:", ev.seconds)?;
         for f in &self.files {

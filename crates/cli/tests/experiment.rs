@@ -671,3 +671,115 @@ fn experiment_runs_on_a_scenario_family_whose_grid_holds_no_template() {
     assert!(knn["mae"][0].as_f64().unwrap() < 2e-3, "{}", knn["mae"]);
     assert!(out_dir.join("results.json").exists());
 }
+
+#[test]
+fn estimate_measures_the_recordings_noise_and_reports_it() {
+    let dir = temp("noise");
+    let csv = dir.join("noisy.csv");
+    // About 3% of each channel's range over the e2 runs; 0.6 s, so that one recording measures
+    // its noise closely.
+    let sigma = [3.6e-3, 9.0e-3, 1.4e-6, 8.8e-5, 7.2e-5];
+    let mut sim = vibrissa();
+    sim.args(["simulate", "e2", "--set", "d=0.021", "--set", "v=0.7"])
+        .args(["--set", "duration=0.6", "--set", "seed=4"]);
+    for (c, s) in ["theta01", "theta12", "m0", "fx", "fy"].iter().zip(sigma) {
+        sim.args(["--set", &format!("sensor_noise.{c}={s}")]);
+    }
+    let out = sim.arg("--out").arg(&csv).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let estimate = |extra: &[&str]| {
+        vibrissa()
+            .args([
+                "estimate",
+                "--experiment",
+                "e2",
+                "--method",
+                "knn",
+                "--json",
+            ])
+            .args(extra)
+            .arg("--obs")
+            .arg(&csv)
+            .output()
+            .unwrap()
+    };
+    let out = estimate(&[]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    for (c, s) in ["theta01", "theta12", "m0", "fx", "fy"].iter().zip(sigma) {
+        let measured = v["noise"][c].as_f64().unwrap();
+        assert!((measured / s - 1.0).abs() < 0.2, "{c}: {measured} for {s}");
+    }
+    assert!(
+        (v["d"]["mean"].as_f64().unwrap() - 0.021).abs() < 2e-3,
+        "{v}"
+    );
+
+    // A stated channel is used as stated; the others are still measured.
+    let out = estimate(&["--noise", "theta12=0.001"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["noise"]["theta12"].as_f64(), Some(0.001));
+    assert!((v["noise"]["theta01"].as_f64().unwrap() / sigma[0] - 1.0).abs() < 0.2);
+    let out = estimate(&["--noise", "none"]);
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["noise"]["fx"].as_f64(), Some(0.0));
+
+    // --variant still runs, with a warning that it is ignored.
+    let out = estimate(&["--variant", "noisy"]);
+    assert!(out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--variant is deprecated and ignored"), "{err}");
+
+    // A bad statement, and a recording too short to measure, are refused by name.
+    let out = estimate(&["--noise", "m0=-1"]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--noise"));
+    let short = dir.join("short.csv");
+    let mut body = String::from("t,theta01,theta12\n");
+    for k in 0..20 {
+        body += &format!("{},0,{}\n", k as f64 * 1e-3, (k as f64 * 0.3).sin());
+    }
+    std::fs::write(&short, body).unwrap();
+    let out = vibrissa()
+        .args([
+            "estimate",
+            "--experiment",
+            "e2",
+            "--method",
+            "template",
+            "--obs",
+        ])
+        .arg(&short)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("short.csv") && err.contains("theta12") && err.contains("--noise"),
+        "{err}"
+    );
+    let out = vibrissa()
+        .args(["estimate", "--experiment", "e2", "--method", "template"])
+        .args(["--noise", "theta12=0.002", "--json", "--obs"])
+        .arg(&short)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}

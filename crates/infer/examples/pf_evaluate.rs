@@ -13,7 +13,8 @@
 //!   milliseconds in [0, MAX_DELAY] before the run's t = 0 and the filter's t0 is unknown on
 //!   [0, 0.05 s];
 //! - INJECT: share of the initial particles drawn around `krr`'s estimate (0: none);
-//! - VARIANT: `noisy` (default) or `clean`.
+//! - VARIANT: `noisy` (default) or `clean`: what the runs are made with; the filter's sensor
+//!   noise is estimated from the set's runs, pooled, as `vibrissa experiment` does.
 //!
 //! Environment: `PF_SEED` (the filter's seed), `PF_MODEL` (`coarse` or `fine`), `PF_SEGMENTS`,
 //! `PF_DT` (the coarse transition model), `PF_SHRINK` (Liu–West), `PF_ESS`
@@ -70,12 +71,30 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .collect(),
         other => return Err(format!("unknown set `{other}`: choose grid, train or cal").into()),
     };
-    // The filter's training runs, as `vibrissa experiment` makes them.
+    // The recordings, and the noise the filter measures on them.
+    let mut rng = Rng::stream(77, 0);
+    let recorded = params
+        .iter()
+        .enumerate()
+        .map(|(k, p)| {
+            let delay = (rng.uniform() * max_delay * 1000.0).round() / 1000.0;
+            e.simulate_delayed(p, delay, &noise, 5000 + k as u64)
+                .map(|s| (delay, s))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let series: Vec<&[Vec<f64>]> = recorded.iter().map(|(_, s)| &s.series[..]).collect();
+    let estimated = vibrissa_infer::evaluate::estimated_noise(&e, &series)?;
+    // The injected method's training runs, as `vibrissa experiment` makes them.
     let train_p = e.random_params(400, 1 ^ 0x5eed);
     let training = Training {
         family: e.clone(),
-        samples: e.simulate_all(&train_p, &noise, 2, &|| {})?,
+        samples: if inject > 0.0 {
+            e.simulate_all(&train_p, &estimated, 2, &|| {})?
+        } else {
+            Vec::new()
+        },
         calibration: vec![],
+        noise: estimated,
     };
     let mut pf = Pf::new(particles);
     pf.max_delay = if max_delay > 0.0 { 0.05 } else { 0.0 };
@@ -115,12 +134,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let all = std::env::var_os("PF_ALL").is_some();
     let start = std::time::Instant::now();
     let (mut ed, mut ev, mut cd, mut cv, mut data) = (0.0, 0.0, 0, 0, 0.0);
-    let mut rng = Rng::stream(77, 0);
     // Signed speed error per true speed: (speed, sum of errors, runs).
     let mut by_speed: Vec<(f64, f64, usize)> = Vec::new();
-    for (k, p) in params.iter().enumerate() {
-        let delay = (rng.uniform() * max_delay * 1000.0).round() / 1000.0;
-        let s = e.simulate_delayed(p, delay, &noise, 5000 + k as u64)?;
+    for (p, (delay, s)) in params.iter().zip(&recorded) {
         data += (s.series[0].len() - 1) as f64 * 1e-3;
         let post = pf.posterior(&s.series)?;
         let est = post.last();

@@ -2,7 +2,7 @@
 //! budget allows, estimate every evaluated run, and score.
 
 use crate::error::Result;
-use crate::experiment::{Noise, Sample, Variant, THETA12};
+use crate::experiment::{Noise, Sample, Variant, CHANNELS, THETA12};
 use crate::family::Family;
 use crate::method::{Budget, Estimate, Method, Training};
 use crate::methods::{self, Interp, Template};
@@ -112,8 +112,13 @@ pub struct Evaluation {
     pub variant: Variant,
     /// Seed of all randomness.
     pub seed: u64,
-    /// Noise of the variant.
+    /// Noise of the variant: what the recordings (the grid's runs) were made with. No
+    /// estimator is told it.
     pub noise: Noise,
+    /// The noise the estimators were given: the sensor noise estimated from the grid's
+    /// recordings, pooled and quantised ([`crate::noise`]; channels the scenario states as
+    /// stated), and the scenario's own process noise. Simulated training runs carry it.
+    pub estimated_noise: Noise,
     /// Unknowns' names.
     pub unknowns: Vec<String>,
     /// The paper's mean absolute errors, SI.
@@ -197,7 +202,7 @@ pub fn evaluate_with(
         }
     };
 
-    // Noise levels (from the clean reference runs) and the family's grid.
+    // Noise levels (from the clean reference runs) and the family's grid: the recordings.
     if variant == Variant::Noisy {
         progress("noise levels", 0, 1);
     }
@@ -205,6 +210,9 @@ pub fn evaluate_with(
     let grid = family.grid();
     let grid_runs = family.simulate_all(&grid, &noise, seed, &stage("grid", grid.len()))?;
     let grid_seconds = start.elapsed().as_secs_f64();
+    // What the estimators know of the noise: what they measure on the recordings.
+    let recordings: Vec<&[Vec<f64>]> = grid_runs.iter().map(|s| &s.series[..]).collect();
+    let estimated_noise = estimated_noise(family, &recordings)?;
     let is_template: Vec<bool> = grid.iter().map(|p| family.is_template(p)).collect();
     let mut templates: Vec<Sample> = grid_runs
         .iter()
@@ -215,7 +223,8 @@ pub fn evaluate_with(
     // Templates that the grid does not hold are simulated on their own.
     let template_p = family.templates();
     if templates.len() != template_p.len() {
-        templates = family.simulate_all(&template_p, &noise, seed.wrapping_add(4), &|| {})?;
+        templates =
+            family.simulate_all(&template_p, &estimated_noise, seed.wrapping_add(4), &|| {})?;
     }
     let evaluated: Vec<&Sample> = grid_runs
         .iter()
@@ -229,7 +238,7 @@ pub fn evaluate_with(
     let random_p = family.random_params(random_runs(family), seed ^ 0x5eed);
     let random = family.simulate_all(
         &random_p,
-        &noise,
+        &estimated_noise,
         seed.wrapping_add(1),
         &stage("training runs", random_p.len()),
     )?;
@@ -238,7 +247,7 @@ pub fn evaluate_with(
     let design = Interp::design(family);
     let dense = family.simulate_all(
         &design,
-        &noise,
+        &estimated_noise,
         seed.wrapping_add(2),
         &stage("emulator grid", design.len()),
     )?;
@@ -247,7 +256,7 @@ pub fn evaluate_with(
     let edge_p = edge_params(family, edge_runs(family), seed ^ 0xed9e);
     let edge = family.simulate_all(
         &edge_p,
-        &noise,
+        &estimated_noise,
         seed.wrapping_add(3),
         &stage("edge runs", edge_p.len()),
     )?;
@@ -257,11 +266,13 @@ pub fn evaluate_with(
         family: family.clone(),
         samples: templates,
         calibration: Vec::new(),
+        noise: estimated_noise,
     };
     let free_random = Training {
         family: family.clone(),
         samples: random.clone(),
         calibration: Vec::new(),
+        noise: estimated_noise,
     };
     // Kernel ridge regression learns from all three sets (the grid covers the range's edges,
     // the edge runs the band just outside it).
@@ -269,11 +280,13 @@ pub fn evaluate_with(
         family: family.clone(),
         samples: random.iter().chain(&dense).chain(&edge).cloned().collect(),
         calibration: Vec::new(),
+        noise: estimated_noise,
     };
     let free_dense = Training {
         family: family.clone(),
         samples: dense,
         calibration: random,
+        noise: estimated_noise,
     };
 
     // The template method, kept concrete for its responsibilities.
@@ -339,6 +352,7 @@ pub fn evaluate_with(
         variant,
         seed,
         noise,
+        estimated_noise,
         unknowns: family.unknowns().iter().map(|s| s.to_string()).collect(),
         paper_mae: paper_errors(family),
         ranges: family.ranges(),
@@ -478,22 +492,42 @@ fn score(
     }
 }
 
-/// The training data that `method` may use in `family` and `variant`, simulated afresh:
-/// the templates under the paper's budget, the emulator's grid (calibrated on random runs),
-/// random runs followed by the emulator's grid and the edge runs (`krr`, `krr-local`) or random
-/// runs under a free budget.
+/// The sensor noise of a batch of recordings of `family` (channel-major series), as the
+/// estimators take it: every channel the scenario does not state estimated from all of them
+/// pooled and quantised ([`crate::noise`]), with the scenario's process noise.
+pub fn estimated_noise(family: &Family, recordings: &[&[Vec<f64>]]) -> Result<Noise> {
+    let stated = family.stated_noise();
+    let channels: Vec<usize> = (0..CHANNELS.len()).collect();
+    let batch = crate::noise::estimate_pooled(
+        recordings,
+        &channels
+            .iter()
+            .copied()
+            .filter(|&c| stated[c].is_none())
+            .collect::<Vec<_>>(),
+    )?;
+    let sensor = std::array::from_fn(|c| stated[c].unwrap_or(crate::noise::quantise(batch[c])));
+    Ok(family.training_noise(sensor))
+}
+
+/// The training data that `method` may use in `family`, simulated afresh with `noise` (the
+/// recordings' noise as estimated or stated: see [`Family::training_noise`]): the templates
+/// under the paper's budget, the emulator's grid (calibrated on random runs), random runs
+/// followed by the emulator's grid and the edge runs (`krr`, `krr-local`) or random runs under
+/// a free budget. The particle filter (`pf`) needs no runs: it takes the noise alone.
 pub fn training_for(
     family: &Family,
-    variant: Variant,
+    noise: &Noise,
     method: &dyn Method,
     seed: u64,
 ) -> Result<Training> {
-    let noise = family.noise(variant)?;
+    let noise = *noise;
     let none = || {};
     let training = |samples, calibration| Training {
         family: family.clone(),
         samples,
         calibration,
+        noise,
     };
     Ok(match (method.budget(), method.name()) {
         (Budget::Paper, _) => {
@@ -505,6 +539,7 @@ pub fn training_for(
             let p = if p.is_empty() { family.templates() } else { p };
             training(family.simulate_all(&p, &noise, seed, &none)?, Vec::new())
         }
+        (Budget::Free, "pf") => training(Vec::new(), Vec::new()),
         (Budget::Free, name) => {
             let random_p = family.random_params(random_runs(family), seed ^ 0x5eed);
             let mut random = family.simulate_all(&random_p, &noise, seed.wrapping_add(1), &none)?;

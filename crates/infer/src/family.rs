@@ -33,6 +33,8 @@ pub struct Family {
     experiment: Option<ExperimentRun>,
     /// Samples per run.
     samples: usize,
+    /// The sensor noise the file states per channel of [`CHANNELS`] (its `[sensor_noise]`).
+    stated_noise: [Option<f64>; 5],
 }
 
 /// A small cache of values computed once per family (by digest): the noisy variant's levels.
@@ -63,6 +65,7 @@ impl Family {
             base,
             experiment: loaded.experiment,
             samples,
+            stated_noise: loaded.stated_sensor_noise,
         })
     }
 
@@ -161,6 +164,22 @@ impl Family {
     /// The file's own scenario (the unknowns at the file's values), timing applied.
     pub fn base(&self) -> &Scenario {
         &self.base
+    }
+
+    /// The sensor noise the scenario states per channel of [`CHANNELS`] (the channels its
+    /// `[sensor_noise]` table names), SI; estimators estimate the others from the recordings.
+    pub fn stated_noise(&self) -> [Option<f64>; 5] {
+        self.stated_noise
+    }
+
+    /// The noise of training runs for recordings whose sensor noise is `sensor` (per channel of
+    /// [`CHANNELS`], SI): that sensor noise and the scenario's own process noise (`process_noise`,
+    /// 0 unless the file sets it).
+    pub fn training_noise(&self, sensor: [f64; 5]) -> Noise {
+        Noise {
+            sensor,
+            process: self.base.process_noise,
+        }
     }
 
     /// The whisker.
@@ -329,7 +348,8 @@ impl Family {
             .join(", ")
     }
 
-    /// The noise of `variant` on this family. `noisy` is a sensor noise of 5% of each channel's
+    /// The noise of `variant` on this family: what `vibrissa experiment` makes its recordings
+    /// with (no estimator is told it). `noisy` is a sensor noise of 5% of each channel's
     /// peak-to-peak range over the clean reference runs, plus [`crate::experiment::PROCESS_NOISE`].
     /// The reference runs are the family's grid; for a family built on the experiment box they
     /// are the `e2` grid of its own scenario (EXPERIMENTS.md defines `noisy` by the `e2` runs).

@@ -18,6 +18,7 @@ pub mod family;
 pub mod features;
 pub mod method;
 pub mod methods;
+pub mod noise;
 pub mod pf;
 pub mod standin;
 pub mod unknown_start;

@@ -1,7 +1,7 @@
 //! What an estimator is: the [`Method`] trait, its training data and its [`Estimate`]s.
 
 use crate::error::Result;
-use crate::experiment::Sample;
+use crate::experiment::{Noise, Sample};
 use crate::family::Family;
 use serde::Serialize;
 
@@ -65,6 +65,10 @@ pub struct Training {
     /// Further runs, held out of the fit, that calibrate the uncertainty (empty under the
     /// paper's budget).
     pub calibration: Vec<Sample>,
+    /// The noise of the recordings to be estimated from, as far as it is known: the sensor noise
+    /// per channel (estimated from the recordings, or stated) and the scenario's process noise.
+    /// Simulated training runs carry it; the particle filter takes its sensor noise from it.
+    pub noise: Noise,
 }
 
 /// An estimator of the unknowns from one run's observations.

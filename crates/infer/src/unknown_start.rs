@@ -3,7 +3,8 @@
 //! of the approach `t0` is a further unknown (`vibrissa experiment --max-delay`).
 
 use crate::error::{Error, Result};
-use crate::evaluate::training_for;
+use crate::evaluate::{estimated_noise, training_for};
+use crate::experiment::Noise;
 use crate::experiment::Variant;
 use crate::family::Family;
 use crate::method::{Estimate, Method};
@@ -29,8 +30,11 @@ pub struct DelayedRun {
 pub struct StartEvaluation {
     /// The family: a built-in's name or a scenario file's path.
     pub family: String,
-    /// The variant.
+    /// The variant the recordings were made in (the filter is not told it).
     pub variant: Variant,
+    /// The noise the filter was given: estimated from the recordings (see
+    /// [`crate::evaluate::estimated_noise`]).
+    pub estimated_noise: Noise,
     /// Seed of the runs, their delays and the filter.
     pub seed: u64,
     /// Particles of the filter.
@@ -87,15 +91,6 @@ pub fn evaluate_unknown_start(
         progress("noise levels", 0, 1);
     }
     let noise = family.noise(variant)?;
-    let mut filter = Pf::new(particles);
-    filter.set_model(model);
-    filter.seed = seed;
-    filter.max_delay = max_delay;
-    progress("training runs", 0, 1);
-    let training = training_for(family, variant, &filter, seed)?;
-    progress("training runs", 1, 1);
-    filter.fit(&training)?;
-
     let params: Vec<Vec<f64>> = family
         .grid()
         .into_iter()
@@ -108,6 +103,27 @@ pub fn evaluate_unknown_start(
         .iter()
         .map(|_| (rng.uniform() * (steps + 1.0)).floor().min(steps) / rate)
         .collect();
+    // The recordings, then the filter with the noise it measures on them.
+    progress("recordings", 0, params.len());
+    let samples = params
+        .iter()
+        .zip(&delays)
+        .enumerate()
+        .map(|(k, (p, &delay))| {
+            let run_seed = Rng::stream(seed, 7000 + k as u64).next_u64();
+            family.simulate_delayed(p, delay, &noise, run_seed)
+        })
+        .collect::<Result<Vec<_>>>()?;
+    progress("recordings", params.len(), params.len());
+    let recordings: Vec<&[Vec<f64>]> = samples.iter().map(|s| &s.series[..]).collect();
+    let estimated_noise = estimated_noise(family, &recordings)?;
+    let mut filter = Pf::new(particles);
+    filter.set_model(model);
+    filter.seed = seed;
+    filter.max_delay = max_delay;
+    let training = training_for(family, &estimated_noise, &filter, seed)?;
+    filter.fit(&training)?;
+
     let unknowns: Vec<String> = family
         .unknowns()
         .iter()
@@ -117,9 +133,7 @@ pub fn evaluate_unknown_start(
     let mut runs = Vec::with_capacity(params.len());
     let (mut data_seconds, mut filter_seconds) = (0.0, 0.0);
     progress("filter", 0, params.len());
-    for (k, (p, &delay)) in params.iter().zip(&delays).enumerate() {
-        let run_seed = Rng::stream(seed, 7000 + k as u64).next_u64();
-        let sample = family.simulate_delayed(p, delay, &noise, run_seed)?;
+    for (k, ((p, &delay), sample)) in params.iter().zip(&delays).zip(&samples).enumerate() {
         let start = Instant::now();
         let post = filter.posterior(&sample.series)?;
         filter_seconds += start.elapsed().as_secs_f64();
@@ -159,6 +173,7 @@ pub fn evaluate_unknown_start(
     Ok(StartEvaluation {
         family: family.name().to_string(),
         variant,
+        estimated_noise,
         seed,
         particles,
         model,

@@ -44,7 +44,8 @@
 //! # damping = { kind = "none" }
 //!
 //! [sensor_noise]             # standard deviation of Gaussian noise per observed channel
-//! theta01 = 0.0              # rad (also theta12; m0 in N·m; fx, fy in N)
+//! theta01 = 0.0              # rad (also theta12; m0 in N·m; fx, fy in N); a channel not named
+//!                            # is 0 in a run, and estimators estimate it from the recordings
 //!
 //! [sensors]                  # gains and offsets: recorded = gain·true + offset (+ noise)
 //! theta01 = { gain = 1.0, offset = 0.0 }  # gain finite and not 0 (default 1), offset in the
@@ -193,6 +194,11 @@ pub struct Loaded {
     pub origin: String,
     /// The file's `[calibration]` record, if it has one.
     pub calibration: Option<Calibration>,
+    /// The sensor noise the file states per channel (`theta01`, `theta12`, `m0`, `fx`, `fy`):
+    /// `Some` for each channel its `[sensor_noise]` table names (validated: finite, >= 0).
+    /// Estimators take a stated channel's noise as given and estimate the others from the
+    /// recordings.
+    pub stated_sensor_noise: [Option<f64>; 5],
 }
 
 /// TOML text of the built-in `e1`.

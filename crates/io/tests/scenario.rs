@@ -732,3 +732,34 @@ fn trajectory_errors_name_file_and_line() {
     let e = load(path.to_str().unwrap(), &[]).unwrap_err().to_string();
     assert!(e.contains("cannot read") && e.contains("none.csv"), "{e}");
 }
+
+#[test]
+fn sensor_noise_is_stated_channel_by_channel() {
+    // Nothing stated: every channel is left to the estimators.
+    let loaded = load_full("e2", &[]).unwrap();
+    assert_eq!(loaded.stated_sensor_noise, [None; 5]);
+    // A partial table states its channels; the others are 0 in a run but not stated.
+    let dir = temp_dir("stated-noise");
+    let file = dir.join("rig.toml");
+    fs::write(
+        &file,
+        "experiment = \"e2\"\n[sensor_noise]\ntheta12 = 2e-3\nfx = 0.0\n",
+    )
+    .unwrap();
+    let path = file.to_str().unwrap();
+    let loaded = load_full(path, &[]).unwrap();
+    assert_eq!(
+        loaded.stated_sensor_noise,
+        [None, Some(2e-3), None, Some(0.0), None]
+    );
+    assert_eq!(loaded.scenario.sensor_noise.theta01, 0.0);
+    assert_eq!(loaded.scenario.sensor_noise.theta12, 2e-3);
+    // An override states a channel too.
+    let loaded = load_full("e2", &sets(&["sensor_noise.m0=1e-7"])).unwrap();
+    assert_eq!(loaded.stated_sensor_noise[2], Some(1e-7));
+    // A negative or non-finite level is refused by name.
+    let e = load_err("[sensor_noise]\nm0 = -1e-7\n", &[]);
+    assert!(e.contains("sensor_noise.m0"), "{e}");
+    let e = load_err("[sensor_noise]\nfy = inf\n", &[]);
+    assert!(e.contains("sensor_noise.fy"), "{e}");
+}

@@ -413,6 +413,7 @@ mod tests {
             family: crate::Family::builtin("e2").unwrap(),
             samples,
             calibration: Vec::new(),
+            noise: crate::experiment::Noise::NONE,
         }
     }
 

@@ -376,6 +376,7 @@ impl Method for LocalKrr {
             family: training.family.clone(),
             samples: fit_i.iter().map(|&i| s[i].clone()).collect(),
             calibration: Vec::new(),
+            noise: training.noise,
         })?;
         let regs: &[(bool, f64)] = if self.v_index.is_some() {
             &SHAPES

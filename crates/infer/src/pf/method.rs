@@ -3,19 +3,24 @@
 use super::config::{Config, Injection, Prior};
 use super::filter::run;
 use super::likelihood::{
-    noise_from_series, observation_sigma, temper_for, TransitionModel, FINE_TEMPER, MODEL_ERROR,
-    UNKNOWN_START_TEMPER,
+    observation_sigma, temper_for, TransitionModel, FINE_TEMPER, MODEL_ERROR, UNKNOWN_START_TEMPER,
 };
 use super::posterior::{Observations, Posterior};
 use crate::error::{Error, Result};
 use crate::experiment::CHANNELS;
 use vibrissa_core::dynamics::Integrator;
 
+/// The least sensor noise the filter assumes, as a fraction of the `noisy` variant's level
+/// (5% of each channel's range): 0.5% of the range. Clean recordings would otherwise give an
+/// observation noise of 0 with the fine transition model, whose model error is not counted.
+pub const SENSOR_FLOOR: f64 = 0.1;
+
 /// The particle filter as an estimator of the experiments' unknowns ([`crate::Method`]): `pf`.
 ///
-/// Fitting estimates the sensor noise of each channel from the training runs
-/// ([`noise_from_series`]); no training run enters the filter otherwise. Estimates are the
-/// posterior at the last sample.
+/// Fitting takes the sensor noise of each channel from the training data's noise (estimated
+/// from the recordings, or stated: [`crate::Training::noise`]), floored at [`SENSOR_FLOOR`] of
+/// the `noisy` variant's level; no training run enters the filter. Estimates are the posterior at
+/// the last sample.
 #[derive(Debug, Clone)]
 pub struct Pf {
     /// Particles per run.
@@ -43,6 +48,7 @@ pub struct Pf {
     /// and `temper`.
     pub model: TransitionModel,
     sigma: Option<[f64; 5]>,
+    sensor: Option<[f64; 5]>,
     family: Option<crate::Family>,
 }
 
@@ -74,6 +80,7 @@ impl Pf {
             inject: None,
             model: TransitionModel::Coarse,
             sigma: None,
+            sensor: None,
             family: None,
         }
     }
@@ -93,6 +100,12 @@ impl Pf {
                 self.temper = FINE_TEMPER;
             }
         }
+    }
+
+    /// The sensor noise per channel that [`crate::Method::fit`] took (the training data's,
+    /// floored at [`SENSOR_FLOOR`]), SI, if fitted.
+    pub fn sensor_noise(&self) -> Option<[f64; 5]> {
+        self.sensor
     }
 
     /// The observation noise found by [`crate::Method::fit`], if fitted.
@@ -157,20 +170,17 @@ impl crate::Method for Pf {
         (0..CHANNELS.len()).collect()
     }
     fn fit(&mut self, training: &crate::Training) -> Result<()> {
-        let series: Vec<&[Vec<f64>]> = training
-            .samples
-            .iter()
-            .chain(&training.calibration)
-            .map(|s| &s.series[..])
-            .collect();
-        if series.is_empty() {
-            return Err(Error::Fit {
-                method: "pf".into(),
-                detail: "no training runs to estimate the sensor noise from".into(),
-            });
-        }
-        let sensor = noise_from_series(&series);
+        // The `noisy` variant's levels serve as each channel's scale: the model error is
+        // measured in them, and the sensor noise is floored at a fraction of them.
         let noisy = training.family.noise(crate::Variant::Noisy)?.sensor;
+        let sensor: [f64; 5] = std::array::from_fn(|c| {
+            let s = training.noise.sensor[c];
+            if s.is_finite() {
+                s.max(SENSOR_FLOOR * noisy[c])
+            } else {
+                noisy[c]
+            }
+        });
         let model: [f64; 5] = match self.model {
             TransitionModel::Coarse => std::array::from_fn(|c| MODEL_ERROR[c] * noisy[c]),
             TransitionModel::Fine => [0.0; 5],
@@ -181,6 +191,7 @@ impl crate::Method for Pf {
             self.temper
         };
         self.sigma = Some(observation_sigma(sensor, model, temper));
+        self.sensor = Some(sensor);
         self.family = Some(training.family.clone());
         if let Some((_, m)) = &mut self.inject {
             let m = std::sync::Arc::get_mut(m).ok_or_else(|| Error::Fit {

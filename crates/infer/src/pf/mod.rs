@@ -40,6 +40,6 @@ pub use likelihood::{
     noise_from_series, observation_sigma, temper_for, TransitionModel, FINE_TEMPER, MODEL_ERROR,
     TRANSITION_MODELS, UNKNOWN_START_TEMPER,
 };
-pub use method::Pf;
+pub use method::{Pf, SENSOR_FLOOR};
 pub use posterior::{Observations, Posterior, TraceRow};
 pub use transition::map_joints;

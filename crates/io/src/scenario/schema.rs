@@ -100,15 +100,23 @@ enum DampingKind {
     StiffnessProportional,
 }
 
-/// `[sensor_noise]`: standard deviations per channel.
+/// `[sensor_noise]`: standard deviations per channel (a channel not named is 0 in a run, and
+/// not stated for estimators, which then estimate it from the recordings).
 #[derive(Debug, Default, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 struct SensorNoiseTable {
-    theta01: f64,
-    theta12: f64,
-    m0: f64,
-    fx: f64,
-    fy: f64,
+    theta01: Option<f64>,
+    theta12: Option<f64>,
+    m0: Option<f64>,
+    fx: Option<f64>,
+    fy: Option<f64>,
+}
+
+impl SensorNoiseTable {
+    /// The stated standard deviations, in the order of core's sensor channels.
+    fn stated(&self) -> [Option<f64>; 5] {
+        [self.theta01, self.theta12, self.m0, self.fx, self.fy]
+    }
 }
 
 /// `[base]`: the prescribed base rotation.
@@ -296,12 +304,13 @@ impl FileTable {
             process_noise: self.process_noise.unwrap_or(defaults.process_noise),
             sensor_noise: self
                 .sensor_noise
+                .as_ref()
                 .map_or(defaults.sensor_noise, |n| SensorNoise {
-                    theta01: n.theta01,
-                    theta12: n.theta12,
-                    m0: n.m0,
-                    fx: n.fx,
-                    fy: n.fy,
+                    theta01: n.theta01.unwrap_or(0.0),
+                    theta12: n.theta12.unwrap_or(0.0),
+                    m0: n.m0.unwrap_or(0.0),
+                    fx: n.fx.unwrap_or(0.0),
+                    fy: n.fy.unwrap_or(0.0),
                 }),
             sensor_response: self
                 .sensors
@@ -318,6 +327,10 @@ impl FileTable {
             family,
             origin: ctx.origin.to_string(),
             calibration: self.calibration,
+            stated_sensor_noise: self
+                .sensor_noise
+                .as_ref()
+                .map_or([None; 5], SensorNoiseTable::stated),
         })
     }
 }

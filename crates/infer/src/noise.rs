@@ -1,0 +1,462 @@
+//! Sensor noise estimated from the recordings themselves.
+//!
+//! A recording's sensor noise is measured by what a local polynomial cannot follow: every sample
+//! is compared with the least-squares cubic through the seven samples centred on it (a
+//! Savitzky–Golay smooth), and the residuals' scale is found robustly.
+//!
+//! - A cubic over 7 ms at 1 kHz follows the whisker's own ringing (51 Hz in the first mode for
+//!   `w30`) to a small fraction of a realistic noise level, where a second difference does not:
+//!   on clean `e2` strikes the second-difference estimate is 5–15% of a 3% noise level, this
+//!   one about 2%.
+//! - Contact events and impacts make a few large residuals in a cluster. The scale starts from
+//!   the median absolute residual, then every residual beyond [`TRIM`] standard deviations is
+//!   dropped together with its neighbours within the smooth's half-width (a step in the signal
+//!   spreads over the whole window), and the standard deviation is re-estimated from the rest
+//!   with the normal distribution's truncation corrected for, a few times.
+//! - Each residual of white noise of standard deviation σ has the standard deviation
+//!   σ·√(1 − w₀), w₀ being the smooth's centre weight; the residuals are scaled by it, so the
+//!   estimate is σ itself.
+//!
+//! Windows that hold a missing (`NaN`) value are skipped. A channel with fewer than
+//! [`MIN_RESIDUALS`] complete windows is refused ([`Error::Observation`], naming the channel);
+//! a channel that no cubic misses at all (constant, or exactly polynomial) has noise 0, and one
+//! that the cubic misses in fewer than half of its windows (long constant stretches, a coarsely
+//! quantised sensor) the root mean square of its residuals.
+//!
+//! Several recordings of one rig give one estimate by pooling their residuals
+//! ([`estimate_pooled`]); [`batch_levels`] decides which recordings of a batch agree well enough
+//! to share it, and [`quantise`] rounds a level so that estimators trained at one level can be
+//! reused for recordings whose estimates differ by less than the estimate's own scatter.
+
+use crate::error::{Error, Result};
+use crate::experiment::CHANNELS;
+use serde::Serialize;
+
+/// Half-width of the smoothing window, samples (the window is 7 samples).
+pub const HALF_WIDTH: usize = 3;
+/// Residuals beyond this many standard deviations are treated as signal, not noise.
+pub const TRIM: f64 = 3.0;
+/// Complete windows a channel needs for its noise to be estimated.
+pub const MIN_RESIDUALS: usize = 30;
+/// A recording whose estimate differs from its batch's pooled one by more than this factor on
+/// some channel is given its own level ([`batch_levels`]).
+pub const AGREEMENT: f64 = 1.5;
+/// Levels are rounded to powers of 2^(1/`STEPS_PER_OCTAVE`) ([`quantise`]): at most 4.4% off.
+pub const STEPS_PER_OCTAVE: f64 = 8.0;
+
+/// Refinement passes of the trimmed standard deviation.
+const PASSES: usize = 5;
+/// The median absolute deviation of a standard normal variable.
+const MAD_NORMAL: f64 = 0.674_489_750_196_081_7;
+
+/// Weights of the least-squares cubic's value at the centre of 7 equally spaced samples
+/// (Savitzky–Golay): (−2, 3, 6, 7, 6, 3, −2)/21.
+const WEIGHTS: [f64; 2 * HALF_WIDTH + 1] = [
+    -2.0 / 21.0,
+    3.0 / 21.0,
+    6.0 / 21.0,
+    7.0 / 21.0,
+    6.0 / 21.0,
+    3.0 / 21.0,
+    -2.0 / 21.0,
+];
+
+/// Residuals of one series against its local cubic, scaled so that white noise of standard
+/// deviation σ gives residuals of standard deviation σ; one per complete (all-finite) window.
+/// Each residual is paired with the index of its window's centre, so that neighbours can be
+/// found.
+fn residuals(x: &[f64]) -> Vec<(usize, f64)> {
+    let scale = 1.0 / (1.0 - WEIGHTS[HALF_WIDTH]).sqrt();
+    x.windows(WEIGHTS.len())
+        .enumerate()
+        .filter(|(_, w)| w.iter().all(|v| v.is_finite()))
+        .map(|(k, w)| {
+            // x₀ − Σ wⱼ xⱼ = −Σ wⱼ (xⱼ − x₀), as the weights sum to 1: exactly 0 where the
+            // window is constant.
+            let centre = w[HALF_WIDTH];
+            let r: f64 = w.iter().zip(&WEIGHTS).map(|(a, b)| b * (a - centre)).sum();
+            (k + HALF_WIDTH, -scale * r)
+        })
+        .collect()
+}
+
+/// The robust standard deviation of residual sets (one per recording; neighbours are looked for
+/// only within a set).
+fn robust_sigma(sets: &[Vec<(usize, f64)>]) -> f64 {
+    let all: Vec<f64> = sets.iter().flatten().map(|(_, r)| r.abs()).collect();
+    if all.is_empty() {
+        return 0.0;
+    }
+    let mut sorted = all.clone();
+    let mid = sorted.len() / 2;
+    let (_, m, _) = sorted.select_nth_unstable_by(mid, f64::total_cmp);
+    let mut sigma = *m / MAD_NORMAL;
+    if sigma == 0.0 {
+        // More than half the windows fit exactly (constant stretches, a coarsely quantised
+        // sensor): the root mean square of all residuals, which is 0 only if all are. Trimming
+        // would take every step of a quantised sensor for an event and leave nothing.
+        return (all.iter().map(|r| r * r).sum::<f64>() / all.len() as f64).sqrt();
+    }
+    // Variance of a standard normal variable truncated to ±TRIM.
+    let density = (-0.5 * TRIM * TRIM).exp() / (2.0 * std::f64::consts::PI).sqrt();
+    let inside = 1.0 - 2.0 * normal_tail(TRIM);
+    let truncated = 1.0 - 2.0 * TRIM * density / inside;
+    for _ in 0..PASSES {
+        let (mut sum, mut n) = (0.0, 0usize);
+        for set in sets {
+            let far: Vec<usize> = set
+                .iter()
+                .filter(|(_, r)| r.abs() > TRIM * sigma)
+                .map(|(k, _)| *k)
+                .collect();
+            for (k, r) in set {
+                if far.iter().all(|f| f.abs_diff(*k) > HALF_WIDTH) {
+                    sum += r * r;
+                    n += 1;
+                }
+            }
+        }
+        if n == 0 {
+            break;
+        }
+        sigma = (sum / n as f64 / truncated).sqrt();
+    }
+    sigma
+}
+
+/// Upper tail probability of the standard normal distribution, P(Z > z), for z ≥ 0 (to about
+/// 1e-7, Abramowitz and Stegun 26.2.17).
+fn normal_tail(z: f64) -> f64 {
+    let t = 1.0 / (1.0 + 0.231_641_9 * z);
+    let poly = t
+        * (0.319_381_530
+            + t * (-0.356_563_782
+                + t * (1.781_477_937 + t * (-1.821_255_978 + t * 1.330_274_429))));
+    (-0.5 * z * z).exp() / (2.0 * std::f64::consts::PI).sqrt() * poly
+}
+
+/// The sensor noise (standard deviation, in the series' unit) of one channel of several
+/// recordings of one rig, `name` naming the channel in errors.
+pub fn channel_sigma(name: &str, series: &[&[f64]]) -> Result<f64> {
+    let sets: Vec<Vec<(usize, f64)>> = series.iter().map(|x| residuals(x)).collect();
+    let n: usize = sets.iter().map(Vec::len).sum();
+    if n < MIN_RESIDUALS {
+        let samples: usize = series.iter().map(|x| x.len()).sum();
+        return Err(Error::Observation(format!(
+            "channel {name}: too few samples to estimate its noise ({samples} samples give {n} \
+             complete windows of {}; at least {MIN_RESIDUALS} are needed)",
+            WEIGHTS.len()
+        )));
+    }
+    Ok(robust_sigma(&sets))
+}
+
+/// The sensor noise of `channels` (indices into [`CHANNELS`]) of one recording, channel-major
+/// `[CHANNELS][samples]`; channels not asked for are 0.
+pub fn estimate(series: &[Vec<f64>], channels: &[usize]) -> Result<[f64; 5]> {
+    estimate_pooled(&[series], channels)
+}
+
+/// The sensor noise of `channels` of several recordings of one rig, their residuals pooled;
+/// channels not asked for are 0. A recording that lacks a channel (an empty series) adds
+/// nothing to it.
+pub fn estimate_pooled(recordings: &[&[Vec<f64>]], channels: &[usize]) -> Result<[f64; 5]> {
+    let mut out = [0.0; 5];
+    for &c in channels {
+        let series: Vec<&[f64]> = recordings
+            .iter()
+            .filter_map(|r| r.get(c))
+            .map(|x| x.as_slice())
+            .collect();
+        out[c] = channel_sigma(CHANNELS[c], &series)?;
+    }
+    Ok(out)
+}
+
+/// `sigma` rounded to the nearest power of 2^(1/[`STEPS_PER_OCTAVE`]) (0 stays 0).
+pub fn quantise(sigma: f64) -> f64 {
+    if !(sigma > 0.0 && sigma.is_finite()) {
+        return 0.0;
+    }
+    ((sigma.log2() * STEPS_PER_OCTAVE).round() / STEPS_PER_OCTAVE).exp2()
+}
+
+/// Where a recording's noise level came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Source {
+    /// Estimated from the batch's recordings that agree with each other, pooled.
+    Batch,
+    /// Estimated from this recording alone (it disagrees with the rest of its batch).
+    Own,
+}
+
+/// The noise levels of a batch of recordings.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct BatchNoise {
+    /// Per recording: the sensor noise per channel of [`CHANNELS`], SI, quantised (stated
+    /// channels as stated, channels neither stated nor asked for 0).
+    pub levels: Vec<[f64; 5]>,
+    /// Per recording: where its estimated channels' levels came from.
+    pub sources: Vec<Source>,
+    /// Per recording: its own estimate of each asked-for channel, unquantised (stated channels
+    /// as stated).
+    pub own: Vec<[f64; 5]>,
+}
+
+/// The noise levels of a batch of recordings (channel-major `[CHANNELS][samples]` each) on the
+/// channels `channels`: a channel given in `stated` is taken as stated; every other one is
+/// estimated. Recordings whose own estimates all lie within a factor [`AGREEMENT`] of the
+/// batch's pooled estimate share the pooled estimate of those recordings (one rig: one level,
+/// estimated from all of them); any other recording keeps its own. Levels are [`quantise`]d.
+pub fn batch_levels(
+    recordings: &[&[Vec<f64>]],
+    channels: &[usize],
+    stated: &[Option<f64>; 5],
+) -> Result<BatchNoise> {
+    let estimated: Vec<usize> = channels
+        .iter()
+        .copied()
+        .filter(|&c| stated[c].is_none())
+        .collect();
+    let own = recordings
+        .iter()
+        .map(|r| estimate(r, &estimated))
+        .collect::<Result<Vec<_>>>()?;
+    let agrees = |mine: &[f64; 5], pooled: &[f64; 5]| {
+        estimated.iter().all(|&c| {
+            let (a, b) = (mine[c], pooled[c]);
+            (a == 0.0 && b == 0.0) || (a <= AGREEMENT * b && b <= AGREEMENT * a)
+        })
+    };
+    let pooled = estimate_pooled(recordings, &estimated)?;
+    let members: Vec<bool> = own.iter().map(|o| agrees(o, &pooled)).collect();
+    let shared = if members.iter().filter(|m| **m).count() > 1 {
+        let chosen: Vec<&[Vec<f64>]> = recordings
+            .iter()
+            .zip(&members)
+            .filter(|(_, m)| **m)
+            .map(|(r, _)| *r)
+            .collect();
+        Some(estimate_pooled(&chosen, &estimated)?)
+    } else {
+        None
+    };
+    let with_stated = |mut x: [f64; 5]| {
+        for (c, s) in stated.iter().enumerate() {
+            if let Some(s) = s {
+                x[c] = *s;
+            }
+        }
+        x
+    };
+    let mut levels = Vec::with_capacity(recordings.len());
+    let mut sources = Vec::with_capacity(recordings.len());
+    for (mine, member) in own.iter().zip(&members) {
+        let (level, source) = match (&shared, member) {
+            (Some(s), true) => (*s, Source::Batch),
+            _ => (*mine, Source::Own),
+        };
+        let mut q = [0.0; 5];
+        for &c in &estimated {
+            q[c] = quantise(level[c]);
+        }
+        levels.push(with_stated(q));
+        sources.push(source);
+    }
+    Ok(BatchNoise {
+        levels,
+        sources,
+        own: own.into_iter().map(with_stated).collect(),
+    })
+}
+
+/// Parses a noise statement: `auto` (every channel estimated), `none` (every channel 0: clean
+/// recordings) or comma-separated `CHANNEL=SIGMA` (SI, finite, ≥ 0), the channels not named
+/// estimated. Returns the stated channels, `[CHANNELS]`.
+pub fn parse_statement(text: &str) -> Result<[Option<f64>; 5]> {
+    let text = text.trim();
+    match text {
+        "auto" => return Ok([None; 5]),
+        "none" => return Ok([Some(0.0); 5]),
+        _ => {}
+    }
+    let mut out = [None; 5];
+    for part in text.split(',') {
+        let bad = || {
+            Error::Setting(format!(
+                "noise `{part}`: expected `auto`, `none` or CHANNEL=SIGMA,... with CHANNEL one \
+                 of {} and SIGMA a standard deviation >= 0 in SI units",
+                CHANNELS.join(", ")
+            ))
+        };
+        let (name, value) = part.split_once('=').ok_or_else(bad)?;
+        let c = CHANNELS
+            .iter()
+            .position(|n| *n == name.trim())
+            .ok_or_else(bad)?;
+        let sigma: f64 = value.trim().parse().map_err(|_| bad())?;
+        if !(sigma.is_finite() && sigma >= 0.0) {
+            return Err(bad());
+        }
+        if out[c].is_some() {
+            return Err(Error::Setting(format!(
+                "noise: channel {} is given twice",
+                CHANNELS[c]
+            )));
+        }
+        out[c] = Some(sigma);
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use vibrissa_core::rng::Rng;
+
+    /// A damped ringing at `f` Hz sampled at 1 kHz, amplitude 1, with white noise `sigma`.
+    fn ringing(n: usize, f: f64, sigma: f64, seed: u64) -> Vec<f64> {
+        let mut rng = Rng::stream(seed, 1);
+        (0..n)
+            .map(|k| {
+                let t = k as f64 * 1e-3;
+                (2.0 * std::f64::consts::PI * f * t).sin() * (-3.0 * t).exp() + sigma * rng.normal()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_weights_are_the_cubic_smooth() {
+        // A cubic is reproduced exactly; the weights sum to one.
+        assert!((WEIGHTS.iter().sum::<f64>() - 1.0).abs() < 1e-15);
+        let x: Vec<f64> = (0..60)
+            .map(|k| {
+                let t = k as f64;
+                0.3 - 0.2 * t + 0.05 * t * t - 0.001 * t * t * t
+            })
+            .collect();
+        for (_, r) in residuals(&x) {
+            assert!(r.abs() < 1e-12, "{r}");
+        }
+        assert!(channel_sigma("theta01", &[&x]).unwrap() < 1e-12);
+    }
+
+    #[test]
+    fn white_noise_on_a_ringing_signal_is_measured() {
+        for sigma in [0.01, 0.03, 0.1] {
+            let x = ringing(4000, 51.0, sigma, 7);
+            let s = channel_sigma("theta12", &[&x]).unwrap();
+            assert!((s / sigma - 1.0).abs() < 0.06, "{s} for {sigma}");
+        }
+        // Without noise, the ringing itself reads as far less than any of those levels, where
+        // the second difference reads it as much more.
+        let clean = ringing(4000, 51.0, 0.0, 7);
+        let s = channel_sigma("theta12", &[&clean]).unwrap();
+        assert!(s < 2e-3, "{s}");
+        let d2 = crate::pf::noise_from_series(&[&[clean.clone()][..]])[0];
+        assert!(d2 > 5.0 * s, "{d2} vs {s}");
+    }
+
+    #[test]
+    fn steps_and_spikes_do_not_inflate_the_estimate() {
+        let mut x = ringing(300, 51.0, 0.02, 3);
+        // Contact events: steps and an impact.
+        for v in x.iter_mut().skip(80) {
+            *v += 0.8;
+        }
+        for v in x.iter_mut().skip(200) {
+            *v -= 0.5;
+        }
+        x[150] += 1.5;
+        x[151] -= 0.7;
+        let s = channel_sigma("m0", &[&x]).unwrap();
+        assert!((s / 0.02 - 1.0).abs() < 0.15, "{s}");
+    }
+
+    #[test]
+    fn missing_values_are_skipped_and_short_channels_refused() {
+        let mut x = ringing(400, 51.0, 0.05, 5);
+        x[100] = f64::NAN;
+        x[250] = f64::NAN;
+        let s = channel_sigma("fx", &[&x]).unwrap();
+        assert!(s.is_finite() && (s / 0.05 - 1.0).abs() < 0.2, "{s}");
+        let short = ringing(20, 51.0, 0.05, 5);
+        let e = channel_sigma("fy", &[&short]).unwrap_err().to_string();
+        assert!(e.contains("fy") && e.contains("20 samples"), "{e}");
+        let gaps = vec![f64::NAN; 400];
+        assert!(channel_sigma("fy", &[&gaps]).is_err());
+    }
+
+    #[test]
+    fn a_constant_or_coarsely_quantised_channel_is_not_nan() {
+        let flat = vec![0.25; 200];
+        assert_eq!(channel_sigma("m0", &[&flat]).unwrap(), 0.0);
+        // Quantised to steps that most windows do not see.
+        let q: Vec<f64> = (0..400)
+            .map(|k| ((k as f64) / 37.0).floor() * 1e-3)
+            .collect();
+        let s = channel_sigma("m0", &[&q]).unwrap();
+        assert!(s.is_finite() && s > 0.0 && s < 1e-3, "{s}");
+    }
+
+    #[test]
+    fn quantised_levels_are_close_and_shared() {
+        for x in [1e-7, 3.3e-3, 0.7, 12.0] {
+            let q = quantise(x);
+            assert!((q / x - 1.0).abs() <= 0.045, "{q} for {x}");
+            assert_eq!(quantise(q), q);
+        }
+        assert_eq!(quantise(1.0e-3), quantise(1.01e-3));
+        assert_eq!(quantise(0.0), 0.0);
+        assert_eq!(quantise(f64::NAN), 0.0);
+    }
+
+    #[test]
+    fn a_batch_shares_one_level_and_sets_apart_the_odd_recording() {
+        let runs: Vec<Vec<Vec<f64>>> = (0..6)
+            .map(|k| {
+                let sigma = if k == 5 { 0.2 } else { 0.03 };
+                vec![
+                    ringing(151, 51.0, sigma, 10 + k),
+                    ringing(151, 40.0, 0.01, 20 + k),
+                ]
+            })
+            .collect();
+        let refs: Vec<&[Vec<f64>]> = runs.iter().map(|r| &r[..]).collect();
+        let b = batch_levels(&refs, &[0, 1], &[None; 5]).unwrap();
+        for k in 0..5 {
+            assert_eq!(b.sources[k], Source::Batch);
+            assert_eq!(b.levels[k], b.levels[0]);
+        }
+        assert!(
+            (b.levels[0][0] / 0.03 - 1.0).abs() < 0.12,
+            "{:?}",
+            b.levels[0]
+        );
+        assert_eq!(b.sources[5], Source::Own);
+        assert!(
+            (b.levels[5][0] / 0.2 - 1.0).abs() < 0.25,
+            "{:?}",
+            b.levels[5]
+        );
+        // Stated channels are taken as stated.
+        let stated = [None, Some(0.5), None, None, None];
+        let b = batch_levels(&refs, &[0, 1], &stated).unwrap();
+        assert!(b.levels.iter().all(|l| l[1] == 0.5));
+    }
+
+    #[test]
+    fn statements_parse_or_name_what_is_wrong() {
+        assert_eq!(parse_statement("auto").unwrap(), [None; 5]);
+        assert_eq!(parse_statement("none").unwrap(), [Some(0.0); 5]);
+        assert_eq!(
+            parse_statement("theta12=2e-3, fx=1e-4").unwrap(),
+            [None, Some(2e-3), None, Some(1e-4), None]
+        );
+        for bad in ["theta3=1", "m0=-1", "m0=nan", "m0", "", "m0=1,m0=2"] {
+            let e = parse_statement(bad).unwrap_err().to_string();
+            assert!(e.contains("noise"), "{bad}: {e}");
+        }
+    }
+}
