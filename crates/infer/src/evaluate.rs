@@ -210,9 +210,12 @@ pub fn evaluate_with(
     let grid = family.grid();
     let grid_runs = family.simulate_all(&grid, &noise, seed, &stage("grid", grid.len()))?;
     let grid_seconds = start.elapsed().as_secs_f64();
-    // What the estimators know of the noise: what they measure on the recordings.
+    // What the estimators know of the noise: the sensor noise is what they measure on the
+    // recordings; the random forces are part of the experiment's world, stated as a scenario
+    // file's `process_noise` would state them.
     let recordings: Vec<&[Vec<f64>]> = grid_runs.iter().map(|s| &s.series[..]).collect();
-    let estimated_noise = estimated_noise(family, &recordings)?;
+    let mut estimated_noise = estimated_noise(family, &recordings)?;
+    estimated_noise.process = estimated_noise.process.max(noise.process);
     let is_template: Vec<bool> = grid.iter().map(|p| family.is_template(p)).collect();
     let mut templates: Vec<Sample> = grid_runs
         .iter()
