@@ -5,13 +5,16 @@
 //! e1|e2`) simulated at the files' rate and length (once per distinct timing), and prints one
 //! estimate per file in the contract's JSON form, named by the family's unknowns.
 
+use crate::files::Pending;
 use crate::output::{sig, FormatArgs, Render};
+use crate::plot::{Axis, Curve, Panel};
 use anyhow::{anyhow, bail, Context, Result};
 use serde::Serialize;
 use serde_json::{json, Map, Value};
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+use vibrissa_infer::check::{self, Check};
 use vibrissa_infer::{methods, training_for, Estimate, Family, Method, Variant, CHANNELS};
 
 /// Arguments of `vibrissa estimate`.
@@ -75,6 +78,15 @@ pub struct Args {
     /// injection; a fraction of 0.5 of the particles).
     #[arg(long, value_name = "METHOD")]
     pub(crate) inject: Option<String>,
+    /// Check each recording against the scenario at its estimate: the scenario is simulated there
+    /// and each channel's residual compared with the sensor noise (a warning when the scenario
+    /// does not explain the recording; `"check"` in the JSON).
+    #[arg(long)]
+    pub(crate) check: bool,
+    /// With --check: draw the recording, the simulation at the estimate and the residual, one
+    /// panel per channel, to this PNG (one recording only).
+    #[arg(long, value_name = "FILE.png")]
+    pub(crate) check_plot: Option<PathBuf>,
     #[command(flatten)]
     pub(crate) format: FormatArgs,
 }
@@ -107,6 +119,8 @@ struct Report {
     method: String,
     train_seconds: f64,
     train_runs: usize,
+    /// With `--check`: each row's model check (`None`: not checked, or it could not be).
+    checks: Vec<Option<Check>>,
 }
 
 impl Render for Report {
@@ -144,6 +158,34 @@ impl Render for Report {
                 parts.join(", "),
                 secs * 1e3
             )?;
+        }
+        for (row, check) in self.rows.iter().zip(&self.checks) {
+            if let Some(c) = check {
+                writeln!(
+                    out,
+                    "check of {}: {} (the residual's robust spread / noise level, its lag-1 \
+                     correlation; at most {} is explained)",
+                    row.file.display(),
+                    if c.explained {
+                        "explained by the scenario"
+                    } else {
+                        "NOT explained by the scenario"
+                    },
+                    check::LIMIT
+                )?;
+                for ch in &c.channels {
+                    writeln!(
+                        out,
+                        "  {:8} {:>6.2}  {:>5.2}  (spread {}, RMS {}, noise {})",
+                        ch.channel,
+                        ch.ratio,
+                        ch.lag1,
+                        sig(ch.spread, 3),
+                        sig(ch.rms, 3),
+                        sig(ch.noise, 3)
+                    )?;
+                }
+            }
         }
         Ok(())
     }
@@ -197,7 +239,24 @@ pub fn run(args: &Args) -> Result<()> {
     }
     let stated = stated_noise(&family, &args.noise)?;
     if args.method.as_deref() == Some("pf") {
+        if args.check {
+            bail!(
+                "--check applies to the discriminative methods; the filter's --trace shows its fit"
+            );
+        }
         return crate::estimate_pf::run(args, &family, &stated);
+    }
+    if args.check_plot.is_some() && !args.check {
+        bail!("--check-plot draws the check: give --check as well");
+    }
+    if args.check_plot.is_some() && args.obs.len() != 1 {
+        bail!(
+            "--check-plot draws one recording: give one --obs file (not {})",
+            args.obs.len()
+        );
+    }
+    if let Some(png) = &args.check_plot {
+        crate::plot::check_png(png)?;
     }
     if args.trace.is_some()
         || args.inject.is_some()
@@ -222,6 +281,8 @@ pub fn run(args: &Args) -> Result<()> {
     let levels = noise_levels(&args.obs, &recordings, &needs, &stated)?;
     let mut trained = Trained::default();
     let mut rows = Vec::new();
+    let mut checks = Vec::new();
+    let mut figure = None;
     for ((file, rec), level) in args.obs.iter().zip(&recordings).zip(&levels) {
         let method = trained.get(&family, rec, level, name, args.seed)?;
         let t = Instant::now();
@@ -229,6 +290,14 @@ pub fn run(args: &Args) -> Result<()> {
             .predict(&rec.values)
             .with_context(|| format!("estimating from `{}`", file.display()))?;
         let secs = t.elapsed().as_secs_f64();
+        if args.check {
+            let point: Vec<f64> = est.iter().map(|e| e.mean).collect();
+            let c = check_recording(&family, file, rec, &point, level, &needs);
+            if let (Some(c), Some(png)) = (&c, &args.check_plot) {
+                figure = Some(draw_check(png, file, rec, c)?);
+            }
+            checks.push(c);
+        }
         let named = family
             .unknowns()
             .iter()
@@ -247,10 +316,15 @@ pub fn run(args: &Args) -> Result<()> {
         method: probe.name().into(),
         train_seconds: trained.seconds,
         train_runs: trained.runs,
+        checks,
     };
     match format {
         crate::output::Format::Human => format.print(&report)?,
         crate::output::Format::Json => print_json(&report, args.obs.len() > 1)?,
+    }
+    if let (Some(f), Some(png)) = (figure, &args.check_plot) {
+        f.commit()?;
+        eprintln!("wrote {}", png.display());
     }
     Ok(())
 }
@@ -263,6 +337,7 @@ pub(crate) fn print_json_rows(rows: &[FileEstimate], method: &str, lines: bool) 
             method: method.into(),
             train_seconds: 0.0,
             train_runs: 0,
+            checks: Vec::new(),
         },
         lines,
     )
@@ -272,7 +347,7 @@ pub(crate) fn print_json_rows(rows: &[FileEstimate], method: &str, lines: bool) 
 fn print_json(report: &Report, lines: bool) -> Result<()> {
     let stdout = io::stdout();
     let mut out = stdout.lock();
-    for row in &report.rows {
+    for (k, row) in report.rows.iter().enumerate() {
         let mut obj = Map::new();
         if lines {
             obj.insert("file".into(), json!(row.file.display().to_string()));
@@ -294,6 +369,18 @@ fn print_json(report: &Report, lines: bool) -> Result<()> {
                     .collect(),
             ),
         );
+        if let Some(Some(c)) = report.checks.get(k) {
+            obj.insert(
+                "check".into(),
+                json!({
+                    "explained": c.explained,
+                    "limit": check::LIMIT,
+                    "channels": c.channels.iter().map(|ch| (ch.channel.to_string(), json!({
+                        "rms": ch.rms, "spread": ch.spread, "noise": ch.noise, "ratio": ch.ratio, "lag1": ch.lag1,
+                    }))).collect::<Map<String, Value>>(),
+                }),
+            );
+        }
         let row = Row { value: obj };
         if lines {
             serde_json::to_writer(&mut out, &row)?;
@@ -595,4 +682,106 @@ pub(crate) fn read_recording(
         rate,
         segments,
     })
+}
+
+/// The model check of one recording at `point` (see [`vibrissa_infer::check`]), with a warning
+/// on standard error when the scenario does not explain it; `None` (with a warning) when the
+/// scenario cannot be simulated at the estimate.
+fn check_recording(
+    family: &Family,
+    file: &Path,
+    rec: &Recording,
+    point: &[f64],
+    noise: &[f64; 5],
+    channels: &[usize],
+) -> Option<Check> {
+    let result = family
+        .with_timing(rec.rate, rec.t.len())
+        .and_then(|timed| check::check(&timed, &rec.values, point, noise, channels));
+    match result {
+        Ok(c) => {
+            if let (false, Some(w)) = (c.explained, c.worst()) {
+                eprintln!(
+                    "warning: `{}`: the scenario does not explain this recording at its estimate: \
+                     {} leaves {:.1} times its noise level (residual lag-1 correlation {:.2}); the \
+                     estimate and its interval assume a model that does not fit (calibrate the \
+                     scenario: vibrissa calibrate)",
+                    file.display(),
+                    w.channel,
+                    w.ratio,
+                    w.lag1
+                );
+            }
+            Some(c)
+        }
+        Err(e) => {
+            eprintln!(
+                "warning: `{}`: cannot check the recording at its estimate: {e}",
+                file.display()
+            );
+            None
+        }
+    }
+}
+
+/// The check's figure: per checked channel, the recording, the simulation at the estimate and
+/// the residual.
+fn draw_check(png: &Path, file: &Path, rec: &Recording, c: &Check) -> Result<Pending> {
+    let units = vibrissa_infer::calibrate::UNITS;
+    let n = rec.t.len();
+    let series: Vec<(usize, Vec<f64>, Vec<f64>)> = c
+        .channels
+        .iter()
+        .filter_map(|ch| CHANNELS.iter().position(|n| *n == ch.channel))
+        .map(|k| {
+            let sim: Vec<f64> = (0..n)
+                .map(|i| c.simulated[k].get(i).copied().unwrap_or(f64::NAN))
+                .collect();
+            let res: Vec<f64> = rec.values[k].iter().zip(&sim).map(|(y, s)| y - s).collect();
+            (k, sim, res)
+        })
+        .collect();
+    let panels: Vec<Panel> = series
+        .iter()
+        .map(|(k, sim, res)| Panel {
+            quantity: CHANNELS[*k],
+            unit: units[*k],
+            curves: vec![
+                Curve {
+                    name: "recorded",
+                    values: &rec.values[*k],
+                    dashed: false,
+                },
+                Curve {
+                    name: "simulated at the estimate",
+                    values: sim,
+                    dashed: true,
+                },
+                Curve {
+                    name: "residual",
+                    values: res,
+                    dashed: false,
+                },
+            ],
+        })
+        .collect();
+    crate::plot::render_series(
+        png,
+        &format!(
+            "check of {}: {}",
+            file.display(),
+            if c.explained {
+                "explained by the scenario"
+            } else {
+                "not explained by the scenario"
+            }
+        ),
+        &Axis {
+            quantity: "t",
+            unit: "s",
+            values: &rec.t,
+        },
+        &panels,
+        None,
+    )
 }

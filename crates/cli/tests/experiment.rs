@@ -783,3 +783,89 @@ fn estimate_measures_the_recordings_noise_and_reports_it() {
         String::from_utf8_lossy(&out.stderr)
     );
 }
+
+#[test]
+fn estimate_check_tells_a_recording_of_the_scenario_from_one_of_another_whisker() {
+    let dir = temp("check");
+    let sigma = [3.6e-3, 9.0e-3, 1.4e-6, 8.8e-5, 7.2e-5];
+    // The same strike by the nominal whisker and by one 40% stiffer (and as heavy).
+    let strike = |name: &str, sets: &[&str]| {
+        let csv = dir.join(name);
+        let mut sim = vibrissa();
+        sim.args(["simulate", "e2", "--set", "d=0.021", "--set", "v=0.7"])
+            .args(["--set", "seed=5"]);
+        for (c, s) in ["theta01", "theta12", "m0", "fx", "fy"].iter().zip(sigma) {
+            sim.args(["--set", &format!("sensor_noise.{c}={s}")]);
+        }
+        for s in sets {
+            sim.args(["--set", s]);
+        }
+        let out = sim.arg("--out").arg(&csv).output().unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        csv
+    };
+    let own = strike("own.csv", &[]);
+    let other = strike("other.csv", &["whisker.youngs_modulus=4.2e9"]);
+    let png = dir.join("check.png");
+    let check = |csv: &Path, extra: &[&str]| {
+        vibrissa()
+            .args(["estimate", "--experiment", "e2", "--method", "knn"])
+            .args(["--check", "--json"])
+            .args(extra)
+            .arg("--obs")
+            .arg(csv)
+            .output()
+            .unwrap()
+    };
+    let out = check(&own, &["--check-plot", png.to_str().unwrap()]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["check"]["explained"], true, "{v}");
+    for c in ["theta01", "theta12", "m0", "fx", "fy"] {
+        let ratio = v["check"]["channels"][c]["ratio"].as_f64().unwrap();
+        assert!(ratio > 0.5 && ratio < 2.0, "{c}: {ratio}");
+    }
+    assert!(png.exists(), "the check's figure");
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("does not explain"));
+
+    let out = check(&other, &[]);
+    assert!(out.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["check"]["explained"], false, "{v}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("does not explain this recording"), "{err}");
+
+    // The figure needs --check and one recording; nothing is written when refused.
+    let refused = dir.join("refused.png");
+    let out = vibrissa()
+        .args(["estimate", "--experiment", "e2", "--method", "knn"])
+        .args(["--check-plot", refused.to_str().unwrap(), "--obs"])
+        .arg(&own)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--check"));
+    let out = vibrissa()
+        .args(["estimate", "--experiment", "e2", "--method", "knn"])
+        .args([
+            "--check",
+            "--check-plot",
+            refused.to_str().unwrap(),
+            "--obs",
+        ])
+        .arg(&own)
+        .arg(&other)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("one --obs file"));
+    assert!(!refused.exists());
+}

@@ -11,6 +11,7 @@
 #![warn(missing_docs)]
 
 pub mod calibrate;
+pub mod check;
 pub mod error;
 pub mod evaluate;
 pub mod experiment;

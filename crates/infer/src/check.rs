@@ -1,0 +1,236 @@
+//! Model checking: whether a recording is plausible under its scenario at an estimate.
+//!
+//! The scenario is simulated at the estimate (every unknown at its posterior mean, no noise) at
+//! the recording's timing, and each channel's residual (recorded − simulated) is compared with
+//! the sensor noise the estimate used. If the scenario explains the recording, what is left is
+//! the sensor noise: its spread is about one noise level and it is uncorrelated from sample to
+//! sample. A model that does not fit leaves a residual that is larger than the noise and smooth
+//! (a lag-1 autocorrelation near 1). The spread is measured robustly (1.4826 times the median
+//! absolute residual), so that a few samples at a contact event that the simulation places a
+//! time step early or late (spikes in the base forces) do not count as a misfit, while a motion
+//! that is off over much of the recording does.
+//!
+//! Two allowances keep the check from crying wolf on recordings that the scenario does explain:
+//! the noise level it compares with is at least [`FLOOR`] of the channel's range over the
+//! recording (nearly clean recordings would otherwise fail on the estimate's own error and on the
+//! simulator's resolution), and a channel fails only when its residual's spread exceeds
+//! [`LIMIT`] times that level.
+
+use crate::error::{Error, Result};
+use crate::experiment::{Noise, CHANNELS};
+use crate::family::Family;
+use serde::Serialize;
+
+/// Robust spread of the residual, in units of the noise level, above which a channel is not
+/// explained.
+pub const LIMIT: f64 = 2.0;
+
+/// Least noise level a residual is compared with, as a fraction of the channel's range.
+pub const FLOOR: f64 = 0.005;
+
+/// The check of one channel.
+#[derive(Debug, Clone, Serialize)]
+pub struct ChannelCheck {
+    /// The channel's name (`theta01`, …).
+    pub channel: &'static str,
+    /// RMS of the residual, SI.
+    pub rms: f64,
+    /// Robust spread of the residual (1.4826 × its median absolute value), SI.
+    pub spread: f64,
+    /// The noise level it is compared with (the estimate's, at least [`FLOOR`] of the range), SI.
+    pub noise: f64,
+    /// `spread / noise`: about 1 when the scenario explains the channel.
+    pub ratio: f64,
+    /// Lag-1 autocorrelation of the residual: about 0 for sensor noise, near 1 for a misfit.
+    pub lag1: f64,
+    /// Whether the residual is within [`LIMIT`] noise levels.
+    pub explained: bool,
+}
+
+/// The check of one recording.
+#[derive(Debug, Clone, Serialize)]
+pub struct Check {
+    /// One entry per checked channel.
+    pub channels: Vec<ChannelCheck>,
+    /// Whether every channel is explained.
+    pub explained: bool,
+    /// The simulation at the estimate, channel-major over [`CHANNELS`] (for figures).
+    #[serde(skip)]
+    pub simulated: Vec<Vec<f64>>,
+}
+
+impl Check {
+    /// The channel that is worst explained (largest ratio), if any channel was checked.
+    pub fn worst(&self) -> Option<&ChannelCheck> {
+        self.channels
+            .iter()
+            .max_by(|a, b| a.ratio.total_cmp(&b.ratio))
+    }
+}
+
+/// Checks `recording` (channel-major over [`CHANNELS`], at `family`'s timing: see
+/// [`Family::with_timing`]) against `family` simulated at `estimate` (one value per unknown),
+/// on `channels`, with the sensor noise `noise` (SI, per channel of [`CHANNELS`]).
+pub fn check(
+    family: &Family,
+    recording: &[Vec<f64>],
+    estimate: &[f64],
+    noise: &[f64; 5],
+    channels: &[usize],
+) -> Result<Check> {
+    if let Some(bad) = estimate.iter().find(|x| !x.is_finite()) {
+        return Err(Error::Observation(format!(
+            "cannot check a recording at a non-finite estimate ({bad})"
+        )));
+    }
+    let simulated = family.simulate(estimate, &Noise::NONE, 0)?.series;
+    let mut out = Vec::with_capacity(channels.len());
+    for &c in channels {
+        let (Some(y), Some(s)) = (recording.get(c), simulated.get(c)) else {
+            continue;
+        };
+        let pairs: Vec<(f64, f64)> = y
+            .iter()
+            .zip(s)
+            .filter(|(y, s)| y.is_finite() && s.is_finite())
+            .map(|(&y, &s)| (y, s))
+            .collect();
+        if pairs.len() < 3 {
+            continue;
+        }
+        let residual: Vec<f64> = pairs.iter().map(|(y, s)| y - s).collect();
+        let (lo, hi) = pairs
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), (y, _)| {
+                (lo.min(*y), hi.max(*y))
+            });
+        let level = noise[c].max(FLOOR * (hi - lo));
+        let rms = (residual.iter().map(|e| e * e).sum::<f64>() / residual.len() as f64).sqrt();
+        let mut abs: Vec<f64> = residual.iter().map(|e| e.abs()).collect();
+        let mid = abs.len() / 2;
+        let spread = 1.4826 * *abs.select_nth_unstable_by(mid, f64::total_cmp).1;
+        let ratio = if level > 0.0 {
+            spread / level
+        } else if spread == 0.0 {
+            0.0
+        } else {
+            f64::INFINITY
+        };
+        out.push(ChannelCheck {
+            channel: CHANNELS[c],
+            rms,
+            spread,
+            noise: level,
+            ratio,
+            lag1: lag1(&residual),
+            explained: ratio <= LIMIT,
+        });
+    }
+    if out.is_empty() {
+        return Err(Error::Observation(
+            "no channel to check: every checked channel is missing or has fewer than 3 numbers"
+                .into(),
+        ));
+    }
+    let explained = out.iter().all(|c| c.explained);
+    Ok(Check {
+        channels: out,
+        explained,
+        simulated,
+    })
+}
+
+/// Lag-1 autocorrelation of `e` about its mean (0 for a constant series).
+fn lag1(e: &[f64]) -> f64 {
+    let n = e.len() as f64;
+    let mean = e.iter().sum::<f64>() / n;
+    let var: f64 = e.iter().map(|x| (x - mean).powi(2)).sum();
+    if var <= 0.0 {
+        return 0.0;
+    }
+    let cov: f64 = e.windows(2).map(|w| (w[0] - mean) * (w[1] - mean)).sum();
+    cov / var
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use vibrissa_core::rng::Rng;
+
+    fn family() -> Family {
+        Family::open("e2", &[]).expect("e2")
+    }
+
+    fn noisy(series: &[Vec<f64>], sigma: &[f64; 5], seed: u64) -> Vec<Vec<f64>> {
+        let mut rng = Rng::stream(seed, 7);
+        series
+            .iter()
+            .enumerate()
+            .map(|(c, x)| x.iter().map(|v| v + sigma[c] * rng.normal()).collect())
+            .collect()
+    }
+
+    fn ranges(series: &[Vec<f64>]) -> [f64; 5] {
+        std::array::from_fn(|c| {
+            let (lo, hi) = series[c]
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+                    (l.min(*v), h.max(*v))
+                });
+            hi - lo
+        })
+    }
+
+    #[test]
+    fn a_recording_of_the_scenario_is_explained_at_its_truth() {
+        let f = family();
+        let truth = [0.021, 0.7];
+        let clean = f.simulate(&truth, &Noise::NONE, 0).expect("sim").series;
+        let r = ranges(&clean);
+        let sigma: [f64; 5] = std::array::from_fn(|c| 0.03 * r[c]);
+        let rec = noisy(&clean, &sigma, 3);
+        let all: Vec<usize> = (0..5).collect();
+        let c = check(&f, &rec, &truth, &sigma, &all).expect("check");
+        assert!(c.explained, "{:?}", c.channels);
+        for ch in &c.channels {
+            assert!((ch.ratio - 1.0).abs() < 0.2, "{ch:?}");
+            assert!(ch.lag1.abs() < 0.3, "{ch:?}");
+        }
+    }
+
+    #[test]
+    fn a_wrong_scenario_is_not_explained() {
+        // The recording's whisker is 30% stiffer than the scenario's.
+        let f = family();
+        let stiff = Family::open("e2", &["whisker.youngs_modulus=3.9e9".to_string()]).expect("e2");
+        let truth = [0.021, 0.7];
+        let clean = stiff.simulate(&truth, &Noise::NONE, 0).expect("sim").series;
+        let r = ranges(&clean);
+        let sigma: [f64; 5] = std::array::from_fn(|c| 0.03 * r[c]);
+        let rec = noisy(&clean, &sigma, 4);
+        let all: Vec<usize> = (0..5).collect();
+        let c = check(&f, &rec, &truth, &sigma, &all).expect("check");
+        assert!(!c.explained, "{:?}", c.channels);
+        let worst = c.worst().expect("channels");
+        assert!(worst.ratio > LIMIT && worst.lag1 > 0.5, "{worst:?}");
+    }
+
+    #[test]
+    fn nearly_clean_recordings_are_compared_with_the_floor() {
+        let f = family();
+        let truth = [0.021, 0.7];
+        let clean = f.simulate(&truth, &Noise::NONE, 0).expect("sim").series;
+        let c = check(&f, &clean, &[0.0211, 0.7], &[0.0; 5], &[0, 1]).expect("check");
+        for ch in &c.channels {
+            assert!(ch.noise > 0.0 && ch.ratio.is_finite(), "{ch:?}");
+        }
+    }
+
+    #[test]
+    fn a_non_finite_estimate_is_refused() {
+        let f = family();
+        let rec = vec![vec![0.0; 151]; 5];
+        let e = check(&f, &rec, &[f64::NAN, 0.7], &[1e-3; 5], &[0]).unwrap_err();
+        assert!(e.to_string().contains("non-finite"), "{e}");
+    }
+}
