@@ -23,6 +23,8 @@ def main():
     ap.add_argument("--vibrissa", default="target/release/vibrissa", help="the vibrissa binary")
     ap.add_argument("--noise", help="passed to estimate (default: the recordings' noise is "
                     "estimated from them)")
+    ap.add_argument("--randomise", action="store_true",
+                    help="train on randomised whiskers (estimate --randomise)")
     a = ap.parse_args()
 
     with open(os.path.join(a.labelled, "truth.csv"), newline="") as f:
@@ -42,6 +44,8 @@ def main():
         cmd = [a.vibrissa, "estimate", "--scenario", a.scenario, "--method", m, "--json"]
         if a.noise:
             cmd += ["--noise", a.noise]
+        if a.randomise:
+            cmd += ["--randomise"]
         for f in files:
             cmd += ["--obs", f]
         out = subprocess.run(cmd, capture_output=True, text=True)

@@ -869,3 +869,79 @@ fn estimate_check_tells_a_recording_of_the_scenario_from_one_of_another_whisker(
     assert!(String::from_utf8_lossy(&out.stderr).contains("one --obs file"));
     assert!(!refused.exists());
 }
+
+#[test]
+fn estimate_randomise_trains_on_whiskers_around_the_scenario() {
+    let dir = temp("randomise");
+    let sigma = [3.6e-3, 9.0e-3, 1.4e-6, 8.8e-5, 7.2e-5];
+    // A strike by a whisker 25% stiffer and 20% lighter than the scenario says, in a compliant
+    // follicle.
+    let csv = dir.join("other.csv");
+    let mut sim = vibrissa();
+    sim.args(["simulate", "e2", "--set", "d=0.021", "--set", "v=0.7"])
+        .args(["--set", "seed=6", "--set", "whisker.youngs_modulus=3.75e9"])
+        .args(["--set", "whisker.density=880"])
+        .args(["--set", "whisker.follicle.kind=spring"])
+        .args(["--set", "whisker.follicle.stiffness=3e-4"])
+        .args(["--set", "whisker.follicle.damping=3e-8"]);
+    for (c, s) in ["theta01", "theta12", "m0", "fx", "fy"].iter().zip(sigma) {
+        sim.args(["--set", &format!("sensor_noise.{c}={s}")]);
+    }
+    let out = sim.arg("--out").arg(&csv).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let estimate = |extra: &[&str]| {
+        let out = vibrissa()
+            .args([
+                "estimate",
+                "--experiment",
+                "e2",
+                "--method",
+                "knn",
+                "--json",
+            ])
+            .args(extra)
+            .arg("--obs")
+            .arg(&csv)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        serde_json::from_slice::<serde_json::Value>(&out.stdout).unwrap()
+    };
+    let nominal = estimate(&[]);
+    let randomised = estimate(&["--randomise"]);
+    let width = |v: &serde_json::Value| {
+        v["d"]["ci90"][1].as_f64().unwrap() - v["d"]["ci90"][0].as_f64().unwrap()
+    };
+    // Trained on whiskers that vary, the interval is wider and holds the true distance.
+    assert!(
+        width(&randomised) > width(&nominal),
+        "{nominal} {randomised}"
+    );
+    let [lo, hi] = [0, 1].map(|k| randomised["d"]["ci90"][k].as_f64().unwrap());
+    assert!(lo <= 0.021 && 0.021 <= hi, "{randomised}");
+
+    // Not for the filter.
+    let out = vibrissa()
+        .args([
+            "estimate",
+            "--experiment",
+            "e2",
+            "--method",
+            "pf",
+            "--randomise",
+            "--obs",
+        ])
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--randomise"));
+}

@@ -517,7 +517,9 @@ pub fn estimated_noise(family: &Family, recordings: &[&[Vec<f64>]]) -> Result<No
 /// recordings' noise as estimated or stated: see [`Family::training_noise`]): the templates
 /// under the paper's budget, the emulator's grid (calibrated on random runs), random runs
 /// followed by the emulator's grid and the edge runs (`krr`, `krr-local`) or random runs under
-/// a free budget. The particle filter (`pf`) needs no runs: it takes the noise alone.
+/// a free budget. The particle filter (`pf`) needs no runs: it takes the noise alone. With a
+/// randomised family ([`Family::randomised`]) every run of a free budget has its own whisker and
+/// sensor gains; the paper's templates are the scenario's own.
 pub fn training_for(
     family: &Family,
     noise: &Noise,
@@ -540,7 +542,9 @@ pub fn training_for(
                 .filter(|p| family.is_template(p))
                 .collect();
             let p = if p.is_empty() { family.templates() } else { p };
-            training(family.simulate_all(&p, &noise, seed, &none)?, Vec::new())
+            // Template methods compare with the scenario's own runs, never randomised ones.
+            let nominal = family.nominal();
+            training(nominal.simulate_all(&p, &noise, seed, &none)?, Vec::new())
         }
         (Budget::Free, "pf") => training(Vec::new(), Vec::new()),
         (Budget::Free, name) => {

@@ -9,6 +9,7 @@
 
 use crate::error::{Error, Result};
 use crate::experiment::{Noise, Sample, Variant, CHANNELS, SENSOR_NOISE_FRACTION};
+use crate::randomise::{Around, Randomisation};
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::sync::{Mutex, OnceLock};
@@ -35,6 +36,8 @@ pub struct Family {
     samples: usize,
     /// The sensor noise the file states per channel of [`CHANNELS`] (its `[sensor_noise]`).
     stated_noise: [Option<f64>; 5],
+    /// Whether every run gets its own whisker and sensor gains ([`crate::randomise`]).
+    randomised: Option<Around>,
 }
 
 /// A small cache of values computed once per family (by digest): the noisy variant's levels.
@@ -66,6 +69,7 @@ impl Family {
             experiment: loaded.experiment,
             samples,
             stated_noise: loaded.stated_sensor_noise,
+            randomised: None,
         })
     }
 
@@ -231,9 +235,33 @@ impl Family {
         Ok(f)
     }
 
+    /// The same family with every run's whisker and sensor gains drawn from `prior` around the
+    /// scenario's (domain randomisation, for training runs: see [`crate::randomise`]).
+    pub fn randomised(&self, prior: Randomisation) -> Result<Family> {
+        let mut f = self.clone();
+        f.randomised = Some(Around::new(&self.base, prior)?);
+        Ok(f)
+    }
+
+    /// The same family with the scenario's own whisker in every run.
+    pub fn nominal(&self) -> Family {
+        Family {
+            randomised: None,
+            ..self.clone()
+        }
+    }
+
+    /// The prior of randomised runs, if the family's runs are randomised.
+    pub fn randomisation(&self) -> Option<Randomisation> {
+        self.randomised.map(|a| a.prior)
+    }
+
     /// A digest of the family and its timing, for caches of training runs.
     pub fn digest(&self) -> u64 {
         let mut h = self.doc.digest();
+        if self.randomised.is_some() {
+            h = (h ^ 0x7a11_d0e5).wrapping_mul(0x0000_0100_0000_01b3);
+        }
         for x in [self.base.sample_rate, self.base.duration] {
             h = (h ^ x.to_bits()).wrapping_mul(0x0000_0100_0000_01b3);
         }
@@ -272,6 +300,9 @@ impl Family {
         seed: u64,
     ) -> Result<Sample> {
         let mut s = self.scenario(p)?;
+        if let Some(around) = &self.randomised {
+            around.apply(&mut s, seed);
+        }
         if delay != 0.0 {
             for o in &mut s.objects {
                 match &mut o.motion {
@@ -386,11 +417,14 @@ impl Family {
                 let reference = Family {
                     spec: e2.spec,
                     experiment: self.experiment,
+                    randomised: None,
                     ..self.clone()
                 };
                 reference.simulate_all(&reference.grid(), &Noise::NONE, 0, &|| {})?
             }
-            None => self.simulate_all(&self.grid(), &Noise::NONE, 0, &|| {})?,
+            None => self
+                .nominal()
+                .simulate_all(&self.grid(), &Noise::NONE, 0, &|| {})?,
         };
         let mut lo = [f64::INFINITY; 5];
         let mut hi = [f64::NEG_INFINITY; 5];

@@ -21,6 +21,7 @@ pub mod method;
 pub mod methods;
 pub mod noise;
 pub mod pf;
+pub mod randomise;
 pub mod standin;
 pub mod unknown_start;
 
