@@ -223,11 +223,14 @@ pub fn evaluate_with(
         .filter(|(_, t)| **t)
         .map(|(s, _)| s.clone())
         .collect();
+    // Training runs carry the scenario's random forces and the sensor noise that the measured
+    // level leaves beyond their response (see `Family::training_sensor_noise`).
+    let simulated_noise = family.training_sensor_noise(&estimated_noise)?;
     // Templates that the grid does not hold are simulated on their own.
     let template_p = family.templates();
     if templates.len() != template_p.len() {
         templates =
-            family.simulate_all(&template_p, &estimated_noise, seed.wrapping_add(4), &|| {})?;
+            family.simulate_all(&template_p, &simulated_noise, seed.wrapping_add(4), &|| {})?;
     }
     let evaluated: Vec<&Sample> = grid_runs
         .iter()
@@ -241,7 +244,7 @@ pub fn evaluate_with(
     let random_p = family.random_params(random_runs(family), seed ^ 0x5eed);
     let random = family.simulate_all(
         &random_p,
-        &estimated_noise,
+        &simulated_noise,
         seed.wrapping_add(1),
         &stage("training runs", random_p.len()),
     )?;
@@ -250,7 +253,7 @@ pub fn evaluate_with(
     let design = Interp::design(family);
     let dense = family.simulate_all(
         &design,
-        &estimated_noise,
+        &simulated_noise,
         seed.wrapping_add(2),
         &stage("emulator grid", design.len()),
     )?;
@@ -259,7 +262,7 @@ pub fn evaluate_with(
     let edge_p = edge_params(family, edge_runs(family), seed ^ 0xed9e);
     let edge = family.simulate_all(
         &edge_p,
-        &estimated_noise,
+        &simulated_noise,
         seed.wrapping_add(3),
         &stage("edge runs", edge_p.len()),
     )?;
@@ -527,6 +530,13 @@ pub fn training_for(
     seed: u64,
 ) -> Result<Training> {
     let noise = *noise;
+    // The filter takes the measured noise as it is; training runs carry the random forces and
+    // what the measured level leaves beyond their response.
+    let simulated = if method.name() == "pf" {
+        noise
+    } else {
+        family.training_sensor_noise(&noise)?
+    };
     let none = || {};
     let training = |samples, calibration| Training {
         family: family.clone(),
@@ -544,21 +554,36 @@ pub fn training_for(
             let p = if p.is_empty() { family.templates() } else { p };
             // Template methods compare with the scenario's own runs, never randomised ones.
             let nominal = family.nominal();
-            training(nominal.simulate_all(&p, &noise, seed, &none)?, Vec::new())
+            training(
+                nominal.simulate_all(&p, &simulated, seed, &none)?,
+                Vec::new(),
+            )
         }
         (Budget::Free, "pf") => training(Vec::new(), Vec::new()),
         (Budget::Free, name) => {
             let random_p = family.random_params(random_runs(family), seed ^ 0x5eed);
-            let mut random = family.simulate_all(&random_p, &noise, seed.wrapping_add(1), &none)?;
+            let mut random =
+                family.simulate_all(&random_p, &simulated, seed.wrapping_add(1), &none)?;
             if name == "krr" || name == "krr-local" {
                 let design = Interp::design(family);
-                random.extend(family.simulate_all(&design, &noise, seed.wrapping_add(2), &none)?);
+                random.extend(family.simulate_all(
+                    &design,
+                    &simulated,
+                    seed.wrapping_add(2),
+                    &none,
+                )?);
                 let edge_p = edge_params(family, edge_runs(family), seed ^ 0xed9e);
-                random.extend(family.simulate_all(&edge_p, &noise, seed.wrapping_add(3), &none)?);
+                random.extend(family.simulate_all(
+                    &edge_p,
+                    &simulated,
+                    seed.wrapping_add(3),
+                    &none,
+                )?);
                 training(random, Vec::new())
             } else if name == "emulator" {
                 let design = Interp::design(family);
-                let dense = family.simulate_all(&design, &noise, seed.wrapping_add(2), &none)?;
+                let dense =
+                    family.simulate_all(&design, &simulated, seed.wrapping_add(2), &none)?;
                 training(dense, random)
             } else {
                 training(random, Vec::new())

@@ -186,6 +186,51 @@ impl Family {
         }
     }
 
+    /// The noise to simulate training runs with, for recordings whose noise was measured as
+    /// `measured`: the scenario's random forces (`process_noise`) shake the whisker fast enough
+    /// that part of what a noise estimate measures on a recording is their response, and training
+    /// runs simulated with the same random forces carry that part already. Each channel's sensor
+    /// noise is therefore what the measured level leaves above the level the random forces alone
+    /// show to the same estimator (on the scenario's templates, clean sensors), in quadrature;
+    /// without random forces it is the measured level itself.
+    pub fn training_sensor_noise(&self, measured: &Noise) -> Result<Noise> {
+        if measured.process <= 0.0 {
+            return Ok(*measured);
+        }
+        let response = self.process_response(measured.process)?;
+        Ok(Noise {
+            sensor: std::array::from_fn(|c| {
+                (measured.sensor[c].powi(2) - response[c].powi(2))
+                    .max(0.0)
+                    .sqrt()
+            }),
+            process: measured.process,
+        })
+    }
+
+    /// The noise level each channel shows to [`crate::noise::estimate_pooled`] on the templates
+    /// simulated with random forces of intensity `process` and clean sensors (cached per family).
+    fn process_response(&self, process: f64) -> Result<[f64; 5]> {
+        let key = (self.nominal().digest() ^ process.to_bits()).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+        if let Some(r) = noise_cache().lock().ok().and_then(|c| c.get(&key).copied()) {
+            return Ok(r);
+        }
+        let noise = Noise {
+            sensor: [0.0; 5],
+            process,
+        };
+        let runs = self
+            .nominal()
+            .simulate_all(&self.templates(), &noise, 0x9e0c, &|| {})?;
+        let series: Vec<&[Vec<f64>]> = runs.iter().map(|s| &s.series[..]).collect();
+        let all: Vec<usize> = (0..CHANNELS.len()).collect();
+        let response = crate::noise::estimate_pooled(&series, &all)?;
+        if let Ok(mut c) = noise_cache().lock() {
+            c.insert(key, response);
+        }
+        Ok(response)
+    }
+
     /// The whisker.
     pub fn whisker(&self) -> &WhiskerParams {
         &self.base.whisker
@@ -465,6 +510,28 @@ fn product(values: &[Vec<f64>]) -> Vec<Vec<f64>> {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn training_noise_leaves_out_what_the_random_forces_show() {
+        let e2 = Family::builtin("e2").unwrap();
+        let measured = Noise {
+            sensor: [6e-3, 1.5e-2, 2.5e-6, 3.5e-4, 2e-4],
+            process: 2e-5,
+        };
+        let t = e2.training_sensor_noise(&measured).unwrap();
+        // The forces' response is a large part of the base forces' level, a small part of the
+        // angles'.
+        assert!(t.sensor[3] < 0.9 * measured.sensor[3], "{:?}", t.sensor);
+        assert!(t.sensor[0] > 0.9 * measured.sensor[0], "{:?}", t.sensor);
+        assert!(t.sensor.iter().all(|x| x.is_finite() && *x >= 0.0));
+        assert_eq!(t.process, measured.process);
+        // Without random forces the measured level is the sensor noise.
+        let quiet = Noise {
+            process: 0.0,
+            ..measured
+        };
+        assert_eq!(e2.training_sensor_noise(&quiet).unwrap(), quiet);
+    }
     use super::*;
 
     #[test]
