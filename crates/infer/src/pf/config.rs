@@ -77,8 +77,15 @@ pub struct Config {
     pub max_iterations: usize,
     /// Observed channels, indices into [`CHANNELS`].
     pub channels: Vec<usize>,
-    /// Observation noise standard deviation per channel of [`CHANNELS`], SI.
+    /// Observation noise standard deviation per channel of [`CHANNELS`], SI (in the recorded
+    /// units, after the sensors' gains).
     pub sigma: [f64; 5],
+    /// Gain of the sensor of each channel of [`CHANNELS`]: the filter predicts the recorded value
+    /// `gain · x + offset` from the model's value `x`, as the simulator records it (a scenario's
+    /// `[sensors.<channel>]`).
+    pub sensor_gain: [f64; 5],
+    /// Offset of the sensor of each channel of [`CHANNELS`], in the channel's unit.
+    pub sensor_offset: [f64; 5],
     /// Process-noise intensity on every segment, N·s^½·m^-½.
     pub process_noise: f64,
     /// Liu–West shrinkage `a` in (0, 1].
@@ -110,6 +117,8 @@ impl Config {
             max_iterations: 1,
             channels: (0..CHANNELS.len()).collect(),
             sigma,
+            sensor_gain: [1.0; 5],
+            sensor_offset: [0.0; 5],
             process_noise: crate::experiment::PROCESS_NOISE,
             shrink: 0.98,
             ess_fraction: 0.5,
@@ -149,6 +158,9 @@ impl Config {
         c.whisker = base.whisker.clone();
         c.observed_segments = base.segments;
         c.discretisation = base.discretisation;
+        let sensors = base.sensor_response.to_array();
+        c.sensor_gain = sensors.map(|r| r.gain);
+        c.sensor_offset = sensors.map(|r| r.offset);
         c.priors[3] = Prior::fixed(vibrissa_io::scenario::BOX_SIDE);
         c.gap = vibrissa_io::scenario::BOX_GAP;
         let mut ranges = family.ranges().into_iter().zip(family.margins());
@@ -208,6 +220,15 @@ impl Config {
                 return bad(
                     CHANNELS[c],
                     "a finite observation noise > 0 for every observed channel",
+                );
+            }
+        }
+        for c in 0..CHANNELS.len() {
+            let (g, o) = (self.sensor_gain[c], self.sensor_offset[c]);
+            if !(g.is_finite() && g != 0.0 && o.is_finite()) {
+                return bad(
+                    CHANNELS[c],
+                    "a finite sensor gain other than 0 and a finite sensor offset",
                 );
             }
         }
