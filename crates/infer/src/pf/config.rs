@@ -242,11 +242,13 @@ impl Config {
                 );
             }
         }
-        for c in 0..CHANNELS.len() {
-            let (g, o) = (self.sensor_gain[c], self.sensor_offset[c]);
-            if !(g.is_finite() && g != 0.0 && o.is_finite()) {
+        for (name, (g, o)) in CHANNELS
+            .iter()
+            .zip(self.sensor_gain.iter().zip(&self.sensor_offset))
+        {
+            if !(g.is_finite() && *g != 0.0 && o.is_finite()) {
                 return bad(
-                    CHANNELS[c],
+                    name,
                     "a finite sensor gain other than 0 and a finite sensor offset",
                 );
             }
