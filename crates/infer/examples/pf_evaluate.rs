@@ -115,7 +115,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         pf.inject = Some((inject, m));
     }
     if let Ok(n) = std::env::var("PF_SEGMENTS") {
-        pf.segments = n.parse()?;
+        pf.segments = Some(n.parse()?);
     }
     if let Ok(seed) = std::env::var("PF_SEED") {
         pf.seed = seed.parse()?;

@@ -6,8 +6,11 @@
 //! the channels, in the same units, on the data's chain and on the model's.
 //!
 //! ```sh
-//! cargo run --release -p vibrissa-infer --example pf_fidelity -- SEGMENTS DT ITERATIONS
+//! cargo run --release -p vibrissa-infer --example pf_fidelity -- SEGMENTS DT ITERATIONS [SCENARIO]
 //! ```
+//!
+//! SCENARIO (a family's file, or `e2`, the default) gives the whisker, and the units (its
+//! `noisy` level); the data's chain keeps 20 segments and the default discretisation.
 
 use vibrissa_core::chain::{Discretisation, Model};
 use vibrissa_core::dynamics::Integrator;
@@ -42,6 +45,7 @@ struct Chain {
 
 /// The five channels of run `k` on `chain`, its joint angles mapped onto `observed`'s.
 fn channels(
+    whisker: &vibrissa_core::whisker::WhiskerParams,
     chain: &Chain,
     observed: &Model,
     k: usize,
@@ -49,6 +53,7 @@ fn channels(
 ) -> Result<Vec<[f64; 5]>, Box<dyn std::error::Error>> {
     let (d, v) = RUNS[k];
     let sc = Scenario {
+        whisker: whisker.clone(),
         objects: vec![e2_box(d, v)],
         segments: chain.model.n,
         integrator: chain.integrator,
@@ -108,14 +113,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let segments: usize = arg(&args, 1, 20);
     let dt: f64 = arg(&args, 2, 2.5e-4);
     let iterations: usize = arg(&args, 3, 1);
-    let sigma = Family::builtin("e2")?.noise(Variant::Noisy)?.sensor;
+    let family = match args.get(4) {
+        Some(spec) => Family::open(spec, &[])?,
+        None => Family::builtin("e2")?,
+    };
+    let sigma = family.noise(Variant::Noisy)?.sensor;
+    let whisker = family.whisker().clone();
     let base = Scenario::default();
     // The rows carry only the model's first two joints, enough to map a chain no finer than the
     // data's onto it.
     if segments > base.segments {
         return Err(format!("SEGMENTS must be at most {}", base.segments).into());
     }
-    let w = base.whisker.check()?;
+    let w = whisker.check()?;
     let data = Chain {
         model: Model::new(&w, base.segments, Discretisation::default())?,
         integrator: base.integrator,
@@ -132,13 +142,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         (Rms::new(sigma), Rms::new(sigma), Rms::new(sigma));
     let mut wall = 0.0;
     for k in 0..RUNS.len() {
-        let clean = channels(&data, &data.model, k, 0.0)?;
+        let clean = channels(&whisker, &data, &data.model, k, 0.0)?;
         let t0 = std::time::Instant::now();
-        let coarse = channels(&model, &data.model, k, 0.0)?;
+        let coarse = channels(&whisker, &model, &data.model, k, 0.0)?;
         wall += t0.elapsed().as_secs_f64();
         fit.add(&clean, &coarse);
-        data_noise.add(&clean, &channels(&data, &data.model, k, PROCESS_NOISE)?);
-        model_noise.add(&coarse, &channels(&model, &data.model, k, PROCESS_NOISE)?);
+        data_noise.add(
+            &clean,
+            &channels(&whisker, &data, &data.model, k, PROCESS_NOISE)?,
+        );
+        model_noise.add(
+            &coarse,
+            &channels(&whisker, &model, &data.model, k, PROCESS_NOISE)?,
+        );
     }
     println!(
         "process noise alone, rms / sensor sigma: {}",

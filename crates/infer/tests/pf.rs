@@ -2,8 +2,8 @@
 //! bad input.
 
 use vibrissa_infer::experiment::Noise;
-use vibrissa_infer::pf::{self, Config, Observations, Prior};
-use vibrissa_infer::Family;
+use vibrissa_infer::pf::{self, Config, Observations, Pf, Prior};
+use vibrissa_infer::{Family, Method, Training, Variant};
 
 /// The noisy variant's sensor noise (5% of the clean e2 ranges), tempered as `pf` does.
 const SIGMA: [f64; 5] = [
@@ -39,6 +39,61 @@ fn recovers_distance_and_speed_and_the_posterior_tightens() {
         .trace
         .iter()
         .all(|r| r.ess >= 1.0 && r.ess <= 200.0 + 1e-9));
+}
+
+/// A scenario as calibration writes them: the whisker in a compliant follicle, and sensors whose
+/// gains are far from 1 (a calibrated angle gain absorbs the recording chain's joint spacing) and
+/// whose offsets are not 0. The filter must predict what the sensors record, not the whisker's
+/// own channels.
+#[test]
+fn recovers_distance_on_a_scenario_with_sensor_gains_offsets_and_a_follicle_spring() {
+    let sets = [
+        "whisker.follicle={ kind = \"spring\", stiffness = 1.4e-4, damping = 4.5e-8 }",
+        "sensors.theta01.gain=0.55",
+        "sensors.theta01.offset=-1e-3",
+        "sensors.theta12.gain=0.45",
+        "sensors.theta12.offset=-8e-4",
+        "sensors.fx.gain=1.08",
+        "sensors.fx.offset=-1.5e-5",
+        "sensors.fy.gain=0.93",
+        "sensors.fy.offset=8e-6",
+    ]
+    .map(String::from);
+    let family = Family::open("e2", &sets).unwrap();
+    // Sensor noise of 3% of each channel's range (the noisy variant's is 5%).
+    let noise = Noise {
+        sensor: family
+            .noise(Variant::Noisy)
+            .unwrap()
+            .sensor
+            .map(|s| 0.6 * s),
+        process: 0.0,
+    };
+    let mut filter = Pf::new(400);
+    filter
+        .fit(&Training {
+            family: family.clone(),
+            samples: Vec::new(),
+            calibration: Vec::new(),
+            noise,
+        })
+        .unwrap();
+    let strikes = [(0.017, 0.5), (0.021, 1.1), (0.025, 0.8), (0.028, 1.3)];
+    let mut inside = 0;
+    for (k, (d, v)) in strikes.into_iter().enumerate() {
+        let run = family.simulate(&[d, v], &noise, 20 + k as u64).unwrap();
+        let e = filter.predict(&run.series).unwrap();
+        let [lo, hi] = e[0].ci90;
+        let report = format!(
+            "d = {d}, v = {v}: estimated d = {} (90%: {lo}…{hi}), v = {}",
+            e[0].mean, e[1].mean
+        );
+        assert!((e[0].mean - d).abs() < 0.6e-3, "{report}");
+        assert!((e[1].mean - v).abs() < 0.1, "{report}");
+        inside += usize::from(lo <= d && d <= hi);
+    }
+    // 90% intervals: at least 3 of the 4 hold the truth.
+    assert!(inside >= 3, "{inside} of 4 intervals hold d");
 }
 
 #[test]

@@ -157,7 +157,9 @@ pub fn run(
                 let mut ll = 0.0;
                 for c in 0..5 {
                     if seen[c] {
-                        let z = (y[c] - pred[c]) / config.sigma[c];
+                        // What the channel's sensor records of the model's value.
+                        let recorded = config.sensor_gain[c] * pred[c] + config.sensor_offset[c];
+                        let z = (y[c] - recorded) / config.sigma[c];
                         ll -= 0.5 * z * z;
                     }
                 }

@@ -36,8 +36,9 @@ pub struct Pf {
     pub dt: f64,
     /// Geometric iterations per step of the transition model.
     pub max_iterations: usize,
-    /// Segments of the transition model's chain.
-    pub segments: usize,
+    /// Segments of the coarse transition model's chain (`None`: the whisker's
+    /// [`super::coarse_segments`]).
+    pub segments: Option<usize>,
     /// Liu–West shrinkage ([`Config::shrink`]).
     pub shrink: f64,
     /// Resampling threshold ([`Config::ess_fraction`]).
@@ -74,7 +75,7 @@ impl Pf {
             max_delay: 0.0,
             dt: 1e-3 / 3.0,
             max_iterations: 1,
-            segments: 5,
+            segments: None,
             shrink: 0.98,
             ess_fraction: 0.5,
             inject: None,
@@ -85,13 +86,13 @@ impl Pf {
         }
     }
 
-    /// Switches the transition model, with its segment count (the coarse model's 5; the fine
-    /// one takes the observed chain's), time step and tempering.
+    /// Switches the transition model, with its segment count (the coarse model's
+    /// [`super::coarse_segments`]; the fine one takes the observed chain's), time step and tempering.
     pub fn set_model(&mut self, model: TransitionModel) {
         self.model = model;
         match model {
             TransitionModel::Coarse => {
-                self.segments = 5;
+                self.segments = None;
                 self.dt = 1e-3 / 3.0;
                 self.temper = temper_for(self.particles);
             }
@@ -119,7 +120,7 @@ impl Pf {
         c.dt = self.dt;
         c.max_iterations = self.max_iterations;
         c.segments = match self.model {
-            TransitionModel::Coarse => self.segments,
+            TransitionModel::Coarse => self.segments.unwrap_or(c.segments),
             TransitionModel::Fine => c.observed_segments,
         };
         c.shrink = self.shrink;
@@ -255,5 +256,32 @@ mod tests {
         let c = pf.config(&e2, [1.0; 5]).unwrap();
         assert_eq!((c.segments, c.dt), (5, 1e-3 / 3.0));
         assert_eq!(pf.temper, temper_for(4000));
+    }
+
+    #[test]
+    fn the_family_s_sensors_and_whisker_set_the_filter() {
+        let pf = Pf::new(100);
+        let e2 = crate::Family::builtin("e2").unwrap();
+        let c = pf.config(&e2, [1.0; 5]).unwrap();
+        assert_eq!(
+            (c.segments, c.sensor_gain, c.sensor_offset),
+            (5, [1.0; 5], [0.0; 5])
+        );
+        let sets = [
+            "whisker.tip_radius=5e-5",
+            "sensors.fx.gain=1.1",
+            "sensors.m0.offset=2e-8",
+        ]
+        .map(String::from);
+        let tapered = crate::Family::open("e2", &sets).unwrap();
+        let mut c = pf.config(&tapered, [1.0; 5]).unwrap();
+        assert_eq!(c.segments, 8);
+        assert_eq!((c.sensor_gain[3], c.sensor_offset[2]), (1.1, 2e-8));
+        c.sensor_gain[0] = 0.0;
+        let e = c.check().unwrap_err().to_string();
+        assert!(e.contains("theta01") && e.contains("gain"), "{e}");
+        let mut fixed = Pf::new(100);
+        fixed.segments = Some(6);
+        assert_eq!(fixed.config(&tapered, [1.0; 5]).unwrap().segments, 6);
     }
 }

@@ -34,7 +34,7 @@ mod posterior;
 mod sampling;
 mod transition;
 
-pub use config::{Config, Injection, Prior, PARAMS};
+pub use config::{coarse_segments, Config, Injection, Prior, PARAMS};
 pub use filter::run;
 pub use likelihood::{
     noise_from_series, observation_sigma, temper_for, TransitionModel, FINE_TEMPER, MODEL_ERROR,

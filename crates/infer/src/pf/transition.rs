@@ -7,6 +7,7 @@ use crate::error::{Error, Result};
 use vibrissa_core::chain::Model;
 use vibrissa_core::dynamics::{initialize, step, Inputs, Integrator, State, Workspace};
 use vibrissa_core::objects::{Motion, Object, Shape};
+use vibrissa_core::whisker::Follicle;
 
 /// The object's state of one particle: `[d, v, y0, size, mu]` with `y0` the height of the top
 /// face at t = 0 (its trajectory is `y0 + v·t`).
@@ -53,7 +54,8 @@ pub(super) fn param(o: &ObjState, k: usize, gap: f64) -> f64 {
 pub(super) struct FreeModel {
     model: Model,
     stepper: vibrissa_core::dynamics::Stepper,
-    /// Tip deflection per √energy, m/√J: √(2L³/(3·EI_min)), the cantilever's least stiffness.
+    /// Tip deflection per √energy, m/√J: √(2·C) with C the tip's compliance, L³/(3·EI_min)
+    /// (the cantilever's least stiffness) plus L²/k_f for a follicle spring k_f.
     reach_per_root_energy: f64,
     /// Highest rest point of the whisker plus its thickest radius and a margin, m.
     pub(super) clearance: f64,
@@ -67,8 +69,16 @@ impl FreeModel {
             .frequencies[0];
         let omega_h = 2.0 * std::f64::consts::PI * f1 * period;
         let warp = ((0.5 * omega_h).tan() / (0.5 * omega_h)).powi(2);
+        // Every stiffness scaled by one factor scales every frequency by its square root: the
+        // whisker's and the follicle's spring alike.
         let mut params = config.whisker.clone();
         params.youngs_modulus *= warp;
+        if let Follicle::Spring { stiffness, damping } = params.follicle {
+            params.follicle = Follicle::Spring {
+                stiffness: stiffness * warp,
+                damping,
+            };
+        }
         let stiffer = params
             .check()
             .map_err(|e| Error::Observation(format!("filter free model: {e}")))?;
@@ -84,6 +94,13 @@ impl FreeModel {
         let p = &config.whisker;
         let r_min = p.base_radius.min(p.tip_radius);
         let ei_min = p.youngs_modulus * std::f64::consts::PI * r_min.powi(4) / 4.0;
+        // Tip deflection per tip force: the cantilever's least stiffness, and the follicle's
+        // rotation carried to the tip.
+        let follicle = match p.follicle {
+            Follicle::Spring { stiffness, .. } => p.length * p.length / stiffness,
+            Follicle::Clamped => 0.0,
+        };
+        let tip_compliance = p.length.powi(3) / (3.0 * ei_min) + follicle;
         let mut y_rest = 0.0f64;
         let (mut y, mut ang) = (0.0f64, 0.0f64);
         for i in 0..model.n {
@@ -95,7 +112,7 @@ impl FreeModel {
         Ok(FreeModel {
             model: free,
             stepper,
-            reach_per_root_energy: (2.0 * p.length.powi(3) / (3.0 * ei_min)).sqrt(),
+            reach_per_root_energy: (2.0 * tip_compliance).sqrt(),
             clearance: y_rest + rmax + 2e-4,
         })
     }
@@ -230,5 +247,28 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn the_free_model_keeps_the_first_mode_in_a_compliant_follicle() {
+        let mut config = Config::e2([1.0; 5], 1, 1);
+        config.whisker.follicle = Follicle::Spring {
+            stiffness: 1.4e-4,
+            damping: 4.5e-8,
+        };
+        let w = config.whisker.check().unwrap();
+        let model = Model::new(&w, 8, Discretisation::default()).unwrap();
+        config.segments = 8;
+        let period = 1e-3;
+        let free = FreeModel::new(&config, &model, period).unwrap();
+        let f1 = model.modes().unwrap().frequencies[0];
+        let raised = free.model.modes().unwrap().frequencies[0];
+        // The implicit step at `period` elongates the raised mode's period back to the true one.
+        let omega_h = 2.0 * std::f64::consts::PI * raised * period;
+        let numerical = 2.0 * (0.5 * omega_h).atan() / (2.0 * std::f64::consts::PI * period);
+        assert!(
+            (numerical / f1 - 1.0).abs() < 1e-9,
+            "{numerical} Hz vs {f1} Hz"
+        );
     }
 }
