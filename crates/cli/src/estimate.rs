@@ -166,34 +166,7 @@ impl Render for Report {
                 secs * 1e3
             )?;
         }
-        for (row, check) in self.rows.iter().zip(&self.checks) {
-            if let Some(c) = check {
-                writeln!(
-                    out,
-                    "check of {}: {} (the residual's robust spread / noise level, its lag-1 \
-                     correlation; at most {} is explained)",
-                    row.file.display(),
-                    if c.explained {
-                        "explained by the scenario"
-                    } else {
-                        "NOT explained by the scenario"
-                    },
-                    check::LIMIT
-                )?;
-                for ch in &c.channels {
-                    writeln!(
-                        out,
-                        "  {:8} {:>6.2}  {:>5.2}  (spread {}, RMS {}, noise {})",
-                        ch.channel,
-                        ch.ratio,
-                        ch.lag1,
-                        sig(ch.spread, 3),
-                        sig(ch.rms, 3),
-                        sig(ch.noise, 3)
-                    )?;
-                }
-            }
-        }
+        render_checks(out, &self.rows, &self.checks)?;
         Ok(())
     }
 }
@@ -249,25 +222,10 @@ pub fn run(args: &Args) -> Result<()> {
         if args.randomise {
             bail!("--randomise applies to the discriminative methods, not to the filter");
         }
-        if args.check {
-            bail!(
-                "--check applies to the discriminative methods; the filter's --trace shows its fit"
-            );
-        }
+        check_arguments(args)?;
         return crate::estimate_pf::run(args, &family, &stated);
     }
-    if args.check_plot.is_some() && !args.check {
-        bail!("--check-plot draws the check: give --check as well");
-    }
-    if args.check_plot.is_some() && args.obs.len() != 1 {
-        bail!(
-            "--check-plot draws one recording: give one --obs file (not {})",
-            args.obs.len()
-        );
-    }
-    if let Some(png) = &args.check_plot {
-        crate::plot::check_png(png)?;
-    }
+    check_arguments(args)?;
     if args.trace.is_some()
         || args.inject.is_some()
         || !args.channels.is_empty()
@@ -345,17 +303,77 @@ pub fn run(args: &Args) -> Result<()> {
 }
 
 /// The contract's estimate objects: one, or JSON Lines with `"file"` for several files.
-pub(crate) fn print_json_rows(rows: &[FileEstimate], method: &str, lines: bool) -> Result<()> {
+pub(crate) fn print_json_rows(
+    rows: &[FileEstimate],
+    checks: &[Option<Check>],
+    method: &str,
+    lines: bool,
+) -> Result<()> {
     print_json(
         &Report {
             rows: rows.to_vec(),
             method: method.into(),
             train_seconds: 0.0,
             train_runs: 0,
-            checks: Vec::new(),
+            checks: checks.to_vec(),
         },
         lines,
     )
+}
+
+/// The model checks of `rows` as text (see `--check`).
+pub(crate) fn render_checks(
+    out: &mut dyn Write,
+    rows: &[FileEstimate],
+    checks: &[Option<Check>],
+) -> io::Result<()> {
+    for (row, check) in rows.iter().zip(checks) {
+        if let Some(c) = check {
+            writeln!(
+                out,
+                "check of {}: {} (the residual's robust spread / noise level, its lag-1 \
+                 correlation; at most {} is explained)",
+                row.file.display(),
+                if c.explained {
+                    "explained by the scenario"
+                } else {
+                    "NOT explained by the scenario"
+                },
+                check::LIMIT
+            )?;
+            for ch in &c.channels {
+                writeln!(
+                    out,
+                    "  {:8} {:>6.2}  {:>5.2}  (spread {}, RMS {}, noise {})",
+                    ch.channel,
+                    ch.ratio,
+                    ch.lag1,
+                    sig(ch.spread, 3),
+                    sig(ch.rms, 3),
+                    sig(ch.noise, 3)
+                )?;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Refuses `--check-plot` without `--check` or with several recordings, and a figure path that
+/// is not a PNG, before anything is trained.
+fn check_arguments(args: &Args) -> Result<()> {
+    if args.check_plot.is_some() && !args.check {
+        bail!("--check-plot draws the check: give --check as well");
+    }
+    if args.check_plot.is_some() && args.obs.len() != 1 {
+        bail!(
+            "--check-plot draws one recording: give one --obs file (not {})",
+            args.obs.len()
+        );
+    }
+    if let Some(png) = &args.check_plot {
+        crate::plot::check_png(png)?;
+    }
+    Ok(())
 }
 
 /// The contract's objects of a report.
@@ -702,7 +720,7 @@ pub(crate) fn read_recording(
 /// The model check of one recording at `point` (see [`vibrissa_infer::check`]), with a warning
 /// on standard error when the scenario does not explain it; `None` (with a warning) when the
 /// scenario cannot be simulated at the estimate.
-fn check_recording(
+pub(crate) fn check_recording(
     family: &Family,
     file: &Path,
     rec: &Recording,
@@ -741,7 +759,7 @@ fn check_recording(
 
 /// The check's figure: per checked channel, the recording, the simulation at the estimate and
 /// the residual.
-fn draw_check(png: &Path, file: &Path, rec: &Recording, c: &Check) -> Result<Pending> {
+pub(crate) fn draw_check(png: &Path, file: &Path, rec: &Recording, c: &Check) -> Result<Pending> {
     let units = vibrissa_infer::calibrate::UNITS;
     let n = rec.t.len();
     let series: Vec<(usize, Vec<f64>, Vec<f64>)> = c

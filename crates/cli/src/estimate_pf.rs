@@ -6,7 +6,8 @@
 //! sample size fell below 1% of the particles gets a warning: its posterior may be too narrow.
 
 use crate::estimate::{
-    named_noise, noise_levels, print_json_rows, read_recording, Args, FileEstimate, Trained,
+    check_recording, draw_check, named_noise, noise_levels, print_json_rows, read_recording,
+    render_checks, Args, FileEstimate, Trained,
 };
 use crate::files;
 use crate::plot::{render_series, Axis, Curve, Panel};
@@ -92,6 +93,8 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
 
     let mut rows: Vec<FileEstimate> = Vec::new();
     let mut posteriors = Vec::new();
+    let mut checks = Vec::new();
+    let mut figure = None;
     let mut fitted_at: Option<[f64; 5]> = None;
     for ((file, (o, segments, rec)), level) in args.obs.iter().zip(&obs).zip(&levels) {
         if fitted_at != Some(*level) {
@@ -178,6 +181,39 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
             .map(|n| n.to_string())
             .zip(post.last().iter().copied())
             .collect();
+        if args.check {
+            // The scenario at the posterior mean of its own unknowns; the filter's further
+            // unknowns (a start delay, the box's size or friction) are not simulated.
+            let point: Option<Vec<f64>> = family
+                .unknowns()
+                .iter()
+                .map(|k| {
+                    post.unknowns
+                        .iter()
+                        .position(|n| n == k)
+                        .map(|i| post.last()[i].mean)
+                })
+                .collect();
+            let extra = post.unknowns.len() > family.unknowns().len();
+            let c = match point {
+                Some(p) if !extra => {
+                    check_recording(&family.nominal(), file, rec, &p, &sensor, &channels)
+                }
+                _ => {
+                    eprintln!(
+                        "warning: `{}`: cannot check a posterior over unknowns the scenario does not \
+                         simulate ({})",
+                        file.display(),
+                        post.unknowns.join(", ")
+                    );
+                    None
+                }
+            };
+            if let (Some(c), Some(png)) = (&c, &args.check_plot) {
+                figure = Some(draw_check(png, file, rec, c)?);
+            }
+            checks.push(c);
+        }
         rows.push(FileEstimate {
             file: file.clone(),
             estimates: named,
@@ -192,7 +228,7 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
     }
 
     match args.format.format() {
-        crate::output::Format::Json => print_json_rows(&rows, "pf", args.obs.len() > 1)?,
+        crate::output::Format::Json => print_json_rows(&rows, &checks, "pf", args.obs.len() > 1)?,
         crate::output::Format::Human => {
             for (row, post) in rows.iter().zip(&posteriors) {
                 let (file, est, secs) = (&row.file, &row.estimates, row.seconds);
@@ -216,7 +252,13 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
                     post.resamples
                 );
             }
+            let stdout = std::io::stdout();
+            render_checks(&mut stdout.lock(), &rows, &checks)?;
         }
+    }
+    if let (Some(f), Some(png)) = (figure, &args.check_plot) {
+        f.commit()?;
+        eprintln!("wrote {}", png.display());
     }
     Ok(())
 }

@@ -843,6 +843,21 @@ fn estimate_check_tells_a_recording_of_the_scenario_from_one_of_another_whisker(
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("does not explain this recording"), "{err}");
 
+    // The filter's posterior mean is checked the same way.
+    let out = vibrissa()
+        .args(["estimate", "--experiment", "e2", "--method", "pf", "--particles", "300"])
+        .args(["--check", "--json", "--obs"])
+        .arg(&other)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["check"]["explained"], false, "{v}");
+
     // The figure needs --check and one recording; nothing is written when refused.
     let refused = dir.join("refused.png");
     let out = vibrissa()
