@@ -88,8 +88,10 @@ pub fn run(args: &Args) -> Result<()> {
             args.out.display()
         );
     }
+    crate::files::check_folder(&args.out, "--out")?;
     if let Some(png) = &args.plot {
         plot::check_png(png)?;
+        crate::files::check_folder(png, "--plot")?;
     }
     if args.max_iterations == 0 {
         bail!("--max-iterations must be at least 1");

@@ -372,6 +372,7 @@ fn check_arguments(args: &Args) -> Result<()> {
     }
     if let Some(png) = &args.check_plot {
         crate::plot::check_png(png)?;
+        crate::files::check_folder(png, "--check-plot")?;
     }
     Ok(())
 }

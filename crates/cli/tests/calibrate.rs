@@ -259,4 +259,23 @@ fn bad_arguments_and_nominal_scenarios_are_refused() {
     // A gain prior that is no probability scale.
     let out = calibrate(&scratch, &dir, &["--gain-prior=-1"]);
     assert_refused(&scratch, &out, &["--gain-prior"]);
+
+    // An output folder that does not exist is refused before anything is fitted (no progress
+    // of a fit on standard error).
+    let out = vibrissa(&[
+        "calibrate",
+        "--scenario",
+        "e2",
+        "--labelled",
+        &d,
+        "--out",
+        &scratch.arg("no-such-folder/fitted.toml"),
+    ]);
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("does not exist"), "{}", stderr(&out));
+    assert!(
+        !stderr(&out).contains("start") && !stderr(&out).contains("noise round"),
+        "{}",
+        stderr(&out)
+    );
 }

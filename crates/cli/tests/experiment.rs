@@ -845,7 +845,15 @@ fn estimate_check_tells_a_recording_of_the_scenario_from_one_of_another_whisker(
 
     // The filter's posterior mean is checked the same way.
     let out = vibrissa()
-        .args(["estimate", "--experiment", "e2", "--method", "pf", "--particles", "300"])
+        .args([
+            "estimate",
+            "--experiment",
+            "e2",
+            "--method",
+            "pf",
+            "--particles",
+            "300",
+        ])
         .args(["--check", "--json", "--obs"])
         .arg(&other)
         .output()

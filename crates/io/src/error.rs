@@ -65,8 +65,9 @@ pub enum Error {
         /// The built-in names.
         builtins: Vec<String>,
     },
-    /// A malformed line in a data file (a time series or a trajectory).
-    #[error("{origin}, line {line}: {message}")]
+    /// A malformed line in a data file (a time series or a trajectory), or a file that is wrong
+    /// as a whole (line 0).
+    #[error("{}", located(origin, *line, message))]
     Data {
         /// The file.
         origin: String,
@@ -138,3 +139,12 @@ impl Error {
 
 /// Result alias of the library.
 pub type Result<T> = std::result::Result<T, Error>;
+
+/// `origin, line N: message`, or `origin: message` for the file as a whole (line 0).
+fn located(origin: &str, line: usize, message: &str) -> String {
+    if line == 0 {
+        format!("{origin}: {message}")
+    } else {
+        format!("{origin}, line {line}: {message}")
+    }
+}

@@ -166,13 +166,19 @@ fn csv_errors_name_file_line_and_column() {
         ("t,theta01\n0\n", "line 2", "1 values"),
         ("t,t\n0,0\n", "line 1", "`t` appears twice"),
         ("t,,x\n", "line 1", "column 2"),
-        ("", "line 0", "no header row"),
-        ("# only a comment\n\n", "line 0", "no header row"),
     ];
     for (text, a, b) in cases {
         let e = read_csv_str(text, "obs.csv").unwrap_err().to_string();
         assert!(
             e.starts_with("obs.csv, ") && e.contains(a) && e.contains(b),
+            "{text:?}: {e}"
+        );
+    }
+    // A file wrong as a whole names no line.
+    for text in ["", "# only a comment\n\n"] {
+        let e = read_csv_str(text, "obs.csv").unwrap_err().to_string();
+        assert!(
+            e.starts_with("obs.csv: ") && e.contains("no header row") && !e.contains("line"),
             "{text:?}: {e}"
         );
     }
