@@ -4,10 +4,12 @@
 //! whisker struck by a moving box. [`method`] defines what an estimator is ([`Method`]) and what
 //! it returns ([`Estimate`]); [`methods`] holds the estimators: the paper's template method and
 //! better ones under the paper's budget (templates only) or a free budget (any simulated
-//! training runs except the evaluated ones). [`evaluate`] runs a whole experiment and scores
-//! every method. [`calibrate`] fits a whisker's material, follicle, damping and sensor gains to
-//! labelled recordings, with the simulator in the loop; [`standin`] makes perturbed "foreign"
-//! whiskers and their labelled recordings to check it on.
+//! training runs except the evaluated ones). [`evaluate()`] runs a whole experiment and scores
+//! every method. [`noise`] measures each channel's sensor noise on the recordings themselves;
+//! [`check`] tells whether a scenario explains a recording at its estimate; [`randomise`] draws
+//! training whiskers around a scenario's. [`calibrate`] fits a whisker's material, follicle,
+//! damping and sensor gains to labelled recordings, with the simulator in the loop; [`standin`]
+//! makes perturbed "foreign" whiskers and their labelled recordings to check it on.
 #![warn(missing_docs)]
 
 pub mod calibrate;
