@@ -478,6 +478,25 @@ pub(crate) fn noise_levels(
         .copied()
         .filter(|&c| stated[c].is_none())
         .collect();
+    // A channel that never changes is a sensor that recorded nothing: its noise measures as 0 and
+    // the estimators compare a flat line with simulated signals.
+    for (file, rec) in files.iter().zip(recordings) {
+        for &c in needs {
+            let finite = rec.values[c].iter().filter(|v| v.is_finite());
+            let (lo, hi) = finite.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
+                (lo.min(v), hi.max(v))
+            });
+            if lo == hi {
+                eprintln!(
+                    "warning: `{}`: channel `{}` is constant ({lo}): a sensor that recorded \
+                     nothing? Its noise is taken as 0 and the estimate compares a flat line with \
+                     simulated signals; leave the column out if it was not recorded",
+                    file.display(),
+                    CHANNELS[c]
+                );
+            }
+        }
+    }
     // Each file alone first, so that a channel too short to measure is named with its file.
     for (file, rec) in files.iter().zip(recordings) {
         vibrissa_infer::noise::estimate(&rec.values, &estimated).with_context(|| {

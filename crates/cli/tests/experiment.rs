@@ -865,6 +865,42 @@ fn estimate_check_tells_a_recording_of_the_scenario_from_one_of_another_whisker(
     );
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["check"]["explained"], false, "{v}");
+    // The filter says so by itself as well: no particle explains the other whisker's strike,
+    // while the scenario's own strike raises no warning.
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("no particle explains"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let pf = |csv: &Path, extra: &[&str]| {
+        vibrissa()
+            .args([
+                "estimate",
+                "--experiment",
+                "e2",
+                "--method",
+                "pf",
+                "--particles",
+                "300",
+            ])
+            .args(extra)
+            .arg("--obs")
+            .arg(csv)
+            .output()
+            .unwrap()
+    };
+    let out = pf(&own, &[]);
+    assert!(out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !err.contains("no particle explains") && !err.contains("end of its prior"),
+        "{err}"
+    );
+    // A prior that excludes the truth (d = 21 mm): the posterior piles up at its end.
+    let out = pf(&own, &["--prior", "d=0.026:0.03"]);
+    assert!(out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("end of its prior"), "{err}");
 
     // The figure needs --check and one recording; nothing is written when refused.
     let refused = dir.join("refused.png");

@@ -12,7 +12,7 @@
 //!
 //! Two allowances keep the check from crying wolf on recordings that the scenario does explain:
 //! the noise level it compares with is at least [`FLOOR`] of the channel's range over the
-//! recording (nearly clean recordings would otherwise fail on the estimate's own error and on the
+//! recording or the simulation, whichever is larger (nearly clean recordings would otherwise fail on the estimate's own error and on the
 //! simulator's resolution), and a channel fails only when its residual's spread exceeds
 //! [`LIMIT`] times that level.
 
@@ -99,12 +99,18 @@ pub fn check(
             continue;
         }
         let residual: Vec<f64> = pairs.iter().map(|(y, s)| y - s).collect();
-        let (lo, hi) = pairs
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), (y, _)| {
-                (lo.min(*y), hi.max(*y))
-            });
-        let level = noise[c].max(FLOOR * (hi - lo));
+        // The floor follows the larger of the recording's and the simulation's ranges, so that a
+        // channel that is constant in the recording (a dead sensor) still gets a finite ratio.
+        let range = |pick: fn(&(f64, f64)) -> f64| {
+            let (lo, hi) = pairs
+                .iter()
+                .map(pick)
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+                    (lo.min(x), hi.max(x))
+                });
+            hi - lo
+        };
+        let level = noise[c].max(FLOOR * range(|p| p.0).max(range(|p| p.1)));
         let rms = (residual.iter().map(|e| e * e).sum::<f64>() / residual.len() as f64).sqrt();
         let mut abs: Vec<f64> = residual.iter().map(|e| e.abs()).collect();
         let mid = abs.len() / 2;
