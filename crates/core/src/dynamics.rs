@@ -923,14 +923,24 @@ fn check_inputs(model: &Model, inputs: &Inputs) -> Result<()> {
     Ok(())
 }
 
+/// A number for a message: four significant digits, in scientific notation when large or small.
+pub(crate) fn readable(x: f64) -> String {
+    if !x.is_finite() || x == 0.0 || (1e-3..1e4).contains(&x.abs()) {
+        format!("{x:.4}")
+    } else {
+        format!("{x:.3e}")
+    }
+}
+
 /// Stage boundary check: every value finite, no joint folded past π from rest.
 fn check_state(state: &State, model: &Model) -> Result<()> {
     let n = model.n;
     let bad = |i: usize, what: &str, x: f64| Error::Diverged {
         t: state.t,
         detail: format!(
-            "joint {i} (arc length {:.4} m) {what} = {x}",
-            i as f64 * model.arc
+            "joint {i} (arc length {:.4} m) {what} = {}",
+            i as f64 * model.arc,
+            readable(x)
         ),
     };
     for i in 0..n {
@@ -953,7 +963,7 @@ fn check_state(state: &State, model: &Model) -> Result<()> {
         check_finite(["base moment", "base fx", "base fy"][k], *w).map_err(|_| {
             Error::Diverged {
                 t: state.t,
-                detail: format!("base reaction is {w}"),
+                detail: format!("base reaction is {}", readable(*w)),
             }
         })?;
     }

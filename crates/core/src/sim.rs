@@ -5,7 +5,7 @@ use crate::chain::{Discretisation, Model};
 use crate::dynamics::{initialize, step, BaseMotion, Inputs, Integrator, State, Workspace};
 use crate::error::{check_finite, check_non_negative, check_positive, Error, Result};
 use crate::objects::closest;
-use crate::objects::Object;
+use crate::objects::{Motion, Object};
 use crate::rng::Rng;
 use crate::sensors::Sensors;
 use crate::whisker::WhiskerParams;
@@ -425,6 +425,55 @@ pub struct Output {
     pub max_penetration: f64,
 }
 
+/// Object speed above which a divergence is put down to the objects, m/s: whiskers meet objects
+/// at centimetres to metres per second.
+const FAST_OBJECT: f64 = 50.0;
+
+/// Process-noise intensity above which a divergence is put down to the random forces: the
+/// experiments use 2e-5 N·s^½·m^-½.
+const STRONG_PROCESS_NOISE: f64 = 1e-2;
+
+/// A divergence of `scenario`'s run with its likely cause added: an object far faster than a
+/// whisker is ever struck, random forces far stronger than the experiments', or else the step.
+fn explain_divergence(e: Error, scenario: &Scenario, dt: f64) -> Error {
+    let Error::Diverged { t, detail } = e else {
+        return e;
+    };
+    let speed = |o: &Object| match &o.motion {
+        Motion::Constant { velocity, .. } => velocity[0].hypot(velocity[1]),
+        Motion::Waypoints { points } => points
+            .windows(2)
+            .map(|w| (w[1][1] - w[0][1]).hypot(w[1][2] - w[0][2]) / (w[1][0] - w[0][0]))
+            .fold(0.0, f64::max),
+    };
+    let fastest = scenario
+        .objects
+        .iter()
+        .enumerate()
+        .map(|(k, o)| (k, speed(o)))
+        .max_by(|a, b| a.1.total_cmp(&b.1));
+    let cause = match fastest {
+        Some((k, v)) if v > FAST_OBJECT => format!(
+            "objects[{k}] moves at {} m/s, far faster than a whisker is ever struck (below \
+             about 10 m/s); give its speed in m/s",
+            crate::dynamics::readable(v)
+        ),
+        _ if scenario.process_noise > STRONG_PROCESS_NOISE => format!(
+            "process_noise = {} N·s^½·m^-½ pushes the whisker far harder than any experiment \
+             (2e-5); lower it",
+            crate::dynamics::readable(scenario.process_noise)
+        ),
+        _ => format!(
+            "the time step dt = {} s may be too long for this whisker: try a shorter one",
+            crate::dynamics::readable(dt)
+        ),
+    };
+    Error::Diverged {
+        t,
+        detail: format!("{detail}; likely cause: {cause}"),
+    }
+}
+
 /// Runs `scenario`, calling `progress` with the fraction done now and then.
 pub fn run(scenario: &Scenario, progress: &mut dyn FnMut(f64)) -> Result<Output> {
     scenario.check()?;
@@ -465,7 +514,8 @@ pub fn run(scenario: &Scenario, progress: &mut dyn FnMut(f64)) -> Result<Output>
             for j in 1..=per_sample {
                 let t = ((k - 1) * per_sample + j) as f64 * stepper.dt;
                 inputs.base = scenario.base.at(t);
-                step(&model, &stepper, &mut state, &inputs, &mut ws)?;
+                step(&model, &stepper, &mut state, &inputs, &mut ws)
+                    .map_err(|e| explain_divergence(e, scenario, stepper.dt))?;
                 steps += 1;
                 if state.contact.is_some() {
                     let p = penetration(&model, &state, &mut ws, &scenario.objects);

@@ -84,3 +84,23 @@ fn objects_overlapping_the_whisker_at_the_start_are_refused() {
     let e = sim::run(&sc, &mut |_| {}).unwrap_err().to_string();
     assert!(e.contains("objects[0]") && e.contains("overlapping"), "{e}");
 }
+
+#[test]
+fn a_divergence_names_its_likely_cause_in_readable_numbers() {
+    // An object at 10 km/s.
+    let mut sc = Scenario::default();
+    sc.objects.push(vibrissa_core::scenes::e2_box(0.02, 1e4));
+    let e = sim::run(&sc, &mut |_| {}).unwrap_err().to_string();
+    assert!(e.contains("diverged"), "{e}");
+    assert!(
+        e.contains("likely cause: objects[0] moves at 1.000e4 m/s"),
+        "{e}"
+    );
+    assert!(e.len() < 400, "an unreadable number in: {e}");
+    // Random forces a million times the experiments'.
+    let mut sc = Scenario::default();
+    sc.objects.push(vibrissa_core::scenes::e2_box(0.02, 0.6));
+    sc.process_noise = 10.0;
+    let e = sim::run(&sc, &mut |_| {}).unwrap_err().to_string();
+    assert!(e.contains("likely cause: process_noise"), "{e}");
+}
