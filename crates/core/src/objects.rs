@@ -83,6 +83,11 @@ fn turn(angle: f64) -> (f64, f64) {
     }
 }
 
+/// Fastest an object may move, m/s: whiskers meet objects at centimetres to metres per second;
+/// a speed beyond this is a unit mistake (mm/s given as m/s) or nonsense, refused before a run
+/// that could only diverge.
+pub const MAX_SPEED: f64 = 1000.0;
+
 /// A prescribed motion.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
@@ -175,7 +180,8 @@ impl Object {
         }
     }
 
-    /// Checks the object (`name` prefixes the field names in errors, e.g. `objects[0]`).
+    /// Checks the object (`name` prefixes the field names in errors, e.g. `objects[0]`): among
+    /// the rest, it may move at most [`MAX_SPEED`].
     pub fn check(&self, name: &str) -> Result<()> {
         let finite = |field: &str, x: f64| {
             if x.is_finite() {
@@ -226,6 +232,14 @@ impl Object {
                 finite("motion.velocity[0]", velocity[0])?;
                 finite("motion.velocity[1]", velocity[1])?;
                 finite("motion.angular_velocity", *angular_velocity)?;
+                let speed = velocity[0].hypot(velocity[1]);
+                if speed > MAX_SPEED {
+                    return Err(Error::invalid(
+                        format!("{name}.motion.velocity"),
+                        format!("{velocity:?} ({speed:.3e} m/s)"),
+                        format!("a speed of at most {MAX_SPEED} m/s (in m/s, not mm/s)"),
+                    ));
+                }
             }
             Motion::Waypoints { points } => {
                 if points.is_empty() {
@@ -252,6 +266,21 @@ impl Object {
                                 points[k - 1][0]
                             ),
                         ));
+                    }
+                    if k > 0 {
+                        let q = points[k - 1];
+                        let speed = (p[1] - q[1]).hypot(p[2] - q[2]) / (p[0] - q[0]);
+                        if speed > MAX_SPEED {
+                            return Err(Error::invalid(
+                                format!("{name}.motion.points[{k}]"),
+                                format!("{p:?}"),
+                                format!(
+                                    "a waypoint reached from the previous one at most \
+                                     {MAX_SPEED} m/s (here {speed:.3e} m/s; times in s, \
+                                     positions in m)"
+                                ),
+                            ));
+                        }
                     }
                 }
             }

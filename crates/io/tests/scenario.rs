@@ -763,3 +763,18 @@ fn sensor_noise_is_stated_channel_by_channel() {
     let e = load_err("[sensor_noise]\nfy = inf\n", &[]);
     assert!(e.contains("sensor_noise.fy"), "{e}");
 }
+
+#[test]
+fn absurd_speeds_are_refused_by_name() {
+    let e = vibrissa_io::scenario::load_str(
+        vibrissa_io::scenario::builtin("e2").unwrap(),
+        "e2",
+        &sets(&["v=1e9"]),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("invalid v") && e.contains("at most 1000 m/s"),
+        "{e}"
+    );
+}

@@ -270,6 +270,14 @@ impl FileTable {
                     check_finite("d", self.d.unwrap_or(DEFAULT_D)).map_err(|e| ctx.invalid(e))?;
                 let v =
                     check_finite("v", self.v.unwrap_or(DEFAULT_V)).map_err(|e| ctx.invalid(e))?;
+                let fastest = vibrissa_core::objects::MAX_SPEED;
+                if v.abs() > fastest {
+                    return Err(ctx.invalid(vibrissa_core::Error::invalid(
+                        "v",
+                        v,
+                        format!("a speed of at most {fastest} m/s (in m/s, not mm/s)"),
+                    )));
+                }
                 objects.push(experiment_box(d, v));
                 Some(ExperimentRun { experiment, d, v })
             }
