@@ -24,6 +24,7 @@ pub mod methods;
 pub mod noise;
 pub mod pf;
 pub mod randomise;
+mod reference;
 pub mod standin;
 pub mod unknown_start;
 

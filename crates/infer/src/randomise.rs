@@ -19,7 +19,7 @@
 //! - every sensor gain times a factor uniform in 0.95–1.05.
 
 use crate::error::{Error, Result};
-use vibrissa_core::chain::Model;
+use crate::reference::Reference;
 use vibrissa_core::rng::Rng;
 use vibrissa_core::sim::{Response, Scenario, SensorResponse};
 use vibrissa_core::whisker::{Damping, Follicle};
@@ -106,26 +106,12 @@ impl Around {
                 "randomisation: the tip factor range must lie in (0, 1] and increase".into(),
             ));
         }
-        let mut clamped = base.whisker.clone();
-        clamped.follicle = Follicle::Clamped;
-        let checked = clamped
-            .check()
-            .map_err(|e| Error::Setting(format!("randomisation: {e}")))?;
-        let model = Model::new(&checked, base.segments, base.discretisation)
-            .map_err(|e| Error::Setting(format!("randomisation: {e}")))?;
-        let k0 = model.stiffness[0];
-        let tau0 = match base.whisker.damping {
-            Damping::ModalRatio { ratio } => {
-                let f1 = model
-                    .modes()
-                    .map_err(|e| Error::Setting(format!("randomisation: {e}")))?
-                    .frequencies[0];
-                2.0 * ratio / (2.0 * std::f64::consts::PI * f1)
-            }
-            Damping::StiffnessProportional { beta } => beta,
-            _ => 1e-4,
-        };
-        Ok(Around { prior, k0, tau0 })
+        let reference = Reference::of(base)?;
+        Ok(Around {
+            prior,
+            k0: reference.k0,
+            tau0: reference.beta0,
+        })
     }
 
     /// `s` with its whisker and sensor gains drawn from the prior by `seed` (the same seed gives

@@ -20,9 +20,10 @@
 
 use crate::calibrate::UNITS;
 use crate::error::{Error, Result};
+use crate::reference::Reference;
 use serde::Serialize;
 use std::path::Path;
-use vibrissa_core::chain::{Discretisation, Model};
+use vibrissa_core::chain::Discretisation;
 use vibrissa_core::rng::Rng;
 use vibrissa_core::sensors::CHANNELS;
 use vibrissa_core::sim::{self, Response, Scenario, SensorResponse, COLUMNS};
@@ -143,23 +144,8 @@ pub fn make(nominal: &Document, seed: u64, options: &Options) -> Result<Standin>
     }
     if follicle {
         // Relative to the nominal chain's base joint (the user's belief, clamped).
-        let mut clamped = base.whisker.clone();
-        clamped.follicle = Follicle::Clamped;
-        let checked = clamped.check().map_err(|e| standin_error(&e.to_string()))?;
-        let model = Model::new(&checked, base.segments, base.discretisation)
-            .map_err(|e| standin_error(&e.to_string()))?;
-        let k0 = model.stiffness[0];
-        let beta0 = match base.whisker.damping {
-            Damping::ModalRatio { ratio } => {
-                let f1 = model
-                    .modes()
-                    .map_err(|e| standin_error(&e.to_string()))?
-                    .frequencies[0];
-                2.0 * ratio / (2.0 * std::f64::consts::PI * f1)
-            }
-            Damping::StiffnessProportional { beta } => beta,
-            _ => 1e-4,
-        };
+        let reference = Reference::of(&base)?;
+        let (k0, beta0) = (reference.k0, reference.beta0);
         let compliance = (0.3f64.ln() + rng.uniform() * 10.0f64.ln()).exp();
         let stiffness = k0 / compliance;
         let tau = beta0 * (2.0 * rng.uniform() - 1.0).exp();

@@ -1,11 +1,10 @@
 //! The whisker parameters a calibration fits, how each is parametrised, and how a set of values
 //! turns a recording's scenario into the one simulated.
 
-use crate::error::{Error, Result};
-use vibrissa_core::chain::Model;
+pub(crate) use crate::reference::Reference;
 use vibrissa_core::objects::Motion;
 use vibrissa_core::sim::{BaseDrive, Scenario};
-use vibrissa_core::whisker::{Damping, Follicle, WhiskerParams};
+use vibrissa_core::whisker::{Damping, Follicle};
 
 /// What a parameter changes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -60,47 +59,6 @@ pub(super) struct Param {
     pub x_start: f64,
     /// Finite-difference step in `x`.
     pub step: f64,
-}
-
-/// Constants of the nominal whisker that the parametrisation refers to.
-#[derive(Debug, Clone)]
-pub(super) struct Reference {
-    /// The nominal whisker.
-    pub whisker: WhiskerParams,
-    /// Stiffness of the nominal chain's base joint with a clamped follicle, N·m/rad.
-    pub k0: f64,
-    /// Stiffness-proportional damping coefficient of the nominal chain, s (2ζ1/ω1, or the nominal
-    /// β, or 1e-4 s without damping).
-    pub beta0: f64,
-}
-
-impl Reference {
-    /// The reference constants of `nominal`.
-    pub fn of(nominal: &Scenario) -> Result<Reference> {
-        let whisker = nominal.whisker.clone();
-        let mut clamped = whisker.clone();
-        clamped.follicle = Follicle::Clamped;
-        let checked = clamped.check().map_err(|e| setting(e.to_string()))?;
-        let model = Model::new(&checked, nominal.segments, nominal.discretisation)
-            .map_err(|e| setting(e.to_string()))?;
-        let k0 = model.stiffness[0];
-        let beta0 = match whisker.damping {
-            Damping::ModalRatio { ratio } => {
-                let f1 = model
-                    .modes()
-                    .map_err(|e| setting(e.to_string()))?
-                    .frequencies[0];
-                2.0 * ratio / (2.0 * std::f64::consts::PI * f1)
-            }
-            Damping::StiffnessProportional { beta } => beta,
-            Damping::SegmentQ { .. } | Damping::None => 1e-4,
-        };
-        Ok(Reference { whisker, k0, beta0 })
-    }
-}
-
-fn setting(message: String) -> Error {
-    Error::Calibration(format!("the nominal whisker: {message}"))
 }
 
 /// The parameters to fit for `nominal` (the scenario without labels); `labels` are the label
