@@ -7,6 +7,32 @@ fn vibrissa() -> Command {
     Command::new(env!("CARGO_BIN_EXE_vibrissa"))
 }
 
+/// Sensor noise of about 3% of each channel's range over the `e2` runs (theta01, theta12, m0, fx,
+/// fy; SI).
+const SIGMA_3PC: [f64; 5] = [3.6e-3, 9.0e-3, 1.4e-6, 8.8e-5, 7.2e-5];
+
+/// Simulates the `e2` strike at d = 21 mm, v = 0.7 m/s with sensor noise [`SIGMA_3PC`] and the
+/// overrides `sets` into `csv`.
+fn noisy_e2_strike(csv: &Path, sets: &[&str]) {
+    let mut sim = vibrissa();
+    sim.args(["simulate", "e2", "--set", "d=0.021", "--set", "v=0.7"]);
+    for (c, s) in ["theta01", "theta12", "m0", "fx", "fy"]
+        .iter()
+        .zip(SIGMA_3PC)
+    {
+        sim.args(["--set", &format!("sensor_noise.{c}={s}")]);
+    }
+    for s in sets {
+        sim.args(["--set", s]);
+    }
+    let out = sim.arg("--out").arg(csv).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
 fn temp(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("vibrissa-estimate-{}-{name}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -678,19 +704,8 @@ fn estimate_measures_the_recordings_noise_and_reports_it() {
     let csv = dir.join("noisy.csv");
     // About 3% of each channel's range over the e2 runs; 0.6 s, so that one recording measures
     // its noise closely.
-    let sigma = [3.6e-3, 9.0e-3, 1.4e-6, 8.8e-5, 7.2e-5];
-    let mut sim = vibrissa();
-    sim.args(["simulate", "e2", "--set", "d=0.021", "--set", "v=0.7"])
-        .args(["--set", "duration=0.6", "--set", "seed=4"]);
-    for (c, s) in ["theta01", "theta12", "m0", "fx", "fy"].iter().zip(sigma) {
-        sim.args(["--set", &format!("sensor_noise.{c}={s}")]);
-    }
-    let out = sim.arg("--out").arg(&csv).output().unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let sigma = SIGMA_3PC;
+    noisy_e2_strike(&csv, &["duration=0.6", "seed=4"]);
     let estimate = |extra: &[&str]| {
         vibrissa()
             .args([
@@ -787,29 +802,10 @@ fn estimate_measures_the_recordings_noise_and_reports_it() {
 #[test]
 fn estimate_check_tells_a_recording_of_the_scenario_from_one_of_another_whisker() {
     let dir = temp("check");
-    let sigma = [3.6e-3, 9.0e-3, 1.4e-6, 8.8e-5, 7.2e-5];
     // The same strike by the nominal whisker and by one 40% stiffer (and as heavy).
-    let strike = |name: &str, sets: &[&str]| {
-        let csv = dir.join(name);
-        let mut sim = vibrissa();
-        sim.args(["simulate", "e2", "--set", "d=0.021", "--set", "v=0.7"])
-            .args(["--set", "seed=5"]);
-        for (c, s) in ["theta01", "theta12", "m0", "fx", "fy"].iter().zip(sigma) {
-            sim.args(["--set", &format!("sensor_noise.{c}={s}")]);
-        }
-        for s in sets {
-            sim.args(["--set", s]);
-        }
-        let out = sim.arg("--out").arg(&csv).output().unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        csv
-    };
-    let own = strike("own.csv", &[]);
-    let other = strike("other.csv", &["whisker.youngs_modulus=4.2e9"]);
+    let (own, other) = (dir.join("own.csv"), dir.join("other.csv"));
+    noisy_e2_strike(&own, &["seed=5"]);
+    noisy_e2_strike(&other, &["seed=5", "whisker.youngs_modulus=4.2e9"]);
     let png = dir.join("check.png");
     let check = |csv: &Path, extra: &[&str]| {
         vibrissa()
@@ -932,25 +928,19 @@ fn estimate_check_tells_a_recording_of_the_scenario_from_one_of_another_whisker(
 #[test]
 fn estimate_randomise_trains_on_whiskers_around_the_scenario() {
     let dir = temp("randomise");
-    let sigma = [3.6e-3, 9.0e-3, 1.4e-6, 8.8e-5, 7.2e-5];
     // A strike by a whisker 25% stiffer and 20% lighter than the scenario says, in a compliant
     // follicle.
     let csv = dir.join("other.csv");
-    let mut sim = vibrissa();
-    sim.args(["simulate", "e2", "--set", "d=0.021", "--set", "v=0.7"])
-        .args(["--set", "seed=6", "--set", "whisker.youngs_modulus=3.75e9"])
-        .args(["--set", "whisker.density=880"])
-        .args(["--set", "whisker.follicle.kind=spring"])
-        .args(["--set", "whisker.follicle.stiffness=3e-4"])
-        .args(["--set", "whisker.follicle.damping=3e-8"]);
-    for (c, s) in ["theta01", "theta12", "m0", "fx", "fy"].iter().zip(sigma) {
-        sim.args(["--set", &format!("sensor_noise.{c}={s}")]);
-    }
-    let out = sim.arg("--out").arg(&csv).output().unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    noisy_e2_strike(
+        &csv,
+        &[
+            "seed=6",
+            "whisker.youngs_modulus=3.75e9",
+            "whisker.density=880",
+            "whisker.follicle.kind=spring",
+            "whisker.follicle.stiffness=3e-4",
+            "whisker.follicle.damping=3e-8",
+        ],
     );
     let estimate = |extra: &[&str]| {
         let out = vibrissa()
