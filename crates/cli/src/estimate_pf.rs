@@ -180,13 +180,7 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
         // Data that no particle explains: the likelihood's mean squared standardised residual
         // per observation, in the units of the filter's noise model before tempering (about 1,
         // or less, when the model explains the recording).
-        let temper = if args.max_delay > 0.0 && filter.model == TransitionModel::Coarse {
-            filter.temper * pf::UNKNOWN_START_TEMPER
-        } else {
-            filter.temper
-        };
-        let n = (post.trace.len() * config.channels.len()).max(1) as f64;
-        let misfit = -2.0 * post.log_evidence / n * temper * temper;
+        let misfit = filter.misfit(&post, config.channels.len());
         if misfit > MISFIT_LIMIT {
             eprintln!(
                 "warning: `{}`: no particle explains the recording: its residuals are {:.1} times \

@@ -109,6 +109,24 @@ impl Pf {
         self.sensor
     }
 
+    /// The tempering the likelihood applies: [`Pf::temper`], times [`UNKNOWN_START_TEMPER`] for
+    /// the coarse model with an unknown start.
+    pub fn effective_temper(&self) -> f64 {
+        if self.max_delay > 0.0 && self.model == TransitionModel::Coarse {
+            self.temper * UNKNOWN_START_TEMPER
+        } else {
+            self.temper
+        }
+    }
+
+    /// How far no particle explained a recording: the likelihood's mean squared standardised
+    /// residual per observation of `post` (on `channels` channels), in units of the noise model
+    /// before tempering. About 1 or less when the model explains the recording.
+    pub fn misfit(&self, post: &Posterior, channels: usize) -> f64 {
+        let n = (post.trace.len() * channels).max(1) as f64;
+        -2.0 * post.log_evidence / n * self.effective_temper().powi(2)
+    }
+
     /// The observation noise found by [`crate::Method::fit`], if fitted.
     pub fn sigma(&self) -> Option<[f64; 5]> {
         self.sigma
@@ -186,12 +204,7 @@ impl crate::Method for Pf {
             TransitionModel::Coarse => std::array::from_fn(|c| MODEL_ERROR[c] * noisy[c]),
             TransitionModel::Fine => [0.0; 5],
         };
-        let temper = if self.max_delay > 0.0 && self.model == TransitionModel::Coarse {
-            self.temper * UNKNOWN_START_TEMPER
-        } else {
-            self.temper
-        };
-        self.sigma = Some(observation_sigma(sensor, model, temper));
+        self.sigma = Some(observation_sigma(sensor, model, self.effective_temper()));
         self.sensor = Some(sensor);
         self.family = Some(training.family.clone());
         if let Some((_, m)) = &mut self.inject {
