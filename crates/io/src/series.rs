@@ -161,10 +161,7 @@ impl Series {
         // Names.
         for (k, name) in self.columns.iter().enumerate() {
             if !is_column_name(name) {
-                return bad(format!(
-                    "column name {name:?}: names must be non-empty, without commas, quotes, \
-                     line breaks or surrounding spaces, and must not start with `#`"
-                ));
+                return bad(format!("column name {name:?}: {COLUMN_NAME_RULE}"));
             }
             if self.columns[..k].contains(name) {
                 return bad(format!("column `{name}` appears twice"));
@@ -194,12 +191,17 @@ impl Series {
     }
 }
 
+/// What a column name may hold, for messages.
+pub(crate) const COLUMN_NAME_RULE: &str = "names must be non-empty, without commas, quotes, \
+     control characters, byte-order marks or surrounding spaces, and must not start with `#`";
+
 /// Whether `name` can be a column name in every format.
-fn is_column_name(name: &str) -> bool {
+pub(crate) fn is_column_name(name: &str) -> bool {
     !name.is_empty()
         && name.trim() == name
         && !name.starts_with('#')
-        && !name.contains([',', '"', '\n', '\r'])
+        && !name.contains([',', '"', '\u{feff}'])
+        && !name.chars().any(char::is_control)
 }
 
 /// Whether `key` is a metadata key (what [`read_csv`] recognises on a comment line).

@@ -166,6 +166,11 @@ fn csv_errors_name_file_line_and_column() {
         ("t,theta01\n0\n", "line 2", "1 values"),
         ("t,t\n0,0\n", "line 1", "`t` appears twice"),
         ("t,,x\n", "line 1", "column 2"),
+        // A byte-order mark that is not the file's first character, or a control character,
+        // cannot be written back as a header (found by fuzzing the reader).
+        ("\n\u{feff}#\n", "line 2", "byte-order marks"),
+        ("t,a\u{7}b\n", "line 1", "column 2 of the header"),
+        ("t,\" a\"\n", "line 1", "surrounding spaces"),
     ];
     for (text, a, b) in cases {
         let e = read_csv_str(text, "obs.csv").unwrap_err().to_string();

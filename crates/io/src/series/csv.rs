@@ -1,7 +1,7 @@
 //! The contract's CSV: a header row, then one row per sample. Written without comment lines;
 //! read with them (`# key = value` comments carry metadata).
 
-use super::{is_meta_key, Series};
+use super::{is_column_name, is_meta_key, Series, COLUMN_NAME_RULE};
 use crate::atomic::{stage, Staged};
 use crate::error::{Error, Result};
 use std::fmt::Write as _;
@@ -119,6 +119,16 @@ pub(crate) fn parse_csv(text: &str, origin: &str) -> Result<(Series, Vec<usize>)
                         origin,
                         line_no,
                         format!("column {} of the header has no name", c + 1),
+                    ));
+                }
+                if !is_column_name(name) {
+                    return Err(Error::data(
+                        origin,
+                        line_no,
+                        format!(
+                            "column {} of the header, {name:?}: {COLUMN_NAME_RULE}",
+                            c + 1
+                        ),
                     ));
                 }
                 if series.columns.iter().any(|n| n == name) {
