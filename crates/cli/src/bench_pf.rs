@@ -29,6 +29,8 @@ struct Row {
     steps_per_second: f64,
     /// Share of particle-samples on the free-ringing model.
     ringing_share: f64,
+    /// Particle steps that diverged (the particle was dropped): 0 expected.
+    diverged_steps: usize,
     /// The estimates at the last sample, for a sanity check (m, m/s).
     d: f64,
     v: f64,
@@ -58,6 +60,7 @@ impl Render for Report {
             ("real-time factor", Align::Right),
             ("steps/s", Align::Right),
             ("ringing", Align::Right),
+            ("diverged", Align::Right),
             ("d (mm)", Align::Right),
             ("v (m/s)", Align::Right),
         ]);
@@ -69,6 +72,7 @@ impl Render for Report {
                 format!("{:.2}", r.real_time_factor),
                 sig(r.steps_per_second, 3),
                 format!("{:.0}%", 100.0 * r.ringing_share),
+                r.diverged_steps.to_string(),
                 format!("{:.2}", r.d * 1e3),
                 format!("{:.3}", r.v),
             ]);
@@ -117,6 +121,7 @@ pub fn run(particles: &[usize], quick: bool, format: &FormatArgs) -> Result<()> 
             real_time_factor: data_seconds / best,
             steps_per_second: post.steps as f64 / best,
             ringing_share: post.ringing_share,
+            diverged_steps: post.diverged,
             d: est[0].mean,
             v: est[1].mean,
         });

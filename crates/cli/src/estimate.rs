@@ -117,6 +117,9 @@ pub(crate) struct FileEstimate {
     pub seconds: f64,
     /// The sensor noise the method used per channel it reads, SI.
     pub noise: Vec<(String, f64)>,
+    /// The particle filter's own counts (particles, resamplings, particle steps, diverged
+    /// steps, moves undone, misfit); empty for other methods.
+    pub filter: Vec<(&'static str, f64)>,
 }
 
 /// Estimates for one or more files.
@@ -282,6 +285,7 @@ pub fn run(args: &Args) -> Result<()> {
             estimates: named,
             seconds: secs,
             noise: named_noise(level, &needs),
+            filter: Vec::new(),
         });
     }
     let report = Report {
@@ -403,6 +407,17 @@ fn print_json(report: &Report, lines: bool) -> Result<()> {
                     .collect(),
             ),
         );
+        if !row.filter.is_empty() {
+            obj.insert(
+                "filter".into(),
+                Value::Object(
+                    row.filter
+                        .iter()
+                        .map(|(k, x)| (k.to_string(), json!(x)))
+                        .collect(),
+                ),
+            );
+        }
         if let Some(Some(c)) = report.checks.get(k) {
             obj.insert(
                 "check".into(),

@@ -263,6 +263,14 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
             estimates: named,
             seconds: secs,
             noise: named_noise(&sensor, &channels),
+            filter: vec![
+                ("particles", config.particles as f64),
+                ("resamples", post.resamples as f64),
+                ("particle_steps", post.steps as f64),
+                ("diverged_steps", post.diverged as f64),
+                ("refused_moves", post.refused_moves as f64),
+                ("misfit", misfit),
+            ],
         });
         posteriors.push(post);
     }

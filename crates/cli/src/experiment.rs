@@ -303,6 +303,20 @@ impl Render for Report {
                 .join(", "),
             sig(ev.estimated_noise.process, 2)
         )?;
+        for m in &ev.methods {
+            let get = |k: &str| m.settings.iter().find(|(n, _)| n == k).map(|(_, x)| *x);
+            if let (Some(steps), Some(diverged), Some(refused)) = (
+                get("particle_steps"),
+                get("diverged_steps"),
+                get("refused_moves"),
+            ) {
+                writeln!(
+                    out,
+                    "{}: {steps:.0} particle steps, {diverged:.0} diverged; {refused:.0} moves undone (a box moved onto its whisker)",
+                    m.name
+                )?;
+            }
+        }
         writeln!(out, "wall time {:.2} s; files:", ev.seconds)?;
         for f in &self.files {
             writeln!(out, "  {}", f.display())?;

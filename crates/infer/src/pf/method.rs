@@ -8,6 +8,7 @@ use super::likelihood::{
 use super::posterior::{Observations, Posterior};
 use crate::error::{Error, Result};
 use crate::experiment::CHANNELS;
+use std::sync::atomic::{AtomicU64, Ordering};
 use vibrissa_core::dynamics::Integrator;
 
 /// The least sensor noise the filter assumes, as a fraction of the `noisy` variant's level
@@ -51,6 +52,43 @@ pub struct Pf {
     sigma: Option<[f64; 5]>,
     sensor: Option<[f64; 5]>,
     family: Option<crate::Family>,
+    tally: Tally,
+}
+
+/// What the filter's runs since fitting have counted, summed over runs.
+#[derive(Debug, Default)]
+struct Tally {
+    runs: AtomicU64,
+    steps: AtomicU64,
+    diverged: AtomicU64,
+    refused_moves: AtomicU64,
+}
+
+impl Tally {
+    fn add(&self, post: &Posterior) {
+        self.runs.fetch_add(1, Ordering::Relaxed);
+        self.steps.fetch_add(post.steps, Ordering::Relaxed);
+        self.diverged
+            .fetch_add(post.diverged as u64, Ordering::Relaxed);
+        self.refused_moves
+            .fetch_add(post.refused_moves as u64, Ordering::Relaxed);
+    }
+    fn get(&self) -> [u64; 4] {
+        [&self.runs, &self.steps, &self.diverged, &self.refused_moves]
+            .map(|a| a.load(Ordering::Relaxed))
+    }
+}
+
+impl Clone for Tally {
+    fn clone(&self) -> Tally {
+        let [runs, steps, diverged, refused_moves] = self.get().map(AtomicU64::new);
+        Tally {
+            runs,
+            steps,
+            diverged,
+            refused_moves,
+        }
+    }
 }
 
 impl std::fmt::Debug for dyn crate::Method {
@@ -83,6 +121,7 @@ impl Pf {
             sigma: None,
             sensor: None,
             family: None,
+            tally: Tally::default(),
         }
     }
 
@@ -170,11 +209,19 @@ impl Pf {
                 std: [e[0].std.max(1e-5), v.std.max(1e-3)],
             });
         }
-        run(
+        let post = run(
             &config,
             &Observations::at_rate(obs.to_vec(), family.sample_rate()),
             &mut |_| {},
-        )
+        )?;
+        self.tally.add(&post);
+        Ok(post)
+    }
+
+    /// Counts over the runs since the filter was fitted: `[runs, particle steps, diverged
+    /// particle steps, moves undone]` (see [`Posterior`]).
+    pub fn tally(&self) -> [u64; 4] {
+        self.tally.get()
     }
 }
 
@@ -207,6 +254,7 @@ impl crate::Method for Pf {
         self.sigma = Some(observation_sigma(sensor, model, self.effective_temper()));
         self.sensor = Some(sensor);
         self.family = Some(training.family.clone());
+        self.tally = Tally::default();
         if let Some((_, m)) = &mut self.inject {
             let m = std::sync::Arc::get_mut(m).ok_or_else(|| Error::Fit {
                 method: "pf".into(),
@@ -232,6 +280,12 @@ impl crate::Method for Pf {
             for (c, x) in sig.iter().enumerate() {
                 s.push((format!("sigma_{}", CHANNELS[c]), *x));
             }
+        }
+        let [runs, steps, diverged, refused] = self.tally();
+        if runs > 0 {
+            s.push(("particle_steps".to_string(), steps as f64));
+            s.push(("diverged_steps".to_string(), diverged as f64));
+            s.push(("refused_moves".to_string(), refused as f64));
         }
         s
     }

@@ -48,6 +48,9 @@ pub struct Posterior {
     pub resamples: usize,
     /// Particle steps that diverged (those particles got weight zero).
     pub diverged: usize,
+    /// Moves after resampling that were undone because they put a box around its particle's
+    /// whisker (the particle kept its parent's box).
+    pub refused_moves: usize,
     /// Physics steps taken over all particles.
     pub steps: u64,
     /// Share of particle-samples advanced on the free-ringing model (the box gone for good).
@@ -67,6 +70,7 @@ impl Posterior {
             skipped: 0,
             resamples: 0,
             diverged: 0,
+            refused_moves: 0,
             steps: 0,
             ringing_share: 0.0,
             log_evidence: 0.0,

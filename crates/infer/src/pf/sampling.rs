@@ -2,7 +2,6 @@
 //! the resampled object states and reflection into a prior's range.
 
 use super::config::{Config, Prior};
-use super::filter::STREAM_MOVE;
 use super::transition::{param, start_delay, ObjState, Y};
 use vibrissa_core::rng::Rng;
 
@@ -78,117 +77,142 @@ pub(super) fn systematic(w: &[f64], u0: f64) -> Vec<usize> {
 /// still moves, so the filter can leave a wrong mode.
 const COV_FLOOR: f64 = 2e-3;
 
-#[allow(clippy::needless_range_loop, clippy::too_many_arguments)]
-/// The Liu–West move of the resampled object states (see the documentation of the `pf` module).
-pub(super) fn liu_west(
-    config: &Config,
-    objs: &[ObjState],
-    w: &[f64],
-    parents: &[usize],
-    free: &[usize],
-    cleared: &[bool],
-    arrived: &[bool],
-    generation: u64,
-    t: f64,
-) -> Vec<ObjState> {
-    // Moved coordinates: the free unknowns (d, v, t0, size, mu), summarised over the weighted
-    // cloud. A particle whose box has gone takes the move as it is. One whose box may still touch
-    // its whisker keeps the box's height where it is (the whisker state stays consistent with
-    // it): its speed and distance move, its start delay follows from the height and the speed.
-    let m = free.len();
-    let a = config.shrink;
-    let mut out: Vec<ObjState> = parents.iter().map(|&p| objs[p]).collect();
-    if m == 0 || a >= 1.0 {
-        return out;
-    }
-    let gap = config.gap;
-    // The cloud of the particles whose box has arrived (the others are redrawn anyway).
-    let mass: f64 = w
-        .iter()
-        .zip(arrived)
-        .filter(|(_, a)| **a)
-        .map(|(w, _)| w)
-        .sum();
-    if mass <= 0.0 {
-        return out;
-    }
-    let w: Vec<f64> = w
-        .iter()
-        .zip(arrived)
-        .map(|(w, a)| if *a { w / mass } else { 0.0 })
-        .collect();
-    let w = &w[..];
-    let mut mean = [0.0f64; 5];
-    for (o, &wi) in objs.iter().zip(w) {
-        for (j, &c) in free.iter().enumerate() {
-            mean[j] += wi * param(o, c, gap);
+/// The Liu–West move of resampled object states: each moves towards the weighted mean of the
+/// cloud of arrived boxes by the shrinkage `a` ([`Config::shrink`]) and is jittered with the
+/// cloud's covariance times `1 − a²`, so the cloud keeps its mean and spread.
+pub(super) struct LiuWest {
+    /// The free unknowns' indices.
+    free: Vec<usize>,
+    mean: [f64; 5],
+    /// Lower Cholesky factor of the cloud's covariance (floored).
+    chol: [[f64; 5]; 5],
+    a: f64,
+    gap: f64,
+}
+
+#[allow(clippy::needless_range_loop)]
+impl LiuWest {
+    /// The move for a cloud `objs` weighted `w`; `None` when nothing moves (no free unknown, no
+    /// shrinkage, or no box has arrived).
+    pub(super) fn new(
+        config: &Config,
+        objs: &[ObjState],
+        w: &[f64],
+        free: &[usize],
+        arrived: &[bool],
+    ) -> Option<LiuWest> {
+        // Moved coordinates: the free unknowns (d, v, t0, size, mu), summarised over the
+        // weighted cloud of the particles whose box has arrived (the others are redrawn anyway).
+        let m = free.len();
+        let a = config.shrink;
+        if m == 0 || a >= 1.0 {
+            return None;
         }
-    }
-    let mut cov = [[0.0f64; 5]; 5];
-    for (o, &wi) in objs.iter().zip(w) {
+        let gap = config.gap;
+        let mass: f64 = w
+            .iter()
+            .zip(arrived)
+            .filter(|(_, a)| **a)
+            .map(|(w, _)| w)
+            .sum();
+        if mass <= 0.0 {
+            return None;
+        }
+        let w: Vec<f64> = w
+            .iter()
+            .zip(arrived)
+            .map(|(w, a)| if *a { w / mass } else { 0.0 })
+            .collect();
+        let mut mean = [0.0f64; 5];
+        for (o, &wi) in objs.iter().zip(&w) {
+            for (j, &c) in free.iter().enumerate() {
+                mean[j] += wi * param(o, c, gap);
+            }
+        }
+        let mut cov = [[0.0f64; 5]; 5];
+        for (o, &wi) in objs.iter().zip(&w) {
+            for j in 0..m {
+                for l in 0..m {
+                    cov[j][l] += wi
+                        * (param(o, free[j], gap) - mean[j])
+                        * (param(o, free[l], gap) - mean[l]);
+                }
+            }
+        }
+        // Cholesky with a small floor on the diagonal (a collapsed cloud still moves a little).
+        let mut chol = [[0.0f64; 5]; 5];
         for j in 0..m {
-            for l in 0..m {
-                cov[j][l] +=
-                    wi * (param(o, free[j], gap) - mean[j]) * (param(o, free[l], gap) - mean[l]);
+            let span = config.priors[free[j]].hi - config.priors[free[j]].lo;
+            cov[j][j] = cov[j][j].max(COV_FLOOR * COV_FLOOR * span * span);
+        }
+        for j in 0..m {
+            for l in 0..=j {
+                let mut s = cov[j][l];
+                for r in 0..l {
+                    s -= chol[j][r] * chol[l][r];
+                }
+                chol[j][l] = if j == l {
+                    s.max(0.0).sqrt()
+                } else if chol[l][l] > 0.0 {
+                    s / chol[l][l]
+                } else {
+                    0.0
+                };
             }
         }
+        Some(LiuWest {
+            free: free.to_vec(),
+            mean,
+            chol,
+            a,
+            gap,
+        })
     }
-    // Cholesky with a small floor on the diagonal (a collapsed cloud still moves a little).
-    let mut chol = [[0.0f64; 5]; 5];
-    for j in 0..m {
-        let span = config.priors[free[j]].hi - config.priors[free[j]].lo;
-        cov[j][j] = cov[j][j].max(COV_FLOOR * COV_FLOOR * span * span);
-    }
-    for j in 0..m {
-        for l in 0..=j {
-            let mut s = cov[j][l];
-            for r in 0..l {
-                s -= chol[j][r] * chol[l][r];
-            }
-            chol[j][l] = if j == l {
-                s.max(0.0).sqrt()
-            } else if chol[l][l] > 0.0 {
-                s / chol[l][l]
-            } else {
-                0.0
-            };
-        }
-    }
-    let h = (1.0 - a * a).sqrt();
-    for (i, o) in out.iter_mut().enumerate() {
-        if !arrived[parents[i]] {
-            continue;
-        }
-        let mut rng = Rng::stream(config.seed, STREAM_MOVE + (generation << 20) + i as u64);
+
+    /// One move of the object state `o` at time `t`, drawn from `rng`. A box that has gone
+    /// (`cleared`) takes the move as it is. One that may still touch its whisker keeps its
+    /// height where it is (the whisker state stays consistent with it): its speed and distance
+    /// move, its start delay follows from the height and the speed.
+    pub(super) fn draw(
+        &self,
+        config: &Config,
+        o: &ObjState,
+        cleared: bool,
+        t: f64,
+        rng: &mut Rng,
+    ) -> ObjState {
+        let (m, a, gap) = (self.free.len(), self.a, self.gap);
+        let h = (1.0 - a * a).sqrt();
+        let mut o = *o;
         let z: Vec<f64> = (0..m).map(|_| rng.normal()).collect();
-        let (t0_old, y_now) = (start_delay(o, gap), o[Y] + o[1] * t);
+        let (t0_old, y_now) = (start_delay(&o, gap), o[Y] + o[1] * t);
         // Every unknown's value before the move (t0 depends on the speed, which moves first).
-        let before: Vec<f64> = free.iter().map(|&c| param(o, c, gap)).collect();
+        let before: Vec<f64> = self.free.iter().map(|&c| param(&o, c, gap)).collect();
         let mut t0_new = t0_old;
         for j in 0..m {
-            let c = free[j];
-            let noise: f64 = (0..=j).map(|l| chol[j][l] * z[l]).sum();
+            let c = self.free[j];
+            let noise: f64 = (0..=j).map(|l| self.chol[j][l] * z[l]).sum();
             let x = reflect(
-                a * before[j] + (1.0 - a) * mean[j] + h * noise,
+                a * before[j] + (1.0 - a) * self.mean[j] + h * noise,
                 &config.priors[c],
             );
             if c == Y {
                 // While the box may still touch its whisker, its height is part of the contact
                 // state: it stays where it is, and t0 follows from it and the speed.
-                if cleared[parents[i]] {
+                if cleared {
                     t0_new = x;
                 }
             } else {
                 o[c] = x;
             }
         }
-        o[Y] = if cleared[parents[i]] {
+        o[Y] = if cleared {
             -gap - o[1] * t0_new
         } else {
             y_now - o[1] * (t0_new - t0_old) - o[1] * t
         };
+        o
     }
-    out
 }
 
 /// `x` reflected into the prior's range.
