@@ -362,6 +362,8 @@ pub struct Workspace {
     pub(crate) contacts: contact::Scratch,
     /// Geometric iterations used by the last step.
     pub iterations: usize,
+    /// The state at the start of the step being taken (restored if the step fails).
+    backup: Option<State>,
 }
 
 /// `a·b + c`, fused where the target has FMA.
@@ -477,6 +479,7 @@ impl Workspace {
             noise: vec![[0.0; 2]; n],
             contacts: contact::Scratch::new(n),
             iterations: 0,
+            backup: None,
         }
     }
 
@@ -743,8 +746,93 @@ pub fn step(
     step_with(model, st, state, inputs, ws, &mut NoForcing)
 }
 
+/// How many times a step that diverged is halved before its error is returned: a step of `dt`
+/// is retried as two steps of `dt/2`, either of which may be halved again, down to `dt/16`.
+pub const MAX_HALVINGS: u32 = 4;
+
 /// Advances `state` by one step with `inputs` and extra `forcing`.
+///
+/// A step whose result is not finite or folds a joint past π from its rest angle is not kept:
+/// the state is restored and the step taken again as two half steps (the base motion
+/// interpolated to the middle), each halved again if it fails, up to [`MAX_HALVINGS`] times. Only
+/// when that fails too does the step return [`Error::Diverged`], and the state is then left as
+/// it was before the step.
 pub fn step_with<F: Forcing + ?Sized>(
+    model: &Model,
+    st: &Stepper,
+    state: &mut State,
+    inputs: &Inputs,
+    ws: &mut Workspace,
+    forcing: &mut F,
+) -> Result<()> {
+    let mut backup = ws.backup.take().unwrap_or_else(|| state.clone());
+    backup.clone_from(state);
+    let result = match step_once(model, st, state, inputs, ws, forcing) {
+        Err(first @ Error::Diverged { .. }) => {
+            state.clone_from(&backup);
+            let t_end = state.t + st.dt;
+            match halves(model, st, state, inputs, ws, forcing, 1) {
+                Ok(()) => {
+                    state.t = t_end;
+                    Ok(())
+                }
+                Err(_) => {
+                    state.clone_from(&backup);
+                    Err(first)
+                }
+            }
+        }
+        Err(e) => {
+            state.clone_from(&backup);
+            Err(e)
+        }
+        ok => ok,
+    };
+    ws.backup = Some(backup);
+    result
+}
+
+/// Takes the step of `st` as two half steps, halving a half that diverges again while `level`
+/// allows (see [`step_with`]). On error the state is wherever the failed half left it.
+fn halves<F: Forcing + ?Sized>(
+    model: &Model,
+    st: &Stepper,
+    state: &mut State,
+    inputs: &Inputs,
+    ws: &mut Workspace,
+    forcing: &mut F,
+    level: u32,
+) -> Result<()> {
+    let half = Integrator {
+        dt: 0.5 * st.dt,
+        rho_inf: st.rho_inf,
+        tolerance: st.tolerance,
+        max_iterations: st.max_iterations,
+    }
+    .check()?;
+    let (b0, b1) = (state.base, inputs.base);
+    let middle = BaseMotion {
+        angle: 0.5 * (b0.angle + b1.angle),
+        rate: 0.5 * (b0.rate + b1.rate),
+        accel: 0.5 * (b0.accel + b1.accel),
+    };
+    for base in [middle, b1] {
+        let part = Inputs { base, ..*inputs };
+        let start = state.clone();
+        match step_once(model, &half, state, &part, ws, forcing) {
+            Ok(()) => {}
+            Err(Error::Diverged { .. }) if level < MAX_HALVINGS => {
+                state.clone_from(&start);
+                halves(model, &half, state, &part, ws, forcing, level + 1)?;
+            }
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(())
+}
+
+/// One step of `st`, without retries (see [`step_with`]).
+fn step_once<F: Forcing + ?Sized>(
     model: &Model,
     st: &Stepper,
     state: &mut State,

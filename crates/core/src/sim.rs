@@ -382,6 +382,16 @@ impl Scenario {
         self.integrator.check()?;
         check_positive("duration", self.duration)?;
         check_positive("sample_rate", self.sample_rate)?;
+        if self.sample_rate > MAX_SAMPLE_RATE {
+            return Err(Error::invalid(
+                "sample_rate",
+                self.sample_rate,
+                format!(
+                    "at most {MAX_SAMPLE_RATE:e} Hz (a sample period of at least 1 µs; every \
+                     sample takes at least one step)"
+                ),
+            ));
+        }
         check_non_negative("process_noise", self.process_noise)?;
         let sn = &self.sensor_noise;
         for (name, x) in [
@@ -424,6 +434,10 @@ pub struct Output {
     /// contact, m.
     pub max_penetration: f64,
 }
+
+/// Highest output sample rate, Hz: every sample period takes at least one step, and whisker
+/// recordings are sampled at kilohertz, not megahertz.
+pub const MAX_SAMPLE_RATE: f64 = 1e6;
 
 /// Object speed above which a divergence is put down to the objects, m/s: whiskers meet objects
 /// at centimetres to metres per second.

@@ -109,3 +109,49 @@ fn a_divergence_names_its_likely_cause_in_readable_numbers() {
     let e = sim::run(&sc, &mut |_| {}).unwrap_err().to_string();
     assert!(e.contains("likely cause: process_noise"), "{e}");
 }
+
+#[test]
+fn a_step_that_cannot_be_taken_leaves_the_state_as_it_was() {
+    use vibrissa_core::chain::{Discretisation, Model};
+    use vibrissa_core::dynamics::{initialize, step, Inputs, Integrator, State, Workspace};
+    use vibrissa_core::whisker::WhiskerParams;
+    // The e2 box at 500 m/s: no halving of the step can follow it.
+    let whisker = WhiskerParams::w30().check().unwrap();
+    let model = Model::new(&whisker, 20, Discretisation::default()).unwrap();
+    let stepper = Integrator::default().check().unwrap();
+    let objects = [vibrissa_core::scenes::e2_box(0.02, 500.0)];
+    let inputs = Inputs {
+        objects: &objects,
+        ..Default::default()
+    };
+    let mut ws = Workspace::new(&model);
+    let mut state = State::at_rest(&model, 1);
+    initialize(&model, &mut state, &inputs, &mut ws).unwrap();
+    let mut failed = false;
+    for _ in 0..200 {
+        let before = state.clone();
+        if let Err(e) = step(&model, &stepper, &mut state, &inputs, &mut ws) {
+            assert!(e.to_string().contains("diverged"), "{e}");
+            assert_eq!(state, before, "a failed step changed the state");
+            failed = true;
+            break;
+        }
+    }
+    assert!(failed, "the 500 m/s box should make a step fail");
+}
+
+#[test]
+fn sample_rates_above_a_megahertz_are_refused() {
+    let mut sc = Scenario {
+        sample_rate: 1.1e6,
+        ..Scenario::default()
+    };
+    let e = sim::run(&sc, &mut |_| {}).unwrap_err().to_string();
+    assert!(
+        e.contains("sample_rate") && e.contains("at most 1e6 Hz"),
+        "{e}"
+    );
+    sc.sample_rate = 1e6;
+    sc.duration = 1e-3;
+    assert!(sim::run(&sc, &mut |_| {}).is_ok());
+}
