@@ -27,7 +27,7 @@ fuzz_target!(|data: &[u8]| {
         .duration
         .min(MAX_STEPS * scenario.integrator.dt)
         .max(period);
-    if scenario.duration / scenario.integrator.dt > 4.0 * MAX_STEPS {
+    if scenario.duration / scenario.integrator.dt.min(period) > 4.0 * MAX_STEPS {
         return;
     }
     if let Ok(out) = sim::run(&scenario, &mut |_| {}) {

@@ -5,10 +5,11 @@ use super::config::{Config, PARAMS};
 use super::draws::{draw_initial, redraw_waiting};
 use super::posterior::{summarise, Observations, Posterior, TraceRow};
 use super::sampling::{systematic, LiuWest};
-use super::transition::{advance, depth, map_joints, param, Chain, FreeModel, ObjState};
+use super::transition::{advance, map_joints, param, Chain, FreeModel, ObjState};
 use crate::error::{Error, Result};
 use crate::experiment::CHANNELS;
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use vibrissa_core::batch;
 use vibrissa_core::chain::Model;
 use vibrissa_core::dynamics::{initialize, Inputs, Integrator, State, Workspace};
@@ -103,6 +104,8 @@ pub fn run(
     let reach_zone = ringing.clearance + 1e-4;
     let mut spare = states.clone();
     let mut generation = 0u64;
+    // Each particle's box before the last move, until the next sample is predicted.
+    let mut unmoved: Vec<Option<ObjState>> = vec![None; np];
     let samples = obs.t.len();
     for k in 0..samples {
         let t = obs.t[k];
@@ -136,19 +139,30 @@ pub fn run(
         // Weight mass the particles carry into this sample (for the evidence).
         let prior_mass: f64 = logw.iter().map(|l| l.exp()).sum();
         let ringing_before = cleared.iter().filter(|c| **c).count();
+        let undone = AtomicUsize::new(0);
         let diverged = batch::sum_with_workspace(
             &model,
             states
                 .par_iter_mut()
-                .zip(objs.par_iter())
+                .zip(objs.par_iter_mut())
                 .zip(logw.par_iter_mut())
-                .zip(cleared.par_iter_mut()),
-            |ws, (((s, o), lw), gone)| {
+                .zip(cleared.par_iter_mut())
+                .zip(unmoved.par_iter()),
+            |ws, ((((s, o), lw), gone), before)| {
                 if *lw == f64::NEG_INFINITY {
                     return 0;
                 }
                 let noise = config.process_noise;
-                if advance(&chain, s, o, gone, steps, periods, noise, t, ws).is_err() {
+                // A box just moved may sit where its whisker state cannot follow (around the
+                // tip, say): keep the state to take the sample again with the unmoved box.
+                let start = before.map(|_| (s.clone(), *gone));
+                let mut ok = advance(&chain, s, o, gone, steps, periods, noise, t, ws).is_ok();
+                if let (false, Some(b), Some((s0, g0))) = (ok, before, start) {
+                    undone.fetch_add(1, Ordering::Relaxed);
+                    (*s, *gone, *o) = (s0, g0, *b);
+                    ok = advance(&chain, s, o, gone, steps, periods, noise, t, ws).is_ok();
+                }
+                if !ok {
                     *lw = f64::NEG_INFINITY;
                     return 1;
                 }
@@ -168,6 +182,8 @@ pub fn run(
             },
         );
         post.diverged += diverged;
+        post.refused_moves += undone.into_inner();
+        unmoved.iter_mut().for_each(|u| *u = None);
         post.steps += ((np - ringing_before) * steps + ringing_before * periods) as u64;
         ringing_samples += ringing_before;
 
@@ -216,15 +232,14 @@ pub fn run(
             objs = parents.iter().map(|&p| objs[p]).collect();
             logw.iter_mut().for_each(|l| *l = 0.0);
             if let Some(kernel) = &kernel {
-                let moves = Moves {
-                    model: &model,
-                    config,
-                    kernel,
-                    generation,
-                    t,
-                };
-                post.refused_moves +=
-                    moves.apply(&states, &cleared, &arrived, &mut objs, &mut logw);
+                for (i, (o, u)) in objs.iter_mut().zip(unmoved.iter_mut()).enumerate() {
+                    if arrived[i] {
+                        let stream = STREAM_MOVE + (generation << 20) + i as u64;
+                        let mut rng = Rng::stream(config.seed, stream);
+                        *u = Some(*o);
+                        *o = kernel.draw(config, o, cleared[i], t, &mut rng);
+                    }
+                }
             }
         } else {
             logw.iter_mut()
@@ -253,70 +268,6 @@ pub fn run(
     progress(1.0);
     post.ringing_share = ringing_samples as f64 / (np * samples) as f64;
     Ok(post)
-}
-
-/// How far a move may push the box over the whisker's axis beyond where the parent's box had
-/// it, m (a rounding margin: in contact the axis stays a radius away from the box).
-const MOVE_OVERLAP: f64 = 1e-6;
-
-/// Draws of a move tried before a particle is given up.
-const MOVE_TRIES: u64 = 8;
-
-/// The moves of one resampling: the Liu–West kernel, truncated to boxes that do not enclose
-/// their particle's whisker.
-struct Moves<'a> {
-    model: &'a Model,
-    config: &'a Config,
-    kernel: &'a LiuWest,
-    generation: u64,
-    t: f64,
-}
-
-impl Moves<'_> {
-    /// Moves every arrived particle's box. The whisker state was simulated against the parent's
-    /// box, so a box moved into the whisker (a distance moved onto a whisker that the parent's
-    /// box passed beyond, say) is a state no physics leads to, and the contact solve would have to
-    /// push the whisker out in one step. Such a draw is refused and the move drawn again (the
-    /// kernel truncated to the boxes the state admits); a particle with no admissible draw in
-    /// [`MOVE_TRIES`] gets weight zero. Returns the draws refused.
-    fn apply(
-        &self,
-        states: &[State],
-        cleared: &[bool],
-        arrived: &[bool],
-        objs: &mut [ObjState],
-        logw: &mut [f64],
-    ) -> usize {
-        batch::sum_with_workspace(
-            self.model,
-            objs.par_iter_mut().zip(logw.par_iter_mut()).enumerate(),
-            |ws, (i, (o, lw))| {
-                if !arrived[i] {
-                    return 0;
-                }
-                let (s, gone) = (&states[i], cleared[i]);
-                let parent = *o;
-                let limit = if gone {
-                    f64::INFINITY
-                } else {
-                    depth(self.model, s, &parent, s.t, ws).max(0.0) + MOVE_OVERLAP
-                };
-                for attempt in 0..MOVE_TRIES {
-                    let stream = STREAM_MOVE + (attempt << 37) + (self.generation << 20) + i as u64;
-                    let mut rng = Rng::stream(self.config.seed, stream);
-                    let x = self
-                        .kernel
-                        .draw(self.config, &parent, gone, self.t, &mut rng);
-                    if gone || depth(self.model, s, &x, s.t, ws) <= limit {
-                        *o = x;
-                        return attempt as usize;
-                    }
-                }
-                *lw = f64::NEG_INFINITY;
-                MOVE_TRIES as usize
-            },
-        )
-    }
 }
 
 /// Refuses observations the filter cannot use.
@@ -358,80 +309,4 @@ fn check_observations(config: &Config, obs: &Observations) -> Result<()> {
         }
     }
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// The e2 filter's model and a whisker state at rest.
-    fn setup() -> (Config, Model, State) {
-        let mut config = Config::e2([1.0; 5], 4, 1);
-        // No shrinkage: every draw jumps to the cloud's mean and spread.
-        config.shrink = 0.0;
-        let whisker = config.whisker.check().unwrap();
-        let model = Model::new(&whisker, config.segments, config.model_discretisation()).unwrap();
-        let mut state = State::at_rest(&model, 1);
-        state.t = 0.002;
-        (config, model, state)
-    }
-
-    /// A box at distance `d` whose top is at height `top` at t = 2 ms, moving up at 1 m/s.
-    fn box_at(d: f64, top: f64) -> ObjState {
-        [d, 1.0, top - 0.002, 0.01, 0.0]
-    }
-
-    #[test]
-    fn depth_is_how_far_the_axis_lies_inside_the_box() {
-        let (_, model, state) = setup();
-        let mut ws = Workspace::new(&model);
-        // The straight whisker ends at x = 30 mm.
-        let around_tip = depth(&model, &state, &box_at(0.0294, 1e-3), 0.002, &mut ws);
-        assert!((around_tip - 0.6e-3).abs() < 1e-6, "{around_tip}");
-        let beyond = depth(&model, &state, &box_at(0.031, 1e-3), 0.002, &mut ws);
-        let pressing = depth(&model, &state, &box_at(0.02, -5e-5), 0.002, &mut ws);
-        assert_eq!((beyond, pressing), (0.0, 0.0));
-    }
-
-    #[test]
-    fn moves_that_put_a_box_around_its_whisker_are_refused() {
-        let (config, model, state) = setup();
-        // The cloud sits on the tip: its mean box, placed around a straight whisker, swallows it.
-        let cloud = [box_at(0.0293, 1e-3), box_at(0.0295, 1e-3)];
-        let kernel = LiuWest::new(&config, &cloud, &[0.5, 0.5], &[0, 1], &[true, true]).unwrap();
-        let moves = Moves {
-            model: &model,
-            config: &config,
-            kernel: &kernel,
-            generation: 1,
-            t: 0.002,
-        };
-        // Particle 0's box passed beyond the tip; particle 1's is still below the whisker;
-        // particle 2's has gone for good, and moves as drawn.
-        let mut objs = [
-            box_at(0.031, 1e-3),
-            box_at(0.02, -2e-3),
-            box_at(0.031, 5e-3),
-        ];
-        let mut logw = [0.0; 3];
-        let states = [state.clone(), state.clone(), state];
-        let refused = moves.apply(
-            &states,
-            &[false, false, true],
-            &[true, true, true],
-            &mut objs,
-            &mut logw,
-        );
-        assert_eq!(
-            refused, MOVE_TRIES as usize,
-            "only particle 0's draws are refused"
-        );
-        assert_eq!(logw, [f64::NEG_INFINITY, 0.0, 0.0]);
-        assert!(
-            (objs[1][0] - 0.0294).abs() < 1e-3 && objs[1][0] != 0.02,
-            "{:?}",
-            objs[1]
-        );
-        assert!(objs[2][0] < 0.0301, "{:?}", objs[2]);
-    }
 }

@@ -6,7 +6,7 @@ use super::config::Config;
 use crate::error::{Error, Result};
 use vibrissa_core::chain::Model;
 use vibrissa_core::dynamics::{initialize, step, Inputs, Integrator, State, Workspace};
-use vibrissa_core::objects::{closest, Motion, Object, Shape};
+use vibrissa_core::objects::{Motion, Object, Shape};
 use vibrissa_core::whisker::Follicle;
 
 /// The object's state of one particle: `[d, v, y0, size, mu]` with `y0` the height of the top
@@ -150,20 +150,6 @@ pub fn map_joints(model: &Model, observed: &Model, q: &[f64]) -> [f64; 2] {
         let m = (1.0 - u) * moment(i) + u * moment(i + 1);
         observed.rest[j] + m / observed.stiffness[j]
     })
-}
-
-/// How deep the whisker's axis lies inside the box of `o` at time `t` in state `s`, m: the
-/// largest distance of a segment's axis into the box, 0 when no axis enters it. A box that
-/// presses on the whisker's surface (in contact, or moved a little into it) leaves the axis
-/// outside; only a box around the whisker puts the axis inside.
-pub(super) fn depth(model: &Model, s: &State, o: &ObjState, t: f64, ws: &mut Workspace) -> f64 {
-    let object = object_of(o);
-    let pose = object.pose(t);
-    ws.evaluate(model, s);
-    let nodes = ws.nodes();
-    (0..model.n)
-        .map(|i| -closest(&object.shape, &pose, nodes[i], nodes[i + 1]).distance)
-        .fold(0.0, f64::max)
 }
 
 /// The filter's transition model: the chain, its stepper, and the free-ringing model.
