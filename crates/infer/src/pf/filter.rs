@@ -156,7 +156,8 @@ pub fn run(
                 // A box just moved may sit where its whisker state cannot follow (around the
                 // tip, say): keep the state to take the sample again with the unmoved box.
                 let start = before.map(|_| (s.clone(), *gone));
-                let mut ok = advance(&chain, s, o, gone, steps, periods, noise, t, ws).is_ok();
+                let mut ok = advance(&chain, s, o, gone, steps, periods, noise, t, ws).is_ok()
+                    && (before.is_none() || !whipped(&model, s));
                 if let (false, Some(b), Some((s0, g0))) = (ok, before, start) {
                     undone.fetch_add(1, Ordering::Relaxed);
                     (*s, *gone, *o) = (s0, g0, *b);
@@ -270,6 +271,18 @@ pub fn run(
     Ok(post)
 }
 
+/// Whether a joint of `s` is bent more than [`WHIPPED`] from its rest angle.
+fn whipped(model: &Model, s: &State) -> bool {
+    s.q()
+        .iter()
+        .zip(&model.rest)
+        .any(|(q, r)| (q - r).abs() > WHIPPED)
+}
+
+/// A joint angle from rest, rad, that no strike of a whisker by a moving object reaches: a
+/// state bent further just after a move was launched by the move, not by the object's motion.
+const WHIPPED: f64 = 0.5;
+
 /// Refuses observations the filter cannot use.
 fn check_observations(config: &Config, obs: &Observations) -> Result<()> {
     let n = obs.t.len();
@@ -309,4 +322,22 @@ fn check_observations(config: &Config, obs: &Observations) -> Result<()> {
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_state_is_whipped_when_a_joint_is_bent_far_from_rest() {
+        let config = Config::e2([1.0; 5], 4, 1);
+        let whisker = config.whisker.check().unwrap();
+        let model = Model::new(&whisker, config.segments, config.model_discretisation()).unwrap();
+        let mut s = State::at_rest(&model, 1);
+        assert!(!whipped(&model, &s));
+        s.q_mut()[2] = 0.9 * WHIPPED;
+        assert!(!whipped(&model, &s));
+        s.q_mut()[3] = -1.1 * WHIPPED;
+        assert!(whipped(&model, &s));
+    }
 }
