@@ -312,7 +312,7 @@ impl Render for Report {
             ) {
                 writeln!(
                     out,
-                    "{}: {steps:.0} particle steps, {diverged:.0} diverged; {refused:.0} moves undone (a box moved onto its whisker)",
+                    "{}: {steps:.0} particle steps, {diverged:.0} diverged; {refused:.0} moves undone (a moved box the whisker could not follow)",
                     m.name
                 )?;
             }

@@ -99,3 +99,68 @@ proptest! {
         }
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 32, rng_seed: RngSeed::Fixed(0x3a1d), ..ProptestConfig::default() })]
+
+    /// Newton's third law at the base in static equilibrium: a whisker rotated into a fixed peg
+    /// and left to settle is held by the base with the force and moment that balance the peg's.
+    #[test]
+    fn at_rest_against_a_peg_the_base_balances_the_contact_force(
+        e in 1e9f64..6e9,
+        length in 0.02f64..0.05,
+        tip in 0.4f64..1.0,
+        follicle in prop::option::of(2e-4f64..1e-2),
+        ratio in 0.1f64..0.3,
+        segments in 8usize..25,
+        at in 0.3f64..0.8,
+        peg_radius in 2e-4f64..1e-3,
+        push in 0.02f64..0.1,
+    ) {
+        let p = whisker(e, 1100.0, length, tip, follicle, Some(ratio));
+        let w = p.check().expect("an admissible whisker");
+        let m = Model::new(&w, segments, Discretisation::Gregory).expect("a chain");
+        let l = w.length();
+        // A peg above the whisker at arc length `at`·L, 20 µm clear of its surface; the base
+        // turns up until the whisker would pass the peg's near side by `push` of its distance.
+        let d = at * l;
+        let clear = w.radius(d) + peg_radius + 2e-5;
+        let objects = [vibrissa_core::scenes::peg(d, clear, peg_radius, 0.0)];
+        let angle = (clear / d) * (1.0 + push);
+        let drive = vibrissa_core::sim::BaseDrive::Ramp {
+            rate: 1.0,
+            start: 0.0,
+            stop: angle,
+            smoothing: 0.2 * angle,
+        };
+        let st = Integrator::with_dt(1e-4).check().expect("a time step");
+        let mut s = State::at_rest(&m, 0);
+        let mut ws = Workspace::new(&m);
+        // Settle for ten first-mode time constants after the base stops, clamped (no follicle
+        // spring) or not.
+        let f1 = m.modes().expect("modes").frequencies[0];
+        let settle = angle + 10.0 / (ratio * 2.0 * std::f64::consts::PI * f1);
+        let steps = (settle.min(2.0) / st.dt) as usize;
+        for k in 1..=steps {
+            let inputs = Inputs {
+                base: drive.at(k as f64 * st.dt),
+                objects: &objects,
+                ..Default::default()
+            };
+            let r = step(&m, &st, &mut s, &inputs, &mut ws);
+            prop_assert!(r.is_ok(), "step {k} failed: {}", r.unwrap_err());
+        }
+        let c = s.contact;
+        prop_assert!(c.is_some(), "no contact at rest (peg at {d} m, base at {angle} rad)");
+        let c = c.unwrap();
+        let f = c.force;
+        let size = f[0].hypot(f[1]);
+        prop_assert!(size > 0.0);
+        let [m0, fx, fy] = s.base_wrench;
+        // The base joint is at the origin.
+        let moment = c.point[0] * f[1] - c.point[1] * f[0];
+        prop_assert!((fx + f[0]).abs() <= 1e-3 * size, "fx {fx} vs contact {}", f[0]);
+        prop_assert!((fy + f[1]).abs() <= 1e-3 * size, "fy {fy} vs contact {}", f[1]);
+        prop_assert!((m0 + moment).abs() <= 1e-3 * size * d, "moment {m0} vs contact {moment}");
+    }
+}
