@@ -148,6 +148,33 @@ fn index(name: &str) -> usize {
         .unwrap_or_else(|| panic!("`{name}` is a contract column"))
 }
 
+/// Most contact intervals printed one by one; more are summarised (the JSON has them all).
+const LISTED_INTERVALS: usize = 6;
+
+/// Contact intervals as text: every one when there are few, else the first three and the last
+/// two with how many lie between.
+fn intervals_text(intervals: &[[f64; 2]]) -> String {
+    let one = |&[a, b]: &[f64; 2]| {
+        if a == b {
+            format!("{} ms", short(a * 1e3))
+        } else {
+            format!("{}–{} ms", short(a * 1e3), short(b * 1e3))
+        }
+    };
+    let n = intervals.len();
+    if n <= LISTED_INTERVALS {
+        return intervals.iter().map(one).collect::<Vec<_>>().join(", ");
+    }
+    let head: Vec<String> = intervals[..3].iter().map(one).collect();
+    let tail: Vec<String> = intervals[n - 2..].iter().map(one).collect();
+    format!(
+        "{}, … {} more …, {}",
+        head.join(", "),
+        n - 5,
+        tail.join(", ")
+    )
+}
+
 /// Where the whisker touches an object (`contact` = 1).
 fn contact_mask(series: &Series) -> Vec<bool> {
     column(series, "contact").iter().map(|&c| c > 0.5).collect()
@@ -387,20 +414,13 @@ impl Render for Summary {
             ),
         )?;
         let contact = match &self.contact {
-            Some(c) => {
-                let intervals: Vec<String> = c
-                    .intervals
-                    .iter()
-                    .map(|&[a, b]| {
-                        if a == b {
-                            format!("{} ms", short(a * 1e3))
-                        } else {
-                            format!("{}–{} ms", short(a * 1e3), short(b * 1e3))
-                        }
-                    })
-                    .collect();
-                format!("{} ({} samples)", intervals.join(", "), c.samples)
-            }
+            Some(c) if c.intervals.len() > LISTED_INTERVALS => format!(
+                "{} ({} intervals, {} samples)",
+                intervals_text(&c.intervals),
+                c.intervals.len(),
+                c.samples
+            ),
+            Some(c) => format!("{} ({} samples)", intervals_text(&c.intervals), c.samples),
             None => "none".to_string(),
         };
         line(out, "contact", contact)?;
@@ -429,6 +449,17 @@ mod tests {
         assert_eq!(short(0.6), "0.6");
         assert_eq!(short(0.15 * 1e3), "150");
         assert_eq!(short(1e-4 * 1e6), "100");
+    }
+
+    #[test]
+    fn many_contact_intervals_are_summarised() {
+        let few = [[0.001, 0.002], [0.003, 0.003]];
+        assert_eq!(intervals_text(&few), "1–2 ms, 3 ms");
+        let many: Vec<[f64; 2]> = (0..40)
+            .map(|k| [k as f64 * 1e-3, k as f64 * 1e-3])
+            .collect();
+        let text = intervals_text(&many);
+        assert_eq!(text, "0 ms, 1 ms, 2 ms, … 35 more …, 38 ms, 39 ms");
     }
 
     #[test]
