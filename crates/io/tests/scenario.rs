@@ -778,3 +778,14 @@ fn absurd_speeds_are_refused_by_name() {
         "{e}"
     );
 }
+
+#[test]
+fn the_experiment_box_must_lie_beyond_the_base() {
+    for d in ["0", "-0.01"] {
+        let e = load_full("e2", &sets(&[&format!("d={d}")]))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("invalid d") && e.contains("> 0 m"), "{e}");
+    }
+    assert!(load_full("e2", &sets(&["d=0.0005"])).is_ok());
+}

@@ -268,6 +268,15 @@ impl FileTable {
             Some(experiment) => {
                 let d =
                     check_finite("d", self.d.unwrap_or(DEFAULT_D)).map_err(|e| ctx.invalid(e))?;
+                if d <= 0.0 {
+                    // At d = 0 the box's edge meets the whisker at its base joint, where the
+                    // whisker cannot bend away; below, the box passes behind the base.
+                    return Err(ctx.invalid(vibrissa_core::Error::invalid(
+                        "d",
+                        d,
+                        "a distance from the base > 0 m (the box's near edge beyond the base)",
+                    )));
+                }
                 let v =
                     check_finite("v", self.v.unwrap_or(DEFAULT_V)).map_err(|e| ctx.invalid(e))?;
                 let fastest = vibrissa_core::objects::MAX_SPEED;
