@@ -14,13 +14,20 @@ use vibrissa_io::scenario::Document;
 fn setup() -> &'static (PathBuf, Document) {
     static SETUP: OnceLock<(PathBuf, Document)> = OnceLock::new();
     SETUP.get_or_init(|| {
-        let dir = std::env::temp_dir().join(format!("vibrissa-fuzz-labelled-{}", std::process::id()));
+        let dir =
+            std::env::temp_dir().join(format!("vibrissa-fuzz-labelled-{}", std::process::id()));
         std::fs::create_dir_all(&dir).expect("temporary folder");
         let mut run = String::from("t,theta01,theta12,m0,fx,fy\n");
         for k in 0..40 {
             let t = k as f64 * 1e-3;
             let x = (t * 300.0).sin() * 1e-3;
-            run += &format!("{t},{x},{},{},{},{}\n", 2.0 * x, x * 1e-4, x * 1e-2, -x * 1e-2);
+            run += &format!(
+                "{t},{x},{},{},{},{}\n",
+                2.0 * x,
+                x * 1e-4,
+                x * 1e-2,
+                -x * 1e-2
+            );
         }
         std::fs::write(dir.join("a.csv"), &run).expect("a.csv");
         std::fs::write(dir.join("b.csv"), &run).expect("b.csv");

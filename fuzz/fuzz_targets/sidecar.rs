@@ -14,7 +14,8 @@ const RUN: &str = "t,theta01,theta12\n0,0,0\n0.001,1e-4,2e-4\n0.002,3e-4,-1e-4\n
 fn folder() -> &'static PathBuf {
     static DIR: OnceLock<PathBuf> = OnceLock::new();
     DIR.get_or_init(|| {
-        let dir = std::env::temp_dir().join(format!("vibrissa-fuzz-sidecar-{}", std::process::id()));
+        let dir =
+            std::env::temp_dir().join(format!("vibrissa-fuzz-sidecar-{}", std::process::id()));
         std::fs::create_dir_all(&dir).expect("temporary folder");
         std::fs::write(dir.join("run.csv"), RUN).expect("run.csv");
         dir

@@ -33,7 +33,10 @@ fuzz_target!(|data: &[u8]| {
     if let Ok(out) = sim::run(&scenario, &mut |_| {}) {
         for row in &out.rows {
             // Contact columns are NaN where there is no contact; the others are always numbers.
-            assert!(row[..7].iter().all(|x| x.is_finite()), "non-finite output {row:?}");
+            assert!(
+                row[..7].iter().all(|x| x.is_finite()),
+                "non-finite output {row:?}"
+            );
         }
     }
 });
