@@ -115,6 +115,30 @@ fn same_bits_on_one_and_two_threads() {
 }
 
 #[test]
+fn fed_one_sample_at_a_time_the_filter_gives_the_same_bits_as_on_a_whole_recording() {
+    let mut obs = run_of(0.024, 0.9);
+    for v in obs.values.iter_mut() {
+        v.truncate(60);
+    }
+    obs.t.truncate(60);
+    let config = Config::e2(SIGMA, 200, 4);
+    let whole = pf::run(&config, &obs, &mut |_| {}).unwrap();
+    let mut online = pf::Filter::new(&config, 1e-3).unwrap();
+    for (k, &t) in obs.t.iter().enumerate() {
+        let y: [f64; 5] = std::array::from_fn(|c| obs.values[c][k]);
+        let row = online.update(t, &y).unwrap();
+        assert_eq!(row, &whole.trace[k], "sample {k}");
+        if k == 30 {
+            // A sample out of step is refused and leaves the filter as it was.
+            let e = online.update(t + 0.5e-3, &y).unwrap_err().to_string();
+            assert!(e.contains("irregular sample times"), "{e}");
+        }
+    }
+    assert_eq!(online.finish(), whole);
+    assert!(pf::Filter::new(&config, 0.0).is_err());
+}
+
+#[test]
 fn unknown_start_is_estimated() {
     let e2 = Family::builtin("e2").unwrap();
     let s = e2

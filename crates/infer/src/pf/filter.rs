@@ -1,5 +1,6 @@
-//! The filter's loop: predict, weight, summarise, resample and move, and redraw the waiting
-//! group, one sample at a time; and the checks of the observations it is given.
+//! The filter: [`Filter`] takes one sample at a time (predict, weight, summarise; when the next
+//! sample arrives, resample and move, and redraw the boxes that have not arrived), and [`run`]
+//! feeds it a whole recording after checking it.
 
 use super::config::{Config, PARAMS};
 use super::draws::{draw_initial, redraw_waiting};
@@ -12,7 +13,7 @@ use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use vibrissa_core::batch;
 use vibrissa_core::chain::Model;
-use vibrissa_core::dynamics::{initialize, Inputs, Integrator, State, Workspace};
+use vibrissa_core::dynamics::{initialize, Inputs, Integrator, State, Stepper, Workspace};
 use vibrissa_core::rng::Rng;
 use vibrissa_core::sensors::Sensors;
 
@@ -31,84 +32,11 @@ pub fn run(
 ) -> Result<Posterior> {
     config.check()?;
     check_observations(config, obs)?;
-    let whisker = config
-        .whisker
-        .check()
-        .map_err(|e| Error::Observation(format!("filter whisker: {e}")))?;
-    let model = Model::new(&whisker, config.segments, config.model_discretisation())
-        .map_err(|e| Error::Observation(format!("filter model: {e}")))?;
-    let observed = Model::new(&whisker, config.observed_segments, config.discretisation)
-        .map_err(|e| Error::Observation(format!("observed chain: {e}")))?;
-    let np = config.particles;
     let period = obs.t.get(1).map_or(1e-3, |t1| t1 - obs.t[0]);
-    let per_sample = ((period / config.dt) * (1.0 - 1e-9)).ceil().max(1.0) as usize;
-    let stepper = Integrator {
-        dt: period / per_sample as f64,
-        max_iterations: config.max_iterations,
-        ..Integrator::default()
-    }
-    .check()
-    .map_err(|e| Error::Observation(format!("filter integrator: {e}")))?;
-
-    // Initial particles: the whisker at rest, the object drawn from the prior (or the mixture
-    // with the injected proposal).
-    let mut template = State::at_rest(&model, config.seed);
-    let mut ws = Workspace::new(&model);
-    initialize(
-        &model,
-        &mut template,
-        &Inputs {
-            base: Default::default(),
-            loads: &[],
-            noise: 0.0,
-            objects: &[],
-        },
-        &mut ws,
-    )
-    .map_err(|e| Error::Observation(format!("filter initial state: {e}")))?;
-    let mut states: Vec<State> = (0..np)
-        .map(|i| {
-            let mut s = template.clone();
-            s.rng = Rng::stream(config.seed, STREAM_NOISE + i as u64);
-            s
-        })
-        .collect();
-    let mut objs: Vec<ObjState> = Vec::with_capacity(np);
-    let mut logw: Vec<f64> = Vec::with_capacity(np);
-    for i in 0..np {
-        let mut rng = Rng::stream(config.seed, STREAM_PRIOR + i as u64);
-        let (o, lw) = draw_initial(config, &mut rng);
-        objs.push(o);
-        logw.push(lw);
-    }
-
-    let free: Vec<usize> = (0..PARAMS.len())
-        .filter(|&k| config.priors[k].is_free())
-        .collect();
-    let mut post = Posterior::empty(config.unknowns());
-    post.trace.reserve(obs.t.len());
-    let mut ringing_samples = 0usize;
-    let ringing = FreeModel::new(config, &model, period)?;
-    let chain = Chain {
-        model: &model,
-        stepper: &stepper,
-        ringing: &ringing,
-    };
-    // Whether each particle's box has left for good (its whisker then rings free).
-    let mut cleared = vec![false; np];
-    let mut spare_cleared = cleared.clone();
-    // Whether each particle's box has come within reach of its whisker (before that, the whisker
-    // moves by process noise alone and the box's parameters are redrawn at every sample).
-    let mut arrived = vec![false; np];
-    let mut spare_arrived = arrived.clone();
-    let reach_zone = ringing.clearance + 1e-4;
-    let mut spare = states.clone();
-    let mut generation = 0u64;
-    // Each particle's box before the last move, until the next sample is predicted.
-    let mut unmoved: Vec<Option<ObjState>> = vec![None; np];
+    let mut filter = Filter::new(config, period)?;
+    filter.post.trace.reserve(obs.t.len());
     let samples = obs.t.len();
     for k in 0..samples {
-        let t = obs.t[k];
         let y: [f64; 5] = std::array::from_fn(|c| {
             obs.values
                 .get(c)
@@ -116,38 +44,212 @@ pub fn run(
                 .copied()
                 .unwrap_or(f64::NAN)
         });
+        filter.update(obs.t[k], &y)?;
+        if k % 16 == 0 {
+            progress(k as f64 / samples as f64);
+        }
+    }
+    progress(1.0);
+    Ok(filter.finish())
+}
+
+/// The particle filter as a running object, fed one sample at a time (online use: on a robot,
+/// each sample as it arrives). [`run`] feeds it a whole recording.
+pub struct Filter {
+    config: Config,
+    model: Model,
+    observed: Model,
+    stepper: Stepper,
+    ringing: FreeModel,
+    /// Sample period, s.
+    period: f64,
+    /// The free unknowns' indices into [`PARAMS`].
+    free: Vec<usize>,
+    /// Height above which a box counts as within reach of its whisker, m.
+    reach_zone: f64,
+    states: Vec<State>,
+    spare: Vec<State>,
+    objs: Vec<ObjState>,
+    logw: Vec<f64>,
+    /// Whether each particle's box has left for good (its whisker then rings free).
+    cleared: Vec<bool>,
+    spare_cleared: Vec<bool>,
+    /// Whether each particle's box has come within reach of its whisker (before that, the
+    /// whisker moves by process noise alone and the box's parameters are redrawn at every
+    /// sample).
+    arrived: Vec<bool>,
+    spare_arrived: Vec<bool>,
+    /// Each particle's box before the last move, until the next sample is predicted.
+    unmoved: Vec<Option<ObjState>>,
+    generation: u64,
+    /// The last sample's time and normalised weights (resampling and the redraw of waiting
+    /// boxes follow it, and are done when the next sample arrives).
+    last: Option<(f64, Vec<f64>)>,
+    samples: usize,
+    ringing_samples: usize,
+    post: Posterior,
+}
+
+impl Filter {
+    /// A filter with `config`'s particles drawn from its prior, for samples `period` seconds
+    /// apart (gaps of whole periods are predicted across).
+    pub fn new(config: &Config, period: f64) -> Result<Filter> {
+        config.check()?;
+        if !(period.is_finite() && period > 0.0) {
+            return Err(Error::Observation(format!(
+                "the sample period must be a positive number of seconds, got {period}"
+            )));
+        }
+        let whisker = config
+            .whisker
+            .check()
+            .map_err(|e| Error::Observation(format!("filter whisker: {e}")))?;
+        let model = Model::new(&whisker, config.segments, config.model_discretisation())
+            .map_err(|e| Error::Observation(format!("filter model: {e}")))?;
+        let observed = Model::new(&whisker, config.observed_segments, config.discretisation)
+            .map_err(|e| Error::Observation(format!("observed chain: {e}")))?;
+        let np = config.particles;
+        let per_sample = ((period / config.dt) * (1.0 - 1e-9)).ceil().max(1.0) as usize;
+        let stepper = Integrator {
+            dt: period / per_sample as f64,
+            max_iterations: config.max_iterations,
+            ..Integrator::default()
+        }
+        .check()
+        .map_err(|e| Error::Observation(format!("filter integrator: {e}")))?;
+
+        // Initial particles: the whisker at rest, the object drawn from the prior (or the
+        // mixture with the injected proposal).
+        let mut template = State::at_rest(&model, config.seed);
+        let mut ws = Workspace::new(&model);
+        initialize(
+            &model,
+            &mut template,
+            &Inputs {
+                base: Default::default(),
+                loads: &[],
+                noise: 0.0,
+                objects: &[],
+            },
+            &mut ws,
+        )
+        .map_err(|e| Error::Observation(format!("filter initial state: {e}")))?;
+        let states: Vec<State> = (0..np)
+            .map(|i| {
+                let mut s = template.clone();
+                s.rng = Rng::stream(config.seed, STREAM_NOISE + i as u64);
+                s
+            })
+            .collect();
+        let mut objs: Vec<ObjState> = Vec::with_capacity(np);
+        let mut logw: Vec<f64> = Vec::with_capacity(np);
+        for i in 0..np {
+            let mut rng = Rng::stream(config.seed, STREAM_PRIOR + i as u64);
+            let (o, lw) = draw_initial(config, &mut rng);
+            objs.push(o);
+            logw.push(lw);
+        }
+        let free: Vec<usize> = (0..PARAMS.len())
+            .filter(|&k| config.priors[k].is_free())
+            .collect();
+        let ringing = FreeModel::new(config, &model, period)?;
+        let reach_zone = ringing.clearance + 1e-4;
+        Ok(Filter {
+            config: config.clone(),
+            post: Posterior::empty(config.unknowns()),
+            model,
+            observed,
+            stepper,
+            ringing,
+            period,
+            free,
+            reach_zone,
+            spare: states.clone(),
+            states,
+            objs,
+            logw,
+            cleared: vec![false; np],
+            spare_cleared: vec![false; np],
+            arrived: vec![false; np],
+            spare_arrived: vec![false; np],
+            unmoved: vec![None; np],
+            generation: 0,
+            last: None,
+            samples: 0,
+            ringing_samples: 0,
+        })
+    }
+
+    /// The posterior so far (its trace holds one row per sample).
+    pub fn posterior(&self) -> &Posterior {
+        &self.post
+    }
+
+    /// The posterior after the last sample, with the share of particle-samples on the
+    /// free-ringing model filled in.
+    pub fn finish(mut self) -> Posterior {
+        let np = self.config.particles;
+        self.post.ringing_share = self.ringing_samples as f64 / (np * self.samples.max(1)) as f64;
+        self.post
+    }
+
+    /// Takes the sample `y` (theta01, theta12, m0, fx, fy; `NaN` where a channel is missing) at
+    /// time `t`: predicts every particle to `t`, weights it, and returns the posterior row at
+    /// `t`. Times must increase by whole sample periods.
+    pub fn update(&mut self, t: f64, y: &[f64; 5]) -> Result<&TraceRow> {
+        let config = &self.config;
+        let np = config.particles;
+        // The last sample's resampling and redraw, now that another sample follows it.
+        let (steps, periods) = match self.last.take() {
+            None => (0, 0),
+            Some((t_last, w)) => {
+                let gap = t - t_last;
+                let m = gap / self.period;
+                if !t.is_finite() || m.is_nan() || m < 0.5 || (m - m.round()).abs() > 1e-3 {
+                    // Keep the filter as it was: the sample can be given again.
+                    let err = Error::Observation(format!(
+                        "irregular sample times: t = {t} s follows {t_last} s, expected a whole number of periods of {} s",
+                        self.period
+                    ));
+                    self.last = Some((t_last, w));
+                    return Err(err);
+                }
+                self.resample_and_redraw(t_last, &w);
+                (
+                    ((gap / self.stepper.dt) + 0.5).floor() as usize,
+                    (m + 0.5).floor() as usize,
+                )
+            }
+        };
+        let config = &self.config;
+        let k = self.samples;
         let mut seen = [false; 5];
         for &c in &config.channels {
             if y[c].is_finite() {
                 seen[c] = true;
             } else {
-                post.skipped += 1;
+                self.post.skipped += 1;
             }
         }
-        // Predict (k > 0) and weight every particle, in parallel.
-        let steps = if k == 0 {
-            0
-        } else {
-            let dt_obs = t - obs.t[k - 1];
-            ((dt_obs / stepper.dt) + 0.5).floor() as usize
+        let chain = Chain {
+            model: &self.model,
+            stepper: &self.stepper,
+            ringing: &self.ringing,
         };
-        let periods = if k == 0 {
-            0
-        } else {
-            (((t - obs.t[k - 1]) / period) + 0.5).floor() as usize
-        };
+        let (model, observed) = (&self.model, &self.observed);
         // Weight mass the particles carry into this sample (for the evidence).
-        let prior_mass: f64 = logw.iter().map(|l| l.exp()).sum();
-        let ringing_before = cleared.iter().filter(|c| **c).count();
+        let prior_mass: f64 = self.logw.iter().map(|l| l.exp()).sum();
+        let ringing_before = self.cleared.iter().filter(|c| **c).count();
         let undone = AtomicUsize::new(0);
+        // Predict (after the first sample) and weight every particle, in parallel.
         let diverged = batch::sum_with_workspace(
-            &model,
-            states
+            model,
+            self.states
                 .par_iter_mut()
-                .zip(objs.par_iter_mut())
-                .zip(logw.par_iter_mut())
-                .zip(cleared.par_iter_mut())
-                .zip(unmoved.par_iter()),
+                .zip(self.objs.par_iter_mut())
+                .zip(self.logw.par_iter_mut())
+                .zip(self.cleared.par_iter_mut())
+                .zip(self.unmoved.par_iter()),
             |ws, ((((s, o), lw), gone), before)| {
                 if *lw == f64::NEG_INFINITY {
                     return 0;
@@ -157,7 +259,7 @@ pub fn run(
                 // tip, say): keep the state to take the sample again with the unmoved box.
                 let start = before.map(|_| (s.clone(), *gone));
                 let mut ok = advance(&chain, s, o, gone, steps, periods, noise, t, ws).is_ok()
-                    && (before.is_none() || !whipped(&model, s));
+                    && (before.is_none() || !whipped(model, s));
                 if let (false, Some(b), Some((s0, g0))) = (ok, before, start) {
                     undone.fetch_add(1, Ordering::Relaxed);
                     (*s, *gone, *o) = (s0, g0, *b);
@@ -168,7 +270,7 @@ pub fn run(
                     return 1;
                 }
                 let mut pred = Sensors::read(s).to_array();
-                [pred[0], pred[1]] = map_joints(&model, &observed, s.q());
+                [pred[0], pred[1]] = map_joints(model, observed, s.q());
                 let mut ll = 0.0;
                 for c in 0..5 {
                     if seen[c] {
@@ -182,20 +284,22 @@ pub fn run(
                 0
             },
         );
+        let post = &mut self.post;
         post.diverged += diverged;
         post.refused_moves += undone.into_inner();
-        unmoved.iter_mut().for_each(|u| *u = None);
+        self.unmoved.iter_mut().for_each(|u| *u = None);
         post.steps += ((np - ringing_before) * steps + ringing_before * periods) as u64;
-        ringing_samples += ringing_before;
+        self.ringing_samples += ringing_before;
+        self.samples += 1;
 
         // Normalise.
-        let max = logw.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+        let max = self.logw.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
         if max == f64::NEG_INFINITY {
             return Err(Error::Observation(format!(
                 "every particle diverged or has zero likelihood by t = {t} s"
             )));
         }
-        let mut w: Vec<f64> = logw.iter().map(|l| (l - max).exp()).collect();
+        let mut w: Vec<f64> = self.logw.iter().map(|l| (l - max).exp()).collect();
         let total: f64 = w.iter().sum();
         // The weights entered this sample normalised (or equal after resampling), so their new
         // sum is the sample's likelihood averaged over the particles.
@@ -204,71 +308,77 @@ pub fn run(
         let ess = 1.0 / w.iter().map(|x| x * x).sum::<f64>();
 
         // Posterior summary.
-        let estimates = free
+        let estimates = self
+            .free
             .iter()
             .map(|&p| {
-                let vals: Vec<f64> = objs.iter().map(|o| param(o, p, config.gap)).collect();
+                let vals: Vec<f64> = self.objs.iter().map(|o| param(o, p, config.gap)).collect();
                 summarise(&vals, &w)
             })
             .collect();
         post.trace.push(TraceRow { t, ess, estimates });
+        self.logw
+            .iter_mut()
+            .zip(&w)
+            .for_each(|(l, x)| *l = if *x > 0.0 { x.ln() } else { f64::NEG_INFINITY });
+        debug_assert_eq!(k + 1, self.samples);
+        self.last = Some((t, w));
+        Ok(self.post.trace.last().expect("a row was pushed"))
+    }
 
-        // Resample and move.
-        if ess < config.ess_fraction * np as f64 && k + 1 < samples {
-            generation += 1;
-            post.resamples += 1;
+    /// After the sample at `t` with normalised weights `w`, once another sample follows: resample
+    /// and move when the effective sample size has fallen below [`Config::ess_fraction`], then
+    /// redraw the boxes that have not arrived.
+    fn resample_and_redraw(&mut self, t: f64, w: &[f64]) {
+        let config = &self.config;
+        let np = config.particles;
+        let k = self.samples - 1;
+        let ess = self.post.trace.last().map_or(np as f64, |r| r.ess);
+        if ess < config.ess_fraction * np as f64 {
+            self.generation += 1;
+            let generation = self.generation;
+            self.post.resamples += 1;
             let mut rng = Rng::stream(config.seed, STREAM_RESAMPLE + generation);
-            let parents = systematic(&w, rng.uniform());
-            let kernel = LiuWest::new(config, &objs, &w, &free, &arrived);
+            let parents = systematic(w, rng.uniform());
+            let kernel = LiuWest::new(config, &self.objs, w, &self.free, &self.arrived);
             for (i, &p) in parents.iter().enumerate() {
-                spare[i].clone_from(&states[p]);
-                spare_cleared[i] = cleared[p];
-                spare_arrived[i] = arrived[p];
-                spare[i].rng =
+                self.spare[i].clone_from(&self.states[p]);
+                self.spare_cleared[i] = self.cleared[p];
+                self.spare_arrived[i] = self.arrived[p];
+                self.spare[i].rng =
                     Rng::stream(config.seed, STREAM_NOISE + (generation << 20) + i as u64);
             }
-            std::mem::swap(&mut states, &mut spare);
-            std::mem::swap(&mut cleared, &mut spare_cleared);
-            std::mem::swap(&mut arrived, &mut spare_arrived);
-            objs = parents.iter().map(|&p| objs[p]).collect();
-            logw.iter_mut().for_each(|l| *l = 0.0);
+            std::mem::swap(&mut self.states, &mut self.spare);
+            std::mem::swap(&mut self.cleared, &mut self.spare_cleared);
+            std::mem::swap(&mut self.arrived, &mut self.spare_arrived);
+            self.objs = parents.iter().map(|&p| self.objs[p]).collect();
+            self.logw.iter_mut().for_each(|l| *l = 0.0);
             if let Some(kernel) = &kernel {
-                for (i, (o, u)) in objs.iter_mut().zip(unmoved.iter_mut()).enumerate() {
-                    if arrived[i] {
+                let moved = self.objs.iter_mut().zip(self.unmoved.iter_mut());
+                for (i, (o, u)) in moved.enumerate() {
+                    if self.arrived[i] {
                         let stream = STREAM_MOVE + (generation << 20) + i as u64;
                         let mut rng = Rng::stream(config.seed, stream);
                         *u = Some(*o);
-                        *o = kernel.draw(config, o, cleared[i], t, &mut rng);
+                        *o = kernel.draw(config, o, self.cleared[i], t, &mut rng);
                     }
                 }
             }
-        } else {
-            logw.iter_mut()
-                .zip(&w)
-                .for_each(|(l, x)| *l = if *x > 0.0 { x.ln() } else { f64::NEG_INFINITY });
         }
         // Boxes that have not come within reach yet: the whisker has not felt them, so their
         // parameters are redrawn from the prior given "not arrived by now", with arrivals in the
         // next few milliseconds favoured (and weighted back), so that whenever contact begins
         // many particles meet it with a spread of distances and speeds.
-        if k + 1 < samples {
-            redraw_waiting(
-                config,
-                &mut objs,
-                &mut logw,
-                &mut arrived,
-                t,
-                reach_zone,
-                Rng::stream(config.seed, STREAM_REDRAW + k as u64),
-            );
-        }
-        if k % 16 == 0 {
-            progress(k as f64 / samples as f64);
-        }
+        redraw_waiting(
+            config,
+            &mut self.objs,
+            &mut self.logw,
+            &mut self.arrived,
+            t,
+            self.reach_zone,
+            Rng::stream(config.seed, STREAM_REDRAW + k as u64),
+        );
     }
-    progress(1.0);
-    post.ringing_share = ringing_samples as f64 / (np * samples) as f64;
-    Ok(post)
 }
 
 /// Whether a joint of `s` is bent more than [`WHIPPED`] from its rest angle.
