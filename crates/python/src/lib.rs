@@ -1,13 +1,17 @@
-//! The native part of the Python package `vibrissa`: the simulator behind
-//! `vibrissa.simulate`. The Python layer (`python/vibrissa/__init__.py`) turns keyword arguments
-//! into scenario overrides and offers a pandas frame; this module loads the scenario, runs it with
-//! the interpreter released, and returns the contract's columns as numpy arrays.
+//! The native part of the Python package `vibrissa`: the simulator behind `vibrissa.simulate`
+//! and the particle filter behind `vibrissa.Filter`. The Python layer
+//! (`python/vibrissa/__init__.py`) turns keyword arguments into scenario overrides, checks types
+//! and offers a pandas frame; this module loads the scenario and does the work with the
+//! interpreter released.
 
 use numpy::IntoPyArray;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use vibrissa_core::sim::{self, COLUMNS};
+use vibrissa_infer::experiment::CHANNELS;
+use vibrissa_infer::pf::{self, Pf, TraceRow};
+use vibrissa_infer::{Family, Method, Training};
 
 /// The error of a scenario or run, as Python's `ValueError` with the command line's message.
 fn value_error(e: impl std::fmt::Display) -> PyErr {
@@ -37,6 +41,191 @@ fn simulate<'py>(
     Ok(columns)
 }
 
+/// The particle filter fed one sample at a time (see `vibrissa.Filter`).
+#[pyclass(name = "Filter", module = "vibrissa._vibrissa")]
+struct Filter {
+    inner: pf::Filter,
+    /// The unknowns of the posterior rows, in order.
+    unknowns: Vec<&'static str>,
+    /// Sample period, s.
+    period: f64,
+    /// The sensor noise per channel the filter assumes, SI.
+    noise: [f64; 5],
+}
+
+/// A posterior row as a dict: `t`, `ess` and one `{mean, std, ci90}` dict per unknown.
+fn row_dict<'py>(
+    py: Python<'py>,
+    unknowns: &[&str],
+    row: &TraceRow,
+) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("t", row.t)?;
+    d.set_item("ess", row.ess)?;
+    for (name, e) in unknowns.iter().zip(&row.estimates) {
+        let u = PyDict::new(py);
+        u.set_item("mean", e.mean)?;
+        u.set_item("std", e.std)?;
+        u.set_item("ci90", (e.ci90[0], e.ci90[1]))?;
+        d.set_item(*name, u)?;
+    }
+    Ok(d)
+}
+
+#[pymethods]
+impl Filter {
+    /// `noise` holds each channel's sensor noise (NaN where not given: the scenario's
+    /// `[sensor_noise]` must state it then).
+    #[new]
+    #[pyo3(signature = (scenario, sets, noise, particles, seed, rate))]
+    fn new(
+        scenario: &str,
+        sets: Vec<String>,
+        noise: [f64; 5],
+        particles: usize,
+        seed: u64,
+        rate: Option<f64>,
+    ) -> PyResult<Self> {
+        if particles == 0 {
+            return Err(PyValueError::new_err("particles: at least 1"));
+        }
+        let family = Family::open(scenario, &sets).map_err(value_error)?;
+        let stated = family.stated_noise();
+        let mut sensor = [0.0; 5];
+        for c in 0..5 {
+            sensor[c] = match (noise[c], stated[c]) {
+                (x, _) if x.is_finite() && x >= 0.0 => x,
+                (x, _) if !x.is_nan() => {
+                    return Err(PyValueError::new_err(format!(
+                        "noise[{:?}] = {x}: a sensor noise is a finite number >= 0",
+                        CHANNELS[c]
+                    )))
+                }
+                (_, Some(s)) => s,
+                (_, None) => {
+                    return Err(PyValueError::new_err(format!(
+                        "noise: give the sensor noise of `{}` (e.g. noise={{\"{}\": 1e-3, ...}}, \
+                         SI units), or state it in the scenario's [sensor_noise]",
+                        CHANNELS[c], CHANNELS[c]
+                    )))
+                }
+            };
+        }
+        let rate = rate.unwrap_or(family.sample_rate());
+        if !(rate.is_finite() && rate > 0.0) {
+            return Err(PyValueError::new_err(format!(
+                "rate = {rate}: a sample rate in Hz, > 0"
+            )));
+        }
+        let mut filter = Pf::new(particles);
+        filter.seed = seed;
+        let training = Training {
+            noise: family.training_noise(sensor),
+            family: family.clone(),
+            samples: Vec::new(),
+            calibration: Vec::new(),
+        };
+        filter.fit(&training).map_err(value_error)?;
+        let sigma = filter.sigma().expect("fitted");
+        let config = filter.config(&family, sigma).map_err(value_error)?;
+        let inner = pf::Filter::new(&config, 1.0 / rate).map_err(value_error)?;
+        Ok(Filter {
+            unknowns: config.unknowns(),
+            inner,
+            period: 1.0 / rate,
+            noise: filter.sensor_noise().expect("fitted"),
+        })
+    }
+
+    /// Takes one sample (`values` per channel theta01, theta12, m0, fx, fy; NaN where missing)
+    /// at time `t` and returns the posterior row there.
+    fn update<'py>(
+        &mut self,
+        py: Python<'py>,
+        t: f64,
+        values: [f64; 5],
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let inner = &mut self.inner;
+        py.detach(|| inner.update(t, &values).map(|_| ()))
+            .map_err(value_error)?;
+        let row = self.inner.posterior().trace.last().expect("a row");
+        row_dict(py, &self.unknowns, row)
+    }
+
+    /// The posterior after the last sample (None before the first).
+    #[getter]
+    fn posterior<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        match self.inner.posterior().trace.last() {
+            Some(row) => row_dict(py, &self.unknowns, row).map(Some),
+            None => Ok(None),
+        }
+    }
+
+    /// Every posterior row so far: `t`, `ess`, and per unknown `NAME_mean`, `NAME_std`,
+    /// `NAME_lo`, `NAME_hi` (the 90% interval), as arrays.
+    #[getter]
+    fn trace<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let rows = &self.inner.posterior().trace;
+        let d = PyDict::new(py);
+        let column = |f: &dyn Fn(&TraceRow) -> f64| rows.iter().map(f).collect::<Vec<f64>>();
+        d.set_item("t", column(&|r| r.t).into_pyarray(py))?;
+        d.set_item("ess", column(&|r| r.ess).into_pyarray(py))?;
+        for (k, name) in self.unknowns.iter().enumerate() {
+            d.set_item(
+                format!("{name}_mean"),
+                column(&|r| r.estimates[k].mean).into_pyarray(py),
+            )?;
+            d.set_item(
+                format!("{name}_std"),
+                column(&|r| r.estimates[k].std).into_pyarray(py),
+            )?;
+            d.set_item(
+                format!("{name}_lo"),
+                column(&|r| r.estimates[k].ci90[0]).into_pyarray(py),
+            )?;
+            d.set_item(
+                format!("{name}_hi"),
+                column(&|r| r.estimates[k].ci90[1]).into_pyarray(py),
+            )?;
+        }
+        Ok(d)
+    }
+
+    /// The unknowns of the posterior, in order.
+    #[getter]
+    fn unknowns(&self) -> Vec<&'static str> {
+        self.unknowns.clone()
+    }
+
+    /// The sample period, s.
+    #[getter]
+    fn period(&self) -> f64 {
+        self.period
+    }
+
+    /// The sensor noise per channel the filter assumes (before its model error), SI.
+    #[getter]
+    fn noise<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for (c, x) in CHANNELS.iter().zip(self.noise) {
+            d.set_item(*c, x)?;
+        }
+        Ok(d)
+    }
+
+    /// Particle steps that diverged (0 expected) and moves undone, so far.
+    #[getter]
+    fn counts<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let p = self.inner.posterior();
+        let d = PyDict::new(py);
+        d.set_item("particle_steps", p.steps)?;
+        d.set_item("diverged_steps", p.diverged)?;
+        d.set_item("refused_moves", p.refused_moves)?;
+        d.set_item("resamples", p.resamples)?;
+        Ok(d)
+    }
+}
+
 /// The built-in scenarios' names.
 #[pyfunction]
 fn builtins() -> Vec<&'static str> {
@@ -47,6 +236,7 @@ fn builtins() -> Vec<&'static str> {
 fn _vibrissa(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
     m.add_function(wrap_pyfunction!(builtins, m)?)?;
+    m.add_class::<Filter>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -17,13 +17,18 @@ from numbers import Real
 
 from . import _vibrissa
 
-__all__ = ["simulate", "builtins", "COLUMNS", "__version__"]
+__all__ = ["simulate", "Filter", "builtins", "COLUMNS", "CHANNELS", "__version__"]
 __version__ = _vibrissa.__version__
 
 #: The columns of a run, in order: time (s), the first two joint angles (rad), the base moment
 #: (N·m) and force (N), whether the whisker touches an object (1 or 0), the contact point
 #: (m, world frame) and its arc length from the base (m; NaN without contact).
 COLUMNS = ("t", "theta01", "theta12", "m0", "fx", "fy", "contact", "cx", "cy", "s")
+
+
+#: The channels a recording holds and the filter reads, in order: the first two joint angles
+#: (rad), the base moment (N·m) and force (N).
+CHANNELS = ("theta01", "theta12", "m0", "fx", "fy")
 
 
 def builtins():
@@ -115,3 +120,117 @@ def simulate(scenario="e2", *, overrides=None, as_frame=False, **keys):
             raise ImportError("as_frame=True needs pandas: pip install pandas") from e
         return pandas.DataFrame({name: columns[name] for name in COLUMNS})
     return {name: columns[name] for name in COLUMNS}
+
+
+def _count(name, value, least):
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise TypeError(f"{name}: expected an int, not {type(value).__name__}")
+    if value < least:
+        raise ValueError(f"{name} = {value}: at least {least}")
+    return value
+
+
+def _channels(name, values):
+    """Five channel values from a mapping (missing channels NaN) or a sequence of five."""
+    out = [math.nan] * 5
+    if hasattr(values, "items"):
+        for key, x in values.items():
+            if key not in CHANNELS:
+                raise ValueError(f"{name}: unknown channel {key!r}; channels are {', '.join(CHANNELS)}")
+            out[CHANNELS.index(key)] = _number(f"{name}[{key!r}]", x)
+        return out
+    try:
+        seq = list(values)
+    except TypeError:
+        raise TypeError(
+            f"{name}: expected a mapping of channels to values or a sequence of five, "
+            f"not {type(values).__name__}"
+        ) from None
+    if len(seq) != 5:
+        raise ValueError(f"{name}: expected five values ({', '.join(CHANNELS)}), got {len(seq)}")
+    return [_number(f"{name}[{k}]", x) for k, x in enumerate(seq)]
+
+
+def _number(name, x):
+    if isinstance(x, bool) or not isinstance(x, Real):
+        raise TypeError(f"{name}: expected a number, not {type(x).__name__}")
+    return float(x)
+
+
+class Filter:
+    """The particle filter, fed one sample at a time: a posterior over the scenario's unknowns
+    (for ``e2``: the object's distance ``d`` and speed ``v``) after every sample.
+
+    >>> run = vibrissa.simulate("e2", d=0.023, v=0.9)
+    >>> f = vibrissa.Filter("e2", particles=1000, noise={"theta01": 1e-3, "theta12": 1e-3,
+    ...                     "m0": 1e-8, "fx": 1e-5, "fy": 1e-5})
+    >>> for k, t in enumerate(run["t"]):
+    ...     post = f.update(t, {c: run[c][k] for c in vibrissa.CHANNELS})
+    >>> post["d"]["mean"], post["d"]["ci90"]
+
+    Parameters
+    ----------
+    scenario : str or os.PathLike
+        A built-in name (``"e1"``, ``"e2"``) or the path of a scenario file with ``[unknowns]``.
+    particles : int
+        Particles (1000 runs in real time on two cores).
+    noise : mapping, optional
+        Each channel's sensor noise (standard deviation, SI). Channels left out must be stated by
+        the scenario's ``[sensor_noise]``.
+    seed : int
+        Seed of the filter's random streams (the same seed gives the same bits).
+    rate : float, optional
+        Sample rate of the recording, Hz (default: the scenario's).
+    overrides, **keys
+        Scenario overrides, as for :func:`simulate`.
+    """
+
+    def __init__(
+        self, scenario="e2", *, particles=1000, noise=None, seed=1, rate=None, overrides=None, **keys
+    ):
+        particles = _count("particles", particles, 1)
+        seed = _count("seed", seed, 0)
+        if rate is not None:
+            rate = _number("rate", rate)
+        values = _channels("noise", noise if noise is not None else {})
+        self._inner = _vibrissa.Filter(
+            _scenario(scenario), _overrides(overrides, keys), values, particles, seed, rate
+        )
+
+    def update(self, t, sample):
+        """Take the sample at time ``t`` (s): a mapping of channels to values (channels left out
+        count as missing) or a sequence of the five :data:`CHANNELS`. Returns the posterior
+        there: ``{"t", "ess", NAME: {"mean", "std", "ci90"}}`` per unknown. Times must advance
+        by whole sample periods (a gap is predicted across)."""
+        return self._inner.update(_number("t", t), _channels("sample", sample))
+
+    @property
+    def posterior(self):
+        """The posterior after the last sample (``None`` before the first)."""
+        return self._inner.posterior
+
+    @property
+    def trace(self):
+        """Every posterior so far as arrays: ``t``, ``ess``, and ``NAME_mean``, ``NAME_std``,
+        ``NAME_lo``, ``NAME_hi`` (90% interval) per unknown."""
+        return self._inner.trace
+
+    @property
+    def unknowns(self):
+        """The unknowns the posterior is over, in order."""
+        return list(self._inner.unknowns)
+
+    @property
+    def period(self):
+        """The sample period, s."""
+        return self._inner.period
+
+    @property
+    def noise(self):
+        """The sensor noise per channel the filter assumes, SI."""
+        return self._inner.noise
+
+    @property
+    def counts(self):
+        """Particle steps, diverged steps (0 expected), moves undone and resamplings so far."""
+        return self._inner.counts

@@ -6,6 +6,7 @@ import numpy.typing as npt
 
 __version__: str
 COLUMNS: tuple[str, ...]
+CHANNELS: tuple[str, ...]
 
 Value = Union[bool, float, int, str, Sequence[Union[bool, float, int, str]]]
 
@@ -17,3 +18,31 @@ def simulate(
     as_frame: bool = False,
     **keys: Value,
 ) -> Union[dict[str, npt.NDArray[np.float64]], Any]: ...
+
+class Filter:
+    def __init__(
+        self,
+        scenario: Union[str, os.PathLike[str]] = "e2",
+        *,
+        particles: int = 1000,
+        noise: Mapping[str, float] | None = None,
+        seed: int = 1,
+        rate: float | None = None,
+        overrides: Mapping[str, Value] | None = None,
+        **keys: Value,
+    ) -> None: ...
+    def update(
+        self, t: float, sample: Union[Mapping[str, float], Sequence[float]]
+    ) -> dict[str, Any]: ...
+    @property
+    def posterior(self) -> dict[str, Any] | None: ...
+    @property
+    def trace(self) -> dict[str, npt.NDArray[np.float64]]: ...
+    @property
+    def unknowns(self) -> list[str]: ...
+    @property
+    def period(self) -> float: ...
+    @property
+    def noise(self) -> dict[str, float]: ...
+    @property
+    def counts(self) -> dict[str, int]: ...

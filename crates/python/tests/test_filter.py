@@ -1,0 +1,93 @@
+"""vibrissa.Filter against the command line's particle filter, and its errors."""
+
+import json
+import math
+import subprocess
+
+import numpy as np
+import pytest
+
+import vibrissa
+from test_simulate import cli
+
+NOISE = {"theta01": 6e-3, "theta12": 1.5e-2, "m0": 2.3e-6, "fx": 1.5e-4, "fy": 1.2e-4}
+
+
+def write_csv(path, run):
+    with open(path, "w") as f:
+        f.write(",".join(vibrissa.COLUMNS) + "\n")
+        for k in range(len(run["t"])):
+            f.write(",".join(repr(float(run[c][k])) for c in vibrissa.COLUMNS) + "\n")
+
+
+def test_sample_by_sample_it_gives_the_command_line_s_posterior_to_the_last_bit(tmp_path):
+    run = vibrissa.simulate("e2", d=0.023, v=0.9)
+    f = vibrissa.Filter("e2", particles=300, noise=NOISE, seed=2)
+    assert f.unknowns == ["d", "v"] and f.posterior is None
+    for k, t in enumerate(run["t"]):
+        post = f.update(t, {c: run[c][k] for c in vibrissa.CHANNELS})
+    path = tmp_path / "run.csv"
+    write_csv(path, run)
+    noise = ",".join(f"{c}={x!r}" for c, x in NOISE.items())
+    out = subprocess.run(
+        [cli(), "estimate", "--experiment", "e2", "--method", "pf", "--particles", "300",
+         "--seed", "2", "--noise", noise, "--json", "--obs", path],
+        check=True, capture_output=True, text=True,
+    )
+    theirs = json.loads(out.stdout)
+    for name in ("d", "v"):
+        assert post[name]["mean"] == theirs[name]["mean"]
+        assert post[name]["std"] == theirs[name]["std"]
+        assert list(post[name]["ci90"]) == theirs[name]["ci90"]
+    assert abs(post["d"]["mean"] - 0.023) < 1e-3
+    trace = f.trace
+    assert len(trace["t"]) == len(run["t"]) and trace["d_mean"][-1] == post["d"]["mean"]
+    assert f.counts["diverged_steps"] == 0
+    assert f.posterior == post
+
+
+def test_samples_as_sequences_and_missing_channels():
+    run = vibrissa.simulate("e2", d=0.02, v=0.6)
+    a = vibrissa.Filter("e2", particles=50, noise=NOISE)
+    b = vibrissa.Filter("e2", particles=50, noise=NOISE)
+    for k in range(20):
+        t = run["t"][k]
+        ra = a.update(t, [run[c][k] for c in vibrissa.CHANNELS])
+        rb = b.update(t, {c: run[c][k] for c in vibrissa.CHANNELS})
+        assert ra == rb
+    # A sample without m0 still updates.
+    a.update(run["t"][20], {c: run[c][20] for c in vibrissa.CHANNELS if c != "m0"})
+
+
+@pytest.mark.parametrize(
+    "call, error, words",
+    [
+        (lambda: vibrissa.Filter("e2", particles=10), ValueError, ["noise", "theta01"]),
+        (lambda: vibrissa.Filter("e2", particles=0, noise=NOISE), ValueError, ["particles"]),
+        (lambda: vibrissa.Filter("e2", particles="10", noise=NOISE), TypeError, ["particles"]),
+        (lambda: vibrissa.Filter("e2", noise={**NOISE, "fz": 1.0}), ValueError, ["fz"]),
+        (lambda: vibrissa.Filter("e2", noise={**NOISE, "fx": -1.0}), ValueError, ["fx"]),
+        (lambda: vibrissa.Filter("e9", noise=NOISE), ValueError, ["e9"]),
+        (lambda: vibrissa.Filter("e2", noise=NOISE, rate=0.0), ValueError, ["rate"]),
+    ],
+)
+def test_bad_settings_raise_an_exception_that_names_them(call, error, words):
+    with pytest.raises(error) as e:
+        call()
+    for w in words:
+        assert w in str(e.value), str(e.value)
+
+
+def test_bad_samples_raise_and_leave_the_filter_usable():
+    f = vibrissa.Filter("e2", particles=20, noise=NOISE)
+    f.update(0.0, [0.0] * 5)
+    with pytest.raises(ValueError, match="irregular sample times"):
+        f.update(0.0005, [0.0] * 5)
+    with pytest.raises(ValueError, match="five values"):
+        f.update(0.001, [0.0] * 4)
+    with pytest.raises(TypeError, match="sample"):
+        f.update(0.001, 3.0)
+    with pytest.raises(TypeError, match="sample\\[2\\]"):
+        f.update(0.001, [0.0, 0.0, "x", 0.0, 0.0])
+    post = f.update(0.001, [0.0] * 5)
+    assert math.isclose(post["t"], 0.001) and np.isfinite(post["d"]["mean"])
