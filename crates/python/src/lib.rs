@@ -29,16 +29,7 @@ fn simulate<'py>(
     sets: Vec<String>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let loaded = vibrissa_io::scenario::load_full(scenario, &sets).map_err(value_error)?;
-    let run = &loaded.scenario;
-    let output = py
-        .detach(|| sim::run(run, &mut |_| {}))
-        .map_err(value_error)?;
-    let columns = PyDict::new(py);
-    for (c, name) in COLUMNS.iter().enumerate() {
-        let values: Vec<f64> = output.rows.iter().map(|r| r[c]).collect();
-        columns.set_item(*name, values.into_pyarray(py))?;
-    }
-    Ok(columns)
+    run_columns(py, &loaded.scenario)
 }
 
 /// The particle filter fed one sample at a time (see `vibrissa.Filter`).
@@ -226,6 +217,41 @@ impl Filter {
     }
 }
 
+/// As [`simulate`], for a scenario given as the JSON text of a Python dict (the keys of a
+/// scenario file, tables as nested dicts).
+#[pyfunction]
+#[pyo3(signature = (json, sets))]
+fn simulate_json<'py>(
+    py: Python<'py>,
+    json: &str,
+    sets: Vec<String>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let value: toml::Value =
+        serde_json::from_str(json).map_err(|e| value_error(format!("scenario dict: {e}")))?;
+    if !value.is_table() {
+        return Err(value_error(
+            "scenario dict: expected a dict of scenario keys",
+        ));
+    }
+    let text = toml::to_string(&value).map_err(|e| value_error(format!("scenario dict: {e}")))?;
+    let scenario =
+        vibrissa_io::scenario::load_str(&text, "scenario dict", &sets).map_err(value_error)?;
+    run_columns(py, &scenario)
+}
+
+/// Runs `scenario` with the interpreter released and returns its columns.
+fn run_columns<'py>(py: Python<'py>, scenario: &sim::Scenario) -> PyResult<Bound<'py, PyDict>> {
+    let output = py
+        .detach(|| sim::run(scenario, &mut |_| {}))
+        .map_err(value_error)?;
+    let columns = PyDict::new(py);
+    for (c, name) in COLUMNS.iter().enumerate() {
+        let values: Vec<f64> = output.rows.iter().map(|r| r[c]).collect();
+        columns.set_item(*name, values.into_pyarray(py))?;
+    }
+    Ok(columns)
+}
+
 /// The built-in scenarios' names.
 #[pyfunction]
 fn builtins() -> Vec<&'static str> {
@@ -235,6 +261,7 @@ fn builtins() -> Vec<&'static str> {
 #[pymodule]
 fn _vibrissa(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(simulate_json, m)?)?;
     m.add_function(wrap_pyfunction!(builtins, m)?)?;
     m.add_class::<Filter>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

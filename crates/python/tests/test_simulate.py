@@ -93,3 +93,36 @@ def test_bad_input_raises_an_exception_that_names_it(call, error, words):
         call()
     for w in words:
         assert w in str(e.value), str(e.value)
+
+
+def test_a_scenario_given_as_a_dict():
+    given = {"experiment": "e2", "d": 0.023, "v": 0.9, "whisker": {"preset": "w30"}}
+    a = vibrissa.simulate(given)
+    b = vibrissa.simulate("e2", d=0.023, v=0.9)
+    for name in vibrissa.COLUMNS:
+        assert same_bits(a[name], b[name]), name
+    # Tables may come before plain keys; overrides apply on top.
+    peg = {
+        "whisker": {"preset": "w30"},
+        "duration": 0.05,
+        "objects": [{"shape": "circle", "radius": 0.001, "position": [0.02, 0.003],
+                     "velocity": [0.0, -0.1]}],
+    }
+    run = vibrissa.simulate(peg, duration=0.02)
+    assert len(run["t"]) == 21 and run["contact"].max() == 1.0
+
+
+@pytest.mark.parametrize(
+    "given, error, words",
+    [
+        ({"d": float("nan")}, ValueError, ["finite"]),
+        ({"whisker": {"lenght": 0.04}}, ValueError, ["lenght"]),
+        ({"duration": None}, ValueError, ["scenario dict"]),
+        ({"duration": object()}, TypeError, ["scenario"]),
+    ],
+)
+def test_bad_scenario_dicts_raise_an_exception_that_names_them(given, error, words):
+    with pytest.raises(error) as e:
+        vibrissa.simulate(given)
+    for w in words:
+        assert w in str(e.value), str(e.value)

@@ -11,8 +11,10 @@ override the scenario's keys: ``d=0.023``, ``whisker__length=0.04`` (``__`` stan
 ``whisker.length``), or ``overrides={"objects.0.friction": 0.3}``. All quantities are SI.
 """
 
+import json
 import math
 import os
+from collections.abc import Mapping
 from numbers import Real
 
 from . import _vibrissa
@@ -90,8 +92,10 @@ def simulate(scenario="e2", *, overrides=None, as_frame=False, **keys):
 
     Parameters
     ----------
-    scenario : str or os.PathLike
-        A built-in name (``"e1"``, ``"e2"``) or the path of a TOML scenario file.
+    scenario : str, os.PathLike or dict
+        A built-in name (``"e1"``, ``"e2"``), the path of a TOML scenario file, or a dict of a
+        scenario file's keys (tables as nested dicts, e.g. ``{"experiment": "e2", "d": 0.02,
+        "whisker": {"preset": "w30"}}``).
     overrides : mapping, optional
         Scenario keys and values, e.g. ``{"whisker.length": 0.04}``.
     as_frame : bool
@@ -112,7 +116,17 @@ def simulate(scenario="e2", *, overrides=None, as_frame=False, **keys):
     TypeError
         An argument of the wrong type.
     """
-    columns = _vibrissa.simulate(_scenario(scenario), _overrides(overrides, keys))
+    sets = _overrides(overrides, keys)
+    if isinstance(scenario, Mapping):
+        try:
+            text = json.dumps(scenario, allow_nan=False)
+        except ValueError:
+            raise ValueError("scenario: a dict's values must be finite numbers") from None
+        except TypeError as e:
+            raise TypeError(f"scenario: {e}") from None
+        columns = _vibrissa.simulate_json(text, sets)
+    else:
+        columns = _vibrissa.simulate(_scenario(scenario), sets)
     if as_frame:
         try:
             import pandas

@@ -12,7 +12,7 @@ Value = Union[bool, float, int, str, Sequence[Union[bool, float, int, str]]]
 
 def builtins() -> list[str]: ...
 def simulate(
-    scenario: Union[str, os.PathLike[str]] = "e2",
+    scenario: Union[str, os.PathLike[str], Mapping[str, Any]] = "e2",
     *,
     overrides: Mapping[str, Value] | None = None,
     as_frame: bool = False,
