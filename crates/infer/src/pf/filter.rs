@@ -203,21 +203,18 @@ impl Filter {
         let (steps, periods) = match self.last.take() {
             None => (0, 0),
             Some((t_last, w)) => {
-                let gap = t - t_last;
-                let m = gap / self.period;
-                if !t.is_finite() || m.is_nan() || m < 0.5 || (m - m.round()).abs() > 1e-3 {
-                    // Keep the filter as it was: the sample can be given again.
-                    let err = Error::Observation(format!(
-                        "irregular sample times: t = {t} s follows {t_last} s, expected a whole number of periods of {} s",
-                        self.period
-                    ));
-                    self.last = Some((t_last, w));
-                    return Err(err);
-                }
+                let periods = match whole_periods(t_last, t, self.period) {
+                    Ok(periods) => periods,
+                    Err(e) => {
+                        // Keep the filter as it was: the sample can be given again.
+                        self.last = Some((t_last, w));
+                        return Err(e);
+                    }
+                };
                 self.resample_and_redraw(t_last, &w);
                 (
-                    ((gap / self.stepper.dt) + 0.5).floor() as usize,
-                    (m + 0.5).floor() as usize,
+                    (((t - t_last) / self.stepper.dt) + 0.5).floor() as usize,
+                    periods,
                 )
             }
         };
@@ -420,18 +417,21 @@ fn check_observations(config: &Config, obs: &Observations) -> Result<()> {
         return Err(Error::Observation("sample times `t` must increase".into()));
     }
     for k in 1..n {
-        let dt = obs.t[k] - obs.t[k - 1];
-        let m = dt / period;
-        // Gaps of whole sample periods are predicted across; anything else is refused.
-        if m.is_nan() || m < 0.5 || (m - m.round()).abs() > 1e-3 {
-            return Err(Error::Observation(format!(
-                "irregular sample times: t = {} s follows {} s, expected a whole number of periods of {period} s",
-                obs.t[k],
-                obs.t[k - 1]
-            )));
-        }
+        whole_periods(obs.t[k - 1], obs.t[k], period)?;
     }
     Ok(())
+}
+
+/// How many sample periods lie between the samples at `t_last` and `t`: gaps of whole periods
+/// are predicted across; anything else is refused.
+fn whole_periods(t_last: f64, t: f64, period: f64) -> Result<usize> {
+    let m = (t - t_last) / period;
+    if !t.is_finite() || m.is_nan() || m < 0.5 || (m - m.round()).abs() > 1e-3 {
+        return Err(Error::Observation(format!(
+            "irregular sample times: t = {t} s follows {t_last} s, expected a whole number of periods of {period} s"
+        )));
+    }
+    Ok((m + 0.5).floor() as usize)
 }
 
 #[cfg(test)]

@@ -184,10 +184,14 @@ impl LiuWest {
         let (m, a, gap) = (self.free.len(), self.a, self.gap);
         let h = (1.0 - a * a).sqrt();
         let mut o = *o;
-        let z: Vec<f64> = (0..m).map(|_| rng.normal()).collect();
+        let mut z = [0.0f64; 5];
+        z[..m].iter_mut().for_each(|x| *x = rng.normal());
         let (t0_old, y_now) = (start_delay(&o, gap), o[Y] + o[1] * t);
         // Every unknown's value before the move (t0 depends on the speed, which moves first).
-        let before: Vec<f64> = self.free.iter().map(|&c| param(&o, c, gap)).collect();
+        let mut before = [0.0f64; 5];
+        for (b, &c) in before.iter_mut().zip(&self.free) {
+            *b = param(&o, c, gap);
+        }
         let mut t0_new = t0_old;
         for j in 0..m {
             let c = self.free[j];
