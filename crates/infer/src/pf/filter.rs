@@ -246,20 +246,26 @@ impl Filter {
                 .zip(self.objs.par_iter_mut())
                 .zip(self.logw.par_iter_mut())
                 .zip(self.cleared.par_iter_mut())
-                .zip(self.unmoved.par_iter()),
-            |ws, ((((s, o), lw), gone), before)| {
+                .zip(self.unmoved.par_iter())
+                .zip(self.spare.par_iter_mut()),
+            |ws, (((((s, o), lw), gone), before), kept)| {
                 if *lw == f64::NEG_INFINITY {
                     return 0;
                 }
                 let noise = config.process_noise;
                 // A box just moved may sit where its whisker state cannot follow (around the
-                // tip, say): keep the state to take the sample again with the unmoved box.
-                let start = before.map(|_| (s.clone(), *gone));
+                // tip, say): keep the state (in the spare slot, free until the next
+                // resampling) to take the sample again with the unmoved box.
+                let was_gone = *gone;
+                if before.is_some() {
+                    kept.clone_from(s);
+                }
                 let mut ok = advance(&chain, s, o, gone, steps, periods, noise, t, ws).is_ok()
                     && (before.is_none() || !whipped(model, s));
-                if let (false, Some(b), Some((s0, g0))) = (ok, before, start) {
+                if let (false, Some(b)) = (ok, before) {
                     undone.fetch_add(1, Ordering::Relaxed);
-                    (*s, *gone, *o) = (s0, g0, *b);
+                    s.clone_from(kept);
+                    (*gone, *o) = (was_gone, *b);
                     ok = advance(&chain, s, o, gone, steps, periods, noise, t, ws).is_ok();
                 }
                 if !ok {
