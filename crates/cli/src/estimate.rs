@@ -15,7 +15,9 @@ use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use vibrissa_infer::check::{self, Check};
-use vibrissa_infer::{methods, training_for, Estimate, Family, Method, Variant, CHANNELS};
+use vibrissa_infer::{
+    methods, Estimate, Family, Method, Reader, Recording, Trained, Variant, CHANNELS,
+};
 
 /// Arguments of `vibrissa estimate`.
 #[derive(Debug, clap::Args)]
@@ -249,7 +251,7 @@ pub fn run(args: &Args) -> Result<()> {
     let recordings = args
         .obs
         .iter()
-        .map(|f| read_recording(f, &needs, Some(probe.name())))
+        .map(|f| read_recording(f, &needs, Reader::Method(probe.name())))
         .collect::<Result<Vec<_>>>()?;
 
     // The sensor noise of every recording, then training once per distinct timing and noise
@@ -260,7 +262,7 @@ pub fn run(args: &Args) -> Result<()> {
     let mut checks = Vec::new();
     let mut figure = None;
     for ((file, rec), level) in args.obs.iter().zip(&recordings).zip(&levels) {
-        let method = trained.get(&family, rec, level, name, args.seed)?;
+        let method = trained_for(&mut trained, &family, rec, level, name, args.seed)?;
         let t = Instant::now();
         let est = method
             .predict(&rec.values)
@@ -386,50 +388,16 @@ fn print_json(report: &Report, lines: bool) -> Result<()> {
     let stdout = io::stdout();
     let mut out = stdout.lock();
     for (k, row) in report.rows.iter().enumerate() {
-        let mut obj = Map::new();
-        if lines {
-            obj.insert("file".into(), json!(row.file.display().to_string()));
+        let obj = vibrissa_infer::contract::EstimateRow {
+            file: lines.then(|| row.file.display().to_string()),
+            estimates: row.estimates.clone(),
+            method: report.method.clone(),
+            seconds: row.seconds,
+            noise: row.noise.clone(),
+            filter: row.filter.clone(),
+            check: report.checks.get(k).cloned().flatten(),
         }
-        for (n, e) in &row.estimates {
-            obj.insert(
-                n.clone(),
-                json!({"mean": e.mean, "std": e.std, "ci90": e.ci90}),
-            );
-        }
-        obj.insert("method".into(), json!(report.method));
-        obj.insert("seconds".into(), json!(row.seconds));
-        obj.insert(
-            "noise".into(),
-            Value::Object(
-                row.noise
-                    .iter()
-                    .map(|(c, x)| (c.clone(), json!(x)))
-                    .collect(),
-            ),
-        );
-        if !row.filter.is_empty() {
-            obj.insert(
-                "filter".into(),
-                Value::Object(
-                    row.filter
-                        .iter()
-                        .map(|(k, x)| (k.to_string(), json!(x)))
-                        .collect(),
-                ),
-            );
-        }
-        if let Some(Some(c)) = report.checks.get(k) {
-            obj.insert(
-                "check".into(),
-                json!({
-                    "explained": c.explained,
-                    "limit": check::LIMIT,
-                    "channels": c.channels.iter().map(|ch| (ch.channel.to_string(), json!({
-                        "rms": ch.rms, "spread": ch.spread, "noise": ch.noise, "ratio": ch.ratio, "lag1": ch.lag1,
-                    }))).collect::<Map<String, Value>>(),
-                }),
-            );
-        }
+        .to_json();
         let row = Row { value: obj };
         if lines {
             serde_json::to_writer(&mut out, &row)?;
@@ -480,98 +448,26 @@ pub(crate) fn stated_noise(family: &Family, noise: &str) -> Result<[Option<f64>;
 }
 
 /// The sensor noise level of every recording on the channels `needs` (see
-/// [`vibrissa_infer::noise::batch_levels`]): recordings that agree share their pooled estimate;
-/// one that does not gets its own, with a warning. Prints the levels on standard error.
+/// [`vibrissa_infer::recording::batch_noise`]), with its warnings and summary on standard error.
 pub(crate) fn noise_levels(
     files: &[PathBuf],
     recordings: &[Recording],
     needs: &[usize],
     stated: &[Option<f64>; 5],
 ) -> Result<Vec<[f64; 5]>> {
-    let estimated: Vec<usize> = needs
-        .iter()
-        .copied()
-        .filter(|&c| stated[c].is_none())
-        .collect();
-    // A channel that never changes is a sensor that recorded nothing: its noise measures as 0 and
-    // the estimators compare a flat line with simulated signals.
-    for (file, rec) in files.iter().zip(recordings) {
-        for &c in needs {
-            let finite = rec.values[c].iter().filter(|v| v.is_finite());
-            let (lo, hi) = finite.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
-                (lo.min(v), hi.max(v))
-            });
-            if lo == hi {
-                eprintln!(
-                    "warning: `{}`: channel `{}` is constant ({lo}): a sensor that recorded \
-                     nothing? Its noise is taken as 0 and the estimate compares a flat line with \
-                     simulated signals; leave the column out if it was not recorded",
-                    file.display(),
-                    CHANNELS[c]
-                );
-            }
-        }
+    let names: Vec<String> = files.iter().map(|f| f.display().to_string()).collect();
+    let report = vibrissa_infer::recording::batch_noise(
+        &names,
+        recordings,
+        needs,
+        stated,
+        "--noise CHANNEL=SIGMA,...",
+    )?;
+    for w in &report.warnings {
+        eprintln!("warning: {w}");
     }
-    // Each file alone first, so that a channel too short to measure is named with its file.
-    for (file, rec) in files.iter().zip(recordings) {
-        vibrissa_infer::noise::estimate(&rec.values, &estimated).with_context(|| {
-            format!(
-                "`{}`: cannot estimate its sensor noise; state it with --noise CHANNEL=SIGMA,... \
-                 or in the scenario's [sensor_noise]",
-                file.display()
-            )
-        })?;
-    }
-    let series: Vec<&[Vec<f64>]> = recordings.iter().map(|r| &r.values[..]).collect();
-    let batch = vibrissa_infer::noise::batch_levels(&series, needs, stated)?;
-    for ((file, source), own) in files.iter().zip(&batch.sources).zip(&batch.own) {
-        if *source == vibrissa_infer::noise::Source::Own && files.len() > 1 {
-            eprintln!(
-                "warning: `{}`: its sensor noise ({}) differs from the rest of the batch's by more \
-                 than a factor {}; it is estimated from this file alone",
-                file.display(),
-                describe_noise(own, &estimated),
-                vibrissa_infer::noise::AGREEMENT
-            );
-        }
-    }
-    let shared = batch
-        .sources
-        .iter()
-        .filter(|s| **s == vibrissa_infer::noise::Source::Batch)
-        .count();
-    let what = if estimated.is_empty() {
-        "as stated".to_string()
-    } else if files.len() == 1 {
-        "estimated from the recording".to_string()
-    } else {
-        format!("estimated from {shared} of the recordings, pooled")
-    };
-    match batch
-        .sources
-        .iter()
-        .position(|s| *s == vibrissa_infer::noise::Source::Batch)
-    {
-        Some(k) => eprintln!(
-            "sensor noise {what}: {}",
-            describe_noise(&batch.levels[k], needs)
-        ),
-        None if files.len() == 1 || estimated.is_empty() => eprintln!(
-            "sensor noise {what}: {}",
-            describe_noise(&batch.levels[0], needs)
-        ),
-        None => eprintln!("sensor noise estimated from each recording alone"),
-    }
-    Ok(batch.levels)
-}
-
-/// `theta01 1.2e-3, …` for messages.
-pub(crate) fn describe_noise(level: &[f64; 5], channels: &[usize]) -> String {
-    channels
-        .iter()
-        .map(|&c| format!("{} {}", CHANNELS[c], sig(level[c], 3)))
-        .collect::<Vec<_>>()
-        .join(", ")
+    eprintln!("{}", report.summary);
+    Ok(report.levels)
 }
 
 /// The noise of `channels`, named, for the estimate's `"noise"`.
@@ -582,174 +478,37 @@ pub(crate) fn named_noise(level: &[f64; 5], channels: &[usize]) -> Vec<(String, 
         .collect()
 }
 
-/// What a fitted method is kept by: sample rate (Hz), samples, sensor noise per channel.
-type TrainedKey = (f64, usize, [f64; 5]);
-
-/// Methods trained per timing (sample rate and length) and noise level of the recordings.
-#[derive(Default)]
-pub(crate) struct Trained {
-    /// `(rate, samples, sensor noise)` → the fitted method.
-    fitted: Vec<(TrainedKey, Box<dyn Method>)>,
-    /// Wall time of all training, s.
-    pub seconds: f64,
-    /// Simulated runs trained on, over all timings.
-    pub runs: usize,
+/// The method `name` fitted for `rec`'s timing and `noise` (see [`Trained::get`]), with what is
+/// trained reported on standard error.
+pub(crate) fn trained_for<'a>(
+    trained: &'a mut Trained,
+    family: &Family,
+    rec: &Recording,
+    noise: &[f64; 5],
+    name: &str,
+    seed: u64,
+) -> Result<&'a dyn Method> {
+    Ok(
+        trained.get(family, rec.rate, rec.t.len(), noise, name, seed, &mut |m| {
+            eprintln!("{m}")
+        })?,
+    )
 }
 
-impl Trained {
-    /// The method `name` fitted on `family`'s runs at `rec`'s timing with the sensor noise
-    /// `noise` (trained on first use).
-    pub(crate) fn get(
-        &mut self,
-        family: &Family,
-        rec: &Recording,
-        noise: &[f64; 5],
-        name: &str,
-        seed: u64,
-    ) -> Result<&dyn Method> {
-        let key = (rec.rate, rec.t.len(), *noise);
-        let found = self
-            .fitted
-            .iter()
-            .position(|(k, _)| (k.0 - key.0).abs() <= 1e-9 * key.0 && k.1 == key.1 && k.2 == key.2);
-        let k = match found {
-            Some(k) => k,
-            None => {
-                let timed = family.with_timing(rec.rate, rec.t.len())?;
-                let mut method = methods::by_name(name)?;
-                let t0 = Instant::now();
-                eprintln!(
-                    "training {} ({} budget) on {}-sample runs at {} Hz with sensor noise {}…",
-                    method.name(),
-                    method.budget().name(),
-                    key.1,
-                    sig(key.0, 6),
-                    describe_noise(noise, &method.channels())
-                );
-                let noise = timed.training_noise(*noise);
-                let training = training_for(&timed, &noise, method.as_ref(), seed)?;
-                method.fit(&training)?;
-                let secs = t0.elapsed().as_secs_f64();
-                let runs = training.samples.len() + training.calibration.len();
-                eprintln!("trained on {runs} simulated runs in {secs:.2} s");
-                self.seconds += secs;
-                self.runs += runs;
-                self.fitted.push((key, method));
-                self.fitted.len() - 1
-            }
-        };
-        Ok(self.fitted[k].1.as_ref())
-    }
-}
-
-/// A recording: its sample times, channel-major values (`[CHANNELS][samples]`, missing channels
-/// empty) and its sample rate.
-#[derive(Debug, Clone)]
-pub(crate) struct Recording {
-    /// Sample times, s, strictly increasing at a constant step.
-    pub t: Vec<f64>,
-    /// `[CHANNELS][samples]`.
-    pub values: Vec<Vec<f64>>,
-    /// Samples per second, Hz.
-    pub rate: f64,
-    /// The segment count of the chain that recorded it, when its metadata says.
-    pub segments: Option<usize>,
-}
-
-/// Reads one recording: `t` (any start, any constant step: a step that varies by more than 1%
-/// is refused with its row) and the channels `needs` (required and finite when `method` is
-/// given; the filter instead skips `NaN` values).
-pub(crate) fn read_recording(
-    file: &Path,
-    needs: &[usize],
-    method: Option<&str>,
-) -> Result<Recording> {
-    // The sidecar's metadata (`run.json` beside `run.csv`) where there is one; what is wrong with
-    // it is a warning, never an error: the CSV alone is always enough.
+/// Reads one recording (see [`Recording::from_series`]), with its sidecar's metadata where
+/// there is one: what is wrong with the sidecar is a warning, never an error.
+pub(crate) fn read_recording(file: &Path, needs: &[usize], reader: Reader) -> Result<Recording> {
     let (series, warnings) = vibrissa_io::series::read_csv_with_sidecar(file)
         .with_context(|| format!("cannot read `{}`", file.display()))?;
     for w in warnings {
         eprintln!("warning: {w}");
     }
-    let name = file.display();
-    let t = series
-        .require(&["t", "theta01", "theta12"])
-        .with_context(|| {
-            format!("`{name}` lacks a required column (every recording has t, theta01, theta12)")
-        })?[0]
-        .to_vec();
-    if t.len() < 2 {
-        bail!("`{name}` has {} samples; at least 2 are needed", t.len());
-    }
-    if let Some(k) = t.iter().position(|x| !x.is_finite()) {
-        bail!("`{name}`: t is not a finite number in data row {}", k + 1);
-    }
-    // Every step against the first (the contract allows 1%), then the mean step sets the rate.
-    let first = t[1] - t[0];
-    for k in 1..t.len() {
-        let dt = t[k] - t[k - 1];
-        if dt <= 0.0 {
-            bail!(
-                "`{name}`: t does not increase at data row {} ({} after {})",
-                k + 1,
-                t[k],
-                t[k - 1]
-            );
-        }
-        if (dt - first).abs() > 0.01 * first {
-            bail!(
-                "`{name}`: the sample step before data row {} is {} s, not the first step's {} s \
-                 (a gap or an irregular clock; resample it to a constant rate first)",
-                k + 1,
-                sig(dt, 4),
-                sig(first, 4)
-            );
-        }
-    }
-    let rate = vibrissa_io::labelled::sample_rate(&t);
-    let mut values = Vec::with_capacity(CHANNELS.len());
-    for (c, ch) in CHANNELS.iter().enumerate() {
-        match series.column(ch) {
-            Some(v) => {
-                if method.is_some() && needs.contains(&c) {
-                    if let Some(k) = v.iter().position(|x| !x.is_finite()) {
-                        bail!(
-                            "`{name}`: column {ch} has a non-finite value in data row {}",
-                            k + 1
-                        );
-                    }
-                }
-                values.push(v.to_vec());
-            }
-            None if needs.contains(&c) => match method {
-                Some(m) => bail!(
-                    "method {m} needs column {ch}, which `{name}` lacks (the template method uses \
-                     theta12 alone)"
-                ),
-                None => bail!(
-                    "`{name}` lacks column {ch}, which the filter observes (choose others with \
-                     --channels)"
-                ),
-            },
-            None => values.push(Vec::new()),
-        }
-    }
-    let segments = match series.meta_value("segments") {
-        None => None,
-        Some(s) => match s.trim().parse::<usize>() {
-            Ok(n) if (2..=vibrissa_core::chain::MAX_SEGMENTS).contains(&n) => Some(n),
-            _ => bail!(
-                "`{name}`: metadata `segments` is `{s}`; expected a segment count from 2 to {}",
-                vibrissa_core::chain::MAX_SEGMENTS
-            ),
-        },
-    };
-    Ok(Recording {
-        t,
-        values,
-        rate,
-        segments,
-    })
+    Ok(Recording::from_series(
+        &series,
+        &file.display().to_string(),
+        needs,
+        reader,
+    )?)
 }
 
 /// The model check of one recording at `point` (see [`vibrissa_infer::check`]), with a warning

@@ -7,37 +7,20 @@
 
 use crate::estimate::{
     check_recording, draw_check, named_noise, noise_levels, print_json_rows, read_recording,
-    render_checks, Args, FileEstimate, Trained,
+    render_checks, trained_for, Args, FileEstimate,
 };
 use crate::files;
 use crate::plot::{render_series, Axis, Curve, Panel};
 use anyhow::{bail, Context, Result};
 use std::fmt::Write as _;
 use std::path::Path;
-use std::time::Instant;
-use vibrissa_infer::pf::{self, Injection, Observations, Pf, Posterior, TransitionModel};
-use vibrissa_infer::Method;
-use vibrissa_infer::{methods, training_for, Family, CHANNELS};
+use vibrissa_infer::pf::{self, Posterior, TransitionModel};
+use vibrissa_infer::{methods, Family, Reader, Trained, CHANNELS};
 
 /// Channels of the contract that the filter's model cannot produce.
 const UNOBSERVABLE: [&str; 4] = ["contact", "cx", "cy", "s"];
 
-/// Share of the particles drawn from an injected method's estimate.
-const INJECT_FRACTION: f64 = 0.5;
-
-/// A least effective sample size below this share of the particles gets a warning.
-const COLLAPSE_SHARE: f64 = 0.01;
-
 /// Runs the filter on every `--obs` file and prints the contract's estimates.
-/// Share of a prior's width within which a posterior mean counts as at its end.
-const EDGE: f64 = 0.05;
-
-/// Mean squared standardised residual per observation, in the units of the filter's noise model
-/// before tempering, above which the recording is reported as unexplained: twice the variance
-/// the model allows. Recordings of the scenario give 0.7–0.8 (own simulator and a calibrated
-/// stand-in, 3% noise), another whisker described by the nominal 1.5–54.
-const MISFIT_LIMIT: f64 = 2.0;
-
 pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()> {
     if args.particles == 0 {
         bail!("--particles must be at least 1 (got 0)");
@@ -64,34 +47,21 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
     let priors = parse_priors(&args.prior)?;
 
     // Read and check every file before anything is trained.
-    let obs = args
+    let recordings = args
         .obs
         .iter()
-        .map(|f| {
-            let rec = read_recording(f, &channels, None)?;
-            // The filter's clock starts at the recording's first sample.
-            let t = rec.t.iter().map(|t| t - rec.t[0]).collect();
-            Ok((
-                Observations {
-                    t,
-                    values: rec.values.clone(),
-                },
-                rec.segments,
-                rec,
-            ))
-        })
+        .map(|f| read_recording(f, &channels, Reader::Filter))
         .collect::<Result<Vec<_>>>()?;
 
     // The sensor noise of every recording (the filter is fitted to each level: no runs).
-    let recordings: Vec<_> = obs.iter().map(|(_, _, rec)| rec.clone()).collect();
     let levels = noise_levels(&args.obs, &recordings, &channels, stated)?;
-    let mut filter = Pf::new(args.particles);
-    filter.set_model(
-        TransitionModel::from_name(&args.pf_model)
-            .map_err(|e| anyhow::anyhow!("--pf-model: {e}"))?,
-    );
-    filter.seed = args.seed;
-    filter.max_delay = args.max_delay;
+    let mut options = pf::recording::Options::new(args.particles);
+    options.seed = args.seed;
+    options.max_delay = args.max_delay;
+    options.model = TransitionModel::from_name(&args.pf_model)
+        .map_err(|e| anyhow::anyhow!("--pf-model: {e}"))?;
+    options.channels = channels.clone();
+    options.priors = priors;
     if let Some(name) = &args.inject {
         if name == "pf" {
             bail!("--inject takes a discriminative method, not pf");
@@ -104,12 +74,10 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
     let mut posteriors = Vec::new();
     let mut checks = Vec::new();
     let mut figure = None;
-    let mut fitted_at: Option<[f64; 5]> = None;
-    for ((file, (o, segments, rec)), level) in args.obs.iter().zip(&obs).zip(&levels) {
-        if fitted_at != Some(*level) {
-            let training =
-                training_for(family, &family.training_noise(*level), &filter, args.seed)?;
-            filter.fit(&training)?;
+    let mut fitted: Option<([f64; 5], pf::Pf)> = None;
+    for ((file, rec), level) in args.obs.iter().zip(&recordings).zip(&levels) {
+        if fitted.as_ref().map(|f| f.0) != Some(*level) {
+            let filter = pf::recording::fitted(family, level, &options)?;
             let sigma = filter.sigma().context("the filter was not fitted")?;
             eprintln!(
                 "pf ({} particles): observation noise {}",
@@ -120,105 +88,28 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
                     .collect::<Vec<_>>()
                     .join(", ")
             );
-            fitted_at = Some(*level);
+            fitted = Some((*level, filter));
         }
-        let sigma = filter.sigma().context("the filter was not fitted")?;
-        let sensor = filter.sensor_noise().context("the filter was not fitted")?;
-        let start = Instant::now();
-        let mut config = filter.config(family, sigma)?;
-        config.channels = channels.clone();
-        if let Some(n) = segments {
-            config.observed_segments = *n;
-            if filter.model == TransitionModel::Fine {
-                config.segments = *n;
+        let filter = &fitted.as_ref().expect("fitted above").1;
+        options.inject = match &args.inject {
+            Some(name) => {
+                let m = trained_for(&mut inject, family, rec, level, name, args.seed)?;
+                Some(m.predict(&rec.values).with_context(|| {
+                    format!(
+                        "--inject {}: cannot estimate from `{}`",
+                        m.name(),
+                        file.display()
+                    )
+                })?)
             }
-        }
-        for &(k, p) in &priors {
-            config.priors[k] = p;
-        }
-        config.check().context("--prior")?;
-        if let Some(name) = &args.inject {
-            let m = inject.get(family, rec, level, name, args.seed)?;
-            let e = m.predict(&o.values).with_context(|| {
-                format!(
-                    "--inject {}: cannot estimate from `{}`",
-                    m.name(),
-                    file.display()
-                )
-            })?;
-            let v = e
-                .get(1)
-                .copied()
-                .unwrap_or(vibrissa_infer::Estimate::normal(config.priors[1].lo, 1.0));
-            config.injection = Some(Injection {
-                fraction: INJECT_FRACTION,
-                mean: [e[0].mean, v.mean],
-                std: [e[0].std.max(1e-5), v.std.max(1e-3)],
-            });
-        }
-        let post = pf::run(&config, o, &mut |_| {})
+            None => None,
+        };
+        let est = pf::recording::estimate(filter, family, rec, &options)
             .with_context(|| format!("filtering `{}`", file.display()))?;
-        let secs = start.elapsed().as_secs_f64();
-        if post.skipped > 0 {
-            eprintln!(
-                "warning: `{}`: {} missing (NaN) values skipped",
-                file.display(),
-                post.skipped
-            );
+        for w in est.warnings(&file.display().to_string()) {
+            eprintln!("warning: {w}");
         }
-        if let Some((t, ess)) = post.least_ess() {
-            if ess < COLLAPSE_SHARE * config.particles as f64 {
-                eprintln!(
-                    "warning: `{}`: the effective sample size fell to {ess:.1} of {} particles at \
-                     t = {t} s; the posterior after it rests on very few particles and may be too \
-                     narrow: compare with more --particles or another --seed",
-                    file.display(),
-                    config.particles
-                );
-            }
-        }
-        // Data that no particle explains: the likelihood's mean squared standardised residual
-        // per observation, in the units of the filter's noise model before tempering (about 1,
-        // or less, when the model explains the recording).
-        let misfit = filter.misfit(&post, config.channels.len());
-        if misfit > MISFIT_LIMIT {
-            eprintln!(
-                "warning: `{}`: no particle explains the recording: its residuals are {:.1} times \
-                 the variance the filter's noise model allows (at most {MISFIT_LIMIT} is \
-                 expected); the whisker, the sensors or the prior do not describe it, and the \
-                 intervals are too narrow: check the scenario (--check), calibrate it, or widen \
-                 the prior",
-                file.display(),
-                misfit
-            );
-        }
-        // A posterior that piles up at an end of its prior: the truth may lie beyond it.
-        for (name, e) in post.unknowns.iter().zip(post.last()) {
-            let Some(k) = pf::PARAMS.iter().position(|p| p == name) else {
-                continue;
-            };
-            let prior = config.priors[k];
-            let width = prior.hi - prior.lo;
-            if width > 0.0 && (e.mean - prior.lo < EDGE * width || prior.hi - e.mean < EDGE * width)
-            {
-                eprintln!(
-                    "warning: `{}`: the posterior of {name} ({}) lies at an end of its prior \
-                     [{}, {}]: the recording may come from outside it; widen it (--prior \
-                     {name}=LO:HI) or check the scenario (--check)",
-                    file.display(),
-                    e.mean,
-                    prior.lo,
-                    prior.hi
-                );
-            }
-        }
-        if post.diverged > 0 {
-            eprintln!(
-                "warning: `{}`: {} particle steps diverged (those particles were dropped)",
-                file.display(),
-                post.diverged
-            );
-        }
+        let post = &est.posterior;
         let named = post
             .unknowns
             .iter()
@@ -228,22 +119,11 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
         if args.check {
             // The scenario at the posterior mean of its own unknowns; the filter's further
             // unknowns (a start delay, the box's size or friction) are not simulated.
-            let point: Option<Vec<f64>> = family
-                .unknowns()
-                .iter()
-                .map(|k| {
-                    post.unknowns
-                        .iter()
-                        .position(|n| n == k)
-                        .map(|i| post.last()[i].mean)
-                })
-                .collect();
-            let extra = post.unknowns.len() > family.unknowns().len();
-            let c = match point {
-                Some(p) if !extra => {
-                    check_recording(&family.nominal(), file, rec, &p, &sensor, &channels)
+            let c = match est.scenario_point(family) {
+                Some(p) => {
+                    check_recording(&family.nominal(), file, rec, &p, &est.sensor, &channels)
                 }
-                _ => {
+                None => {
                     eprintln!(
                         "warning: `{}`: cannot check a posterior over unknowns the scenario does not \
                          simulate ({})",
@@ -261,18 +141,11 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
         rows.push(FileEstimate {
             file: file.clone(),
             estimates: named,
-            seconds: secs,
-            noise: named_noise(&sensor, &channels),
-            filter: vec![
-                ("particles", config.particles as f64),
-                ("resamples", post.resamples as f64),
-                ("particle_steps", post.steps as f64),
-                ("diverged_steps", post.diverged as f64),
-                ("refused_moves", post.refused_moves as f64),
-                ("misfit", misfit),
-            ],
+            seconds: est.seconds,
+            noise: named_noise(&est.sensor, &channels),
+            filter: est.counts(),
         });
-        posteriors.push(post);
+        posteriors.push(est.posterior);
     }
 
     if let (Some(trace), Some(post)) = (&args.trace, posteriors.first()) {

@@ -30,6 +30,10 @@ pub enum Error {
     /// An observation does not fit the experiment or the method.
     #[error("unusable observation: {0}")]
     Observation(String),
+    /// A recording is unusable: a missing column, an irregular clock, a non-finite value (the
+    /// message names the file and the row).
+    #[error("{0}")]
+    Recording(String),
     /// A setting of a method is out of its range.
     #[error("invalid setting: {0}")]
     Setting(String),

@@ -52,6 +52,20 @@ impl Family {
     /// (whose unknowns it then takes).
     pub fn open(spec: &str, sets: &[String]) -> Result<Family> {
         let (doc, loaded) = scenario::open(spec, sets)?;
+        Family::from_loaded(spec, doc, loaded)
+    }
+
+    /// As [`Family::open`], for a scenario given as TOML text (`origin` names it in errors).
+    pub fn open_str(text: &str, origin: &str, sets: &[String]) -> Result<Family> {
+        let (doc, loaded) = scenario::open_str(text, origin, sets)?;
+        Family::from_loaded(origin, doc, loaded)
+    }
+
+    fn from_loaded(
+        spec: &str,
+        doc: scenario::Document,
+        loaded: scenario::Loaded,
+    ) -> Result<Family> {
         let Some(family) = loaded.family else {
             return Err(Error::Setting(format!(
                 "{}: a scenario for estimation needs an [unknowns] table (e.g. d = [0.015, 0.030]) \

@@ -14,6 +14,7 @@
 
 pub mod calibrate;
 pub mod check;
+pub mod contract;
 pub mod error;
 pub mod evaluate;
 pub mod experiment;
@@ -24,8 +25,10 @@ pub mod methods;
 pub mod noise;
 pub mod pf;
 pub mod randomise;
+pub mod recording;
 mod reference;
 pub mod standin;
+pub mod trained;
 pub mod unknown_start;
 
 pub use error::{Error, Result};
@@ -33,4 +36,6 @@ pub use evaluate::{calibration, evaluate, evaluate_with, training_for, Evaluatio
 pub use experiment::{Sample, Variant, CHANNELS};
 pub use family::Family;
 pub use method::{Budget, Estimate, Method, Training};
+pub use recording::{Reader, Recording};
+pub use trained::Trained;
 pub use unknown_start::{evaluate_unknown_start, StartEvaluation};

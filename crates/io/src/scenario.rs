@@ -309,6 +309,19 @@ pub fn load_full(spec: &str, sets: &[String]) -> Result<Loaded> {
 /// of its range.
 pub fn open(spec: &str, sets: &[String]) -> Result<(Document, Loaded)> {
     let (doc, loaded) = open_unchecked(spec, sets)?;
+    checked_family(doc, loaded)
+}
+
+/// As [`open`], for a scenario given as TOML text; `origin` names it in errors, and relative
+/// paths in it are taken from `origin`'s folder.
+pub fn open_str(text: &str, origin: &str, sets: &[String]) -> Result<(Document, Loaded)> {
+    let dir = Path::new(origin).parent().unwrap_or(Path::new(""));
+    let (doc, loaded) = parse(text, origin, dir, sets)?;
+    checked_family(doc, loaded)
+}
+
+/// A family's scenario must simulate at the middle of its unknowns' ranges.
+fn checked_family(doc: Document, loaded: Loaded) -> Result<(Document, Loaded)> {
     if let Some(family) = &loaded.family {
         let mid: Vec<(&str, f64)> = family
             .unknowns

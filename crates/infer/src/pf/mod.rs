@@ -31,6 +31,7 @@ mod filter;
 mod likelihood;
 mod method;
 mod posterior;
+pub mod recording;
 mod sampling;
 mod transition;
 

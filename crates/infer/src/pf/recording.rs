@@ -1,0 +1,241 @@
+//! The filter run over one whole recording, as `vibrissa estimate --method pf` and the Python
+//! package's `estimate(..., method="pf")` run it: fitted to the recording's sensor noise, with
+//! the object's priors and channels the caller chooses, and with what the user should be warned
+//! of (a collapsed effective sample size, data that no particle explains, a posterior at an end
+//! of its prior, diverged steps).
+
+use super::{run, Config, Injection, Observations, Pf, Posterior, Prior, TransitionModel, PARAMS};
+use crate::evaluate::training_for;
+use crate::recording::Recording;
+use crate::{Family, Method, Result};
+
+/// A least effective sample size below this share of the particles gets a warning.
+pub const COLLAPSE_SHARE: f64 = 0.01;
+
+/// Share of the particles drawn from an injected method's estimate.
+pub const INJECT_FRACTION: f64 = 0.5;
+
+/// Share of a prior's width within which a posterior mean counts as at its end.
+pub const EDGE: f64 = 0.05;
+
+/// Mean squared standardised residual per observation, in the units of the filter's noise model
+/// before tempering, above which the recording is reported as unexplained: twice the variance
+/// the model allows. Recordings of the scenario give 0.7–0.8 (own simulator and a calibrated
+/// stand-in, 3% noise), another whisker described by the nominal 1.5–54.
+pub const MISFIT_LIMIT: f64 = 2.0;
+
+/// How the filter is run on a recording.
+#[derive(Debug, Clone)]
+pub struct Options {
+    /// Particles.
+    pub particles: usize,
+    /// Seed of the filter's random streams.
+    pub seed: u64,
+    /// The recording may start up to this many seconds before the approach.
+    pub max_delay: f64,
+    /// The transition model.
+    pub model: TransitionModel,
+    /// Observed channels (indices into [`crate::CHANNELS`]).
+    pub channels: Vec<usize>,
+    /// Priors replacing the defaults, by index into [`PARAMS`].
+    pub priors: Vec<(usize, Prior)>,
+    /// A discriminative method's estimates of d (and v) for this recording, whose proposals are
+    /// mixed into the initial particles (hypothesis injection, [`INJECT_FRACTION`] of them).
+    pub inject: Option<Vec<crate::Estimate>>,
+}
+
+impl Options {
+    /// The defaults of `vibrissa estimate --method pf` with `particles` particles.
+    pub fn new(particles: usize) -> Options {
+        Options {
+            particles,
+            seed: 1,
+            max_delay: 0.0,
+            model: TransitionModel::Coarse,
+            channels: (0..crate::CHANNELS.len()).collect(),
+            priors: Vec::new(),
+            inject: None,
+        }
+    }
+}
+
+/// The filter's result on one recording.
+#[derive(Debug, Clone)]
+pub struct Estimate {
+    /// The posterior at every sample.
+    pub posterior: Posterior,
+    /// The settings it ran with.
+    pub config: Config,
+    /// The sensor noise per channel it assumed (before its model error), SI.
+    pub sensor: [f64; 5],
+    /// Its observation noise per channel (sensor noise and model error), SI.
+    pub sigma: [f64; 5],
+    /// Mean squared standardised residual per observation (see [`MISFIT_LIMIT`]).
+    pub misfit: f64,
+    /// Wall time of the filtering, s.
+    pub seconds: f64,
+}
+
+impl Estimate {
+    /// The filter's own counts for the estimate object (`"filter"` in the contract's JSON).
+    pub fn counts(&self) -> Vec<(&'static str, f64)> {
+        let p = &self.posterior;
+        vec![
+            ("particles", self.config.particles as f64),
+            ("resamples", p.resamples as f64),
+            ("particle_steps", p.steps as f64),
+            ("diverged_steps", p.diverged as f64),
+            ("refused_moves", p.refused_moves as f64),
+            ("misfit", self.misfit),
+        ]
+    }
+
+    /// What the user should be warned of, each naming the recording `name`.
+    pub fn warnings(&self, name: &str) -> Vec<String> {
+        let (post, config) = (&self.posterior, &self.config);
+        let mut out = Vec::new();
+        if post.skipped > 0 {
+            out.push(format!(
+                "`{name}`: {} missing (NaN) values skipped",
+                post.skipped
+            ));
+        }
+        if let Some((t, ess)) = post.least_ess() {
+            if ess < COLLAPSE_SHARE * config.particles as f64 {
+                out.push(format!(
+                    "`{name}`: the effective sample size fell to {ess:.1} of {} particles at t = \
+                     {t} s; the posterior after it rests on very few particles and may be too \
+                     narrow: compare with more particles or another seed",
+                    config.particles
+                ));
+            }
+        }
+        if self.misfit > MISFIT_LIMIT {
+            out.push(format!(
+                "`{name}`: no particle explains the recording: its residuals are {:.1} times the \
+                 variance the filter's noise model allows (at most {MISFIT_LIMIT} is expected); \
+                 the whisker, the sensors or the prior do not describe it, and the intervals are \
+                 too narrow: check the scenario (--check), calibrate it, or widen the prior",
+                self.misfit
+            ));
+        }
+        // A posterior that piles up at an end of its prior: the truth may lie beyond it.
+        for (unknown, e) in post.unknowns.iter().zip(post.last()) {
+            let Some(k) = PARAMS.iter().position(|p| p == unknown) else {
+                continue;
+            };
+            let prior = config.priors[k];
+            let width = prior.hi - prior.lo;
+            if width > 0.0 && (e.mean - prior.lo < EDGE * width || prior.hi - e.mean < EDGE * width)
+            {
+                out.push(format!(
+                    "`{name}`: the posterior of {unknown} ({}) lies at an end of its prior [{}, \
+                     {}]: the recording may come from outside it; widen it (--prior \
+                     {unknown}=LO:HI) or check the scenario (--check)",
+                    e.mean, prior.lo, prior.hi
+                ));
+            }
+        }
+        if post.diverged > 0 {
+            out.push(format!(
+                "`{name}`: {} particle steps diverged (those particles were dropped)",
+                post.diverged
+            ));
+        }
+        out
+    }
+
+    /// The posterior means of `family`'s own unknowns, for a model check; `None` when the
+    /// posterior holds unknowns the scenario does not simulate (a start delay, a size).
+    pub fn scenario_point(&self, family: &Family) -> Option<Vec<f64>> {
+        let post = &self.posterior;
+        if post.unknowns.len() > family.unknowns().len() {
+            return None;
+        }
+        family
+            .unknowns()
+            .iter()
+            .map(|k| {
+                post.unknowns
+                    .iter()
+                    .position(|n| n == k)
+                    .map(|i| post.last()[i].mean)
+            })
+            .collect()
+    }
+}
+
+/// The filter fitted to the sensor noise `level` (per channel, SI) for `family`: its settings
+/// follow `options` (particles, seed, model; priors and channels are applied per recording).
+pub fn fitted(family: &Family, level: &[f64; 5], options: &Options) -> Result<Pf> {
+    let mut filter = Pf::new(options.particles);
+    filter.set_model(options.model);
+    filter.seed = options.seed;
+    filter.max_delay = options.max_delay;
+    let training = training_for(
+        family,
+        &family.training_noise(*level),
+        &filter,
+        options.seed,
+    )?;
+    filter.fit(&training)?;
+    Ok(filter)
+}
+
+/// Runs the fitted `filter` (see [`fitted`]) over the recording `rec` of `family`.
+pub fn estimate(
+    filter: &Pf,
+    family: &Family,
+    rec: &Recording,
+    options: &Options,
+) -> Result<Estimate> {
+    let unfitted = || crate::Error::Fit {
+        method: "pf".into(),
+        detail: "not fitted".into(),
+    };
+    let sigma = filter.sigma().ok_or_else(unfitted)?;
+    let sensor = filter.sensor_noise().ok_or_else(unfitted)?;
+    let start = std::time::Instant::now();
+    let mut config = filter.config(family, sigma)?;
+    config.channels = options.channels.clone();
+    if let Some(n) = rec.segments {
+        config.observed_segments = n;
+        if filter.model == TransitionModel::Fine {
+            config.segments = n;
+        }
+    }
+    for &(k, p) in &options.priors {
+        config.priors[k] = p;
+    }
+    config.check()?;
+    if let Some(e) = &options.inject {
+        let d = e.first().copied().ok_or_else(|| crate::Error::Fit {
+            method: "pf".into(),
+            detail: "an injected method gave no estimate of d".into(),
+        })?;
+        let v = e
+            .get(1)
+            .copied()
+            .unwrap_or(crate::Estimate::normal(config.priors[1].lo, 1.0));
+        config.injection = Some(Injection {
+            fraction: INJECT_FRACTION,
+            mean: [d.mean, v.mean],
+            std: [d.std.max(1e-5), v.std.max(1e-3)],
+        });
+    }
+    // The filter's clock starts at the recording's first sample.
+    let obs = Observations {
+        t: rec.t.iter().map(|t| t - rec.t[0]).collect(),
+        values: rec.values.clone(),
+    };
+    let posterior = run(&config, &obs, &mut |_| {})?;
+    let misfit = filter.misfit(&posterior, config.channels.len());
+    Ok(Estimate {
+        posterior,
+        config,
+        sensor,
+        sigma,
+        misfit,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}

@@ -1,0 +1,344 @@
+//! A recording to estimate from: its sample times, the channels of [`CHANNELS`] and its rate,
+//! checked once for every estimator (the command line reads it from a contract CSV, the Python
+//! package from arrays).
+//!
+//! The times may start anywhere and may have any constant step: a step that differs from the
+//! first by more than 1% (a gap, an irregular clock) or that does not advance is refused with
+//! its row. The channels an estimator reads must be present; a discriminative method also needs
+//! them finite, while the filter skips missing (`NaN`) values.
+
+use crate::experiment::CHANNELS;
+use crate::noise::{self, Source};
+use crate::trained::describe_noise;
+use crate::{Error, Result};
+use vibrissa_core::chain::MAX_SEGMENTS;
+use vibrissa_io::series::Series;
+
+/// A recording: sample times, channel-major values and sample rate.
+#[derive(Debug, Clone)]
+pub struct Recording {
+    /// Sample times, s, strictly increasing at a constant step.
+    pub t: Vec<f64>,
+    /// `[CHANNELS][samples]`; a channel not recorded is empty.
+    pub values: Vec<Vec<f64>>,
+    /// Samples per second, Hz.
+    pub rate: f64,
+    /// The segment count of the chain that recorded it, when its metadata says.
+    pub segments: Option<usize>,
+}
+
+/// Who reads a recording, for what it must hold.
+#[derive(Debug, Clone, Copy)]
+pub enum Reader<'a> {
+    /// A discriminative method, by name: the channels it reads must be finite.
+    Method(&'a str),
+    /// The particle filter: missing (`NaN`) values are skipped.
+    Filter,
+}
+
+fn bad(text: String) -> Error {
+    Error::Recording(text)
+}
+
+/// `x` to four significant digits, for messages.
+fn short(x: f64) -> String {
+    format!("{}", format!("{x:.3e}").parse::<f64>().unwrap_or(x))
+}
+
+impl Recording {
+    /// The recording `name` (a file name, for messages) from a contract series: `t`, `theta01`
+    /// and `theta12` always, the channels `needs` as `reader` requires, and the metadata
+    /// `segments` when present.
+    pub fn from_series(
+        series: &Series,
+        name: &str,
+        needs: &[usize],
+        reader: Reader,
+    ) -> Result<Recording> {
+        let t = series.require(&["t", "theta01", "theta12"]).map_err(|e| {
+            bad(format!(
+                "`{name}` lacks a required column (every recording has t, theta01, theta12): \
+                     {e}"
+            ))
+        })?[0]
+            .to_vec();
+        let columns: Vec<Option<Vec<f64>>> = CHANNELS
+            .iter()
+            .map(|ch| series.column(ch).map(<[f64]>::to_vec))
+            .collect();
+        let segments = match series.meta_value("segments") {
+            None => None,
+            Some(s) => match s.trim().parse::<usize>() {
+                Ok(n) if (2..=MAX_SEGMENTS).contains(&n) => Some(n),
+                _ => {
+                    return Err(bad(format!(
+                        "`{name}`: metadata `segments` is `{s}`; expected a segment count from 2 \
+                         to {MAX_SEGMENTS}"
+                    )))
+                }
+            },
+        };
+        Recording::from_columns(name, t, columns, segments, needs, reader)
+    }
+
+    /// The recording `name` from its times and one optional column per channel of
+    /// [`CHANNELS`] (each as long as `t`).
+    pub fn from_columns(
+        name: &str,
+        t: Vec<f64>,
+        columns: Vec<Option<Vec<f64>>>,
+        segments: Option<usize>,
+        needs: &[usize],
+        reader: Reader,
+    ) -> Result<Recording> {
+        if columns.len() != CHANNELS.len() {
+            return Err(bad(format!(
+                "`{name}`: {} channels given; expected {} ({})",
+                columns.len(),
+                CHANNELS.len(),
+                CHANNELS.join(", ")
+            )));
+        }
+        if t.len() < 2 {
+            return Err(bad(format!(
+                "`{name}` has {} samples; at least 2 are needed",
+                t.len()
+            )));
+        }
+        if let Some(k) = t.iter().position(|x| !x.is_finite()) {
+            return Err(bad(format!(
+                "`{name}`: t is not a finite number in data row {}",
+                k + 1
+            )));
+        }
+        // Every step against the first (1% allowed), then the mean step sets the rate.
+        let first = t[1] - t[0];
+        for k in 1..t.len() {
+            let dt = t[k] - t[k - 1];
+            if dt <= 0.0 {
+                return Err(bad(format!(
+                    "`{name}`: t does not increase at data row {} ({} after {})",
+                    k + 1,
+                    t[k],
+                    t[k - 1]
+                )));
+            }
+            if (dt - first).abs() > 0.01 * first {
+                return Err(bad(format!(
+                    "`{name}`: the sample step before data row {} is {} s, not the first step's \
+                     {} s (a gap or an irregular clock; resample it to a constant rate first)",
+                    k + 1,
+                    short(dt),
+                    short(first)
+                )));
+            }
+        }
+        let rate = vibrissa_io::labelled::sample_rate(&t);
+        let mut values = Vec::with_capacity(CHANNELS.len());
+        for (c, (ch, column)) in CHANNELS.iter().zip(columns).enumerate() {
+            match column {
+                Some(v) => {
+                    if v.len() != t.len() {
+                        return Err(bad(format!(
+                            "`{name}`: column {ch} has {} values for {} sample times",
+                            v.len(),
+                            t.len()
+                        )));
+                    }
+                    if matches!(reader, Reader::Method(_)) && needs.contains(&c) {
+                        if let Some(k) = v.iter().position(|x| !x.is_finite()) {
+                            return Err(bad(format!(
+                                "`{name}`: column {ch} has a non-finite value in data row {}",
+                                k + 1
+                            )));
+                        }
+                    }
+                    values.push(v);
+                }
+                None if needs.contains(&c) => {
+                    return Err(bad(match reader {
+                        Reader::Method(m) => format!(
+                            "method {m} needs column {ch}, which `{name}` lacks (the template \
+                             method uses theta12 alone)"
+                        ),
+                        Reader::Filter => format!(
+                            "`{name}` lacks column {ch}, which the filter observes (choose others \
+                             with --channels)"
+                        ),
+                    }))
+                }
+                None => values.push(Vec::new()),
+            }
+        }
+        Ok(Recording {
+            t,
+            values,
+            rate,
+            segments,
+        })
+    }
+
+    /// The channels of `needs` that never change (a sensor that recorded nothing), with their
+    /// one value.
+    pub fn constant_channels(&self, needs: &[usize]) -> Vec<(usize, f64)> {
+        needs
+            .iter()
+            .filter_map(|&c| {
+                let finite = self.values[c].iter().filter(|v| v.is_finite());
+                let (lo, hi) = finite.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
+                    (lo.min(v), hi.max(v))
+                });
+                (lo == hi).then_some((c, lo))
+            })
+            .collect()
+    }
+}
+
+/// The sensor noise of a batch of recordings (see [`noise::batch_levels`]), with what a user
+/// should hear about it.
+#[derive(Debug, Clone)]
+pub struct NoiseReport {
+    /// Per recording: the sensor noise per channel of [`CHANNELS`], SI.
+    pub levels: Vec<[f64; 5]>,
+    /// Warnings: constant channels, recordings whose noise differs from the batch's.
+    pub warnings: Vec<String>,
+    /// One line: where the levels came from and what they are.
+    pub summary: String,
+}
+
+/// The sensor noise of every recording on the channels `needs` (`stated`: channels whose noise
+/// is given, not estimated). Recordings that agree share their pooled estimate; one that does
+/// not gets its own, with a warning. `how_to_state` tells the user how to state a noise that
+/// cannot be estimated (e.g. `--noise CHANNEL=SIGMA,...`).
+pub fn batch_noise(
+    names: &[String],
+    recordings: &[Recording],
+    needs: &[usize],
+    stated: &[Option<f64>; 5],
+    how_to_state: &str,
+) -> Result<NoiseReport> {
+    let estimated: Vec<usize> = needs
+        .iter()
+        .copied()
+        .filter(|&c| stated[c].is_none())
+        .collect();
+    let mut warnings = Vec::new();
+    // A channel that never changes is a sensor that recorded nothing: its noise measures as 0 and
+    // the estimators compare a flat line with simulated signals.
+    for (name, rec) in names.iter().zip(recordings) {
+        for (c, value) in rec.constant_channels(needs) {
+            warnings.push(format!(
+                "`{name}`: channel `{}` is constant ({value}): a sensor that recorded nothing? \
+                 Its noise is taken as 0 and the estimate compares a flat line with simulated \
+                 signals; leave the column out if it was not recorded",
+                CHANNELS[c]
+            ));
+        }
+    }
+    // Each recording alone first, so that a channel too short to measure is named with its file.
+    for (name, rec) in names.iter().zip(recordings) {
+        noise::estimate(&rec.values, &estimated).map_err(|e| {
+            bad(format!(
+                "`{name}`: cannot estimate its sensor noise ({e}); state it with {how_to_state} \
+                 or in the scenario's [sensor_noise]"
+            ))
+        })?;
+    }
+    let series: Vec<&[Vec<f64>]> = recordings.iter().map(|r| &r.values[..]).collect();
+    let batch = noise::batch_levels(&series, needs, stated)?;
+    let several = names.len() > 1;
+    for ((name, source), own) in names.iter().zip(&batch.sources).zip(&batch.own) {
+        if *source == Source::Own && several {
+            warnings.push(format!(
+                "`{name}`: its sensor noise ({}) differs from the rest of the batch's by more \
+                 than a factor {}; it is estimated from this recording alone",
+                describe_noise(own, &estimated),
+                noise::AGREEMENT
+            ));
+        }
+    }
+    let shared = batch
+        .sources
+        .iter()
+        .filter(|s| **s == Source::Batch)
+        .count();
+    let what = if estimated.is_empty() {
+        "as stated".to_string()
+    } else if !several {
+        "estimated from the recording".to_string()
+    } else {
+        format!("estimated from {shared} of the recordings, pooled")
+    };
+    let summary = match batch.sources.iter().position(|s| *s == Source::Batch) {
+        Some(k) => format!(
+            "sensor noise {what}: {}",
+            describe_noise(&batch.levels[k], needs)
+        ),
+        None if !several || estimated.is_empty() => format!(
+            "sensor noise {what}: {}",
+            describe_noise(&batch.levels[0], needs)
+        ),
+        None => "sensor noise estimated from each recording alone".to_string(),
+    };
+    Ok(NoiseReport {
+        levels: batch.levels,
+        warnings,
+        summary,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn columns(n: usize) -> Vec<Option<Vec<f64>>> {
+        let mut c = vec![None; 5];
+        c[0] = Some(vec![0.0; n]);
+        c[1] = Some((0..n).map(|k| k as f64 * 1e-3).collect());
+        c
+    }
+
+    #[test]
+    fn rate_from_the_times() {
+        let t: Vec<f64> = (0..11).map(|k| 0.5 + k as f64 * 5e-4).collect();
+        let r =
+            Recording::from_columns("r", t, columns(11), None, &[0, 1], Reader::Filter).unwrap();
+        assert_eq!(r.rate, 2000.0);
+        assert!(r.values[2].is_empty());
+        assert_eq!(r.constant_channels(&[0, 1]), vec![(0, 0.0)]);
+    }
+
+    #[test]
+    fn refuses_gaps_missing_channels_and_nans() {
+        let mut t: Vec<f64> = (0..11).map(|k| k as f64 * 1e-3).collect();
+        t[6] += 1e-3;
+        let e = Recording::from_columns("r", t, columns(11), None, &[0, 1], Reader::Filter)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("sample step before data row 7"), "{e}");
+        let t: Vec<f64> = (0..11).map(|k| k as f64 * 1e-3).collect();
+        let e = Recording::from_columns(
+            "r",
+            t.clone(),
+            columns(11),
+            None,
+            &[2],
+            Reader::Method("knn"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("method knn needs column m0"), "{e}");
+        let mut c = columns(11);
+        c[1].as_mut().unwrap()[3] = f64::NAN;
+        let e =
+            Recording::from_columns("r", t.clone(), c.clone(), None, &[1], Reader::Method("knn"))
+                .unwrap_err()
+                .to_string();
+        assert!(e.contains("non-finite value in data row 4"), "{e}");
+        assert!(Recording::from_columns("r", t.clone(), c, None, &[1], Reader::Filter).is_ok());
+        let e = Recording::from_columns("r", t, columns(10), None, &[1], Reader::Filter)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("10 values for 11 sample times"), "{e}");
+    }
+}

@@ -1,0 +1,120 @@
+//! Methods fitted once per timing and noise level of the recordings they estimate from.
+//!
+//! A discriminative method trains on simulations of the scenario at the recording's sample rate
+//! and length with the recording's sensor noise. A batch of recordings made alike trains once:
+//! [`Trained`] keeps every fitted method by `(rate, samples, noise)`.
+
+use crate::evaluate::training_for;
+use crate::experiment::CHANNELS;
+use crate::method::Method;
+use crate::{methods, Family, Result};
+use std::time::Instant;
+
+/// What a fitted method is kept by: sample rate (Hz), samples, sensor noise per channel.
+type Key = (f64, usize, [f64; 5]);
+
+/// Methods trained per timing (sample rate and length) and noise level of the recordings.
+#[derive(Default)]
+pub struct Trained {
+    fitted: Vec<(Key, Box<dyn Method>)>,
+    /// Wall time of all training, s.
+    pub seconds: f64,
+    /// Simulated runs trained on, over all timings.
+    pub runs: usize,
+}
+
+/// `theta01 1.20e-3, …`: the noise of `channels`, for messages.
+pub fn describe_noise(level: &[f64; 5], channels: &[usize]) -> String {
+    channels
+        .iter()
+        .map(|&c| format!("{} {:.3}", CHANNELS[c], Short(level[c])))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// A number to a given count of significant digits (the precision), in plain notation for
+/// moderate magnitudes and in exponent notation otherwise.
+struct Short(f64);
+
+impl std::fmt::Display for Short {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let (x, digits) = (self.0, f.precision().unwrap_or(3).max(1));
+        if !x.is_finite() || x == 0.0 {
+            return write!(f, "{x}");
+        }
+        let exponent = x.abs().log10().floor() as i32;
+        if (-3..6).contains(&exponent) {
+            let decimals = (digits as i32 - 1 - exponent).max(0) as usize;
+            write!(f, "{x:.decimals$}")
+        } else {
+            write!(f, "{x:.*e}", digits - 1)
+        }
+    }
+}
+
+impl Trained {
+    /// The method `name` fitted on `family`'s runs at `rate` Hz and `samples` samples with the
+    /// sensor noise `noise` (trained on first use; `log` hears what is trained and how long it
+    /// took).
+    #[allow(clippy::too_many_arguments)]
+    pub fn get(
+        &mut self,
+        family: &Family,
+        rate: f64,
+        samples: usize,
+        noise: &[f64; 5],
+        name: &str,
+        seed: u64,
+        log: &mut dyn FnMut(String),
+    ) -> Result<&dyn Method> {
+        let key = (rate, samples, *noise);
+        let found = self
+            .fitted
+            .iter()
+            .position(|(k, _)| (k.0 - key.0).abs() <= 1e-9 * key.0 && k.1 == key.1 && k.2 == key.2);
+        let k = match found {
+            Some(k) => k,
+            None => {
+                let timed = family.with_timing(rate, samples)?;
+                let mut method = methods::by_name(name)?;
+                let t0 = Instant::now();
+                log(format!(
+                    "training {} ({} budget) on {samples}-sample runs at {} Hz with sensor noise \
+                     {}…",
+                    method.name(),
+                    method.budget().name(),
+                    Short(rate),
+                    describe_noise(noise, &method.channels())
+                ));
+                let noise = timed.training_noise(*noise);
+                let training = training_for(&timed, &noise, method.as_ref(), seed)?;
+                method.fit(&training)?;
+                let secs = t0.elapsed().as_secs_f64();
+                let runs = training.samples.len() + training.calibration.len();
+                log(format!("trained on {runs} simulated runs in {secs:.2} s"));
+                self.seconds += secs;
+                self.runs += runs;
+                self.fitted.push((key, method));
+                self.fitted.len() - 1
+            }
+        };
+        Ok(self.fitted[k].1.as_ref())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn short_numbers() {
+        assert_eq!(format!("{:.3}", Short(1000.0)), "1000");
+        assert_eq!(format!("{:.6}", Short(1000.0)), "1000.00");
+        assert_eq!(format!("{:.3}", Short(2.3562e-7)), "2.36e-7");
+        assert_eq!(format!("{:.3}", Short(0.0)), "0");
+        assert_eq!(
+            describe_noise(&[1e-3, 2e-3, 0.0, 0.0, 0.0], &[0, 1]),
+            "theta01 0.00100, theta12 0.00200"
+        );
+    }
+}
