@@ -4,14 +4,16 @@
 //! and offers a pandas frame; this module loads the scenario and does the work with the
 //! interpreter released.
 
-use numpy::IntoPyArray;
+use numpy::{IntoPyArray, PyReadonlyArray1};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use vibrissa_core::sim::{self, COLUMNS};
+use vibrissa_infer::contract::EstimateRow;
 use vibrissa_infer::experiment::CHANNELS;
-use vibrissa_infer::pf::{self, Pf, TraceRow};
-use vibrissa_infer::{Family, Method, Training};
+use vibrissa_infer::pf::{self, recording, Pf, TraceRow};
+use vibrissa_infer::recording::batch_noise;
+use vibrissa_infer::{Estimate, Family, Method, Reader, Recording, Trained, Training};
 
 /// The error of a scenario or run, as Python's `ValueError` with the command line's message.
 fn value_error(e: impl std::fmt::Display) -> PyErr {
@@ -68,9 +70,10 @@ impl Filter {
     /// `noise` holds each channel's sensor noise (NaN where not given: the scenario's
     /// `[sensor_noise]` must state it then).
     #[new]
-    #[pyo3(signature = (scenario, sets, noise, particles, seed, rate))]
+    #[pyo3(signature = (scenario, scenario_json, sets, noise, particles, seed, rate))]
     fn new(
-        scenario: &str,
+        scenario: Option<&str>,
+        scenario_json: Option<&str>,
         sets: Vec<String>,
         noise: [f64; 5],
         particles: usize,
@@ -80,7 +83,7 @@ impl Filter {
         if particles == 0 {
             return Err(PyValueError::new_err("particles: at least 1"));
         }
-        let family = Family::open(scenario, &sets).map_err(value_error)?;
+        let family = family(scenario, scenario_json, &sets)?;
         let stated = family.stated_noise();
         let mut sensor = [0.0; 5];
         for c in 0..5 {
@@ -217,6 +220,209 @@ impl Filter {
     }
 }
 
+/// A scenario family from a built-in name or path (`spec`), or from the JSON text of a Python
+/// dict (`json`).
+fn family(spec: Option<&str>, json: Option<&str>, sets: &[String]) -> PyResult<Family> {
+    match (spec, json) {
+        (Some(spec), _) => Family::open(spec, sets).map_err(value_error),
+        (None, Some(json)) => {
+            let text = toml_of_json(json)?;
+            Family::open_str(&text, "scenario dict", sets).map_err(value_error)
+        }
+        (None, None) => Err(value_error("scenario: give a name, a path or a dict")),
+    }
+}
+
+/// The TOML text of a scenario given as the JSON text of a dict.
+fn toml_of_json(json: &str) -> PyResult<String> {
+    let value: toml::Value =
+        serde_json::from_str(json).map_err(|e| value_error(format!("scenario dict: {e}")))?;
+    if !value.is_table() {
+        return Err(value_error(
+            "scenario dict: expected a dict of scenario keys",
+        ));
+    }
+    toml::to_string(&value).map_err(|e| value_error(format!("scenario dict: {e}")))
+}
+
+/// One recording handed over by the Python layer: the path of a contract CSV, or a name, the
+/// sample times and one optional array per channel.
+#[derive(FromPyObject)]
+enum Input<'py> {
+    /// A CSV file (its sidecar's metadata read where there is one).
+    Path(String),
+    /// Arrays: name, t, channels in the order of `CHANNELS` (None where not recorded).
+    Arrays(
+        String,
+        PyReadonlyArray1<'py, f64>,
+        Vec<Option<PyReadonlyArray1<'py, f64>>>,
+    ),
+}
+
+/// Estimates the scenario's unknowns from each recording with `method`, as
+/// `vibrissa estimate --json` does; returns one estimate object per recording as JSON text,
+/// and the messages the command line prints on standard error (warnings, what is trained).
+#[pyfunction]
+#[pyo3(signature = (scenario, scenario_json, sets, inputs, method, noise, seed, randomise, particles, check))]
+#[allow(clippy::too_many_arguments)]
+fn estimate(
+    py: Python<'_>,
+    scenario: Option<&str>,
+    scenario_json: Option<&str>,
+    sets: Vec<String>,
+    inputs: Vec<Input<'_>>,
+    method: &str,
+    noise: &str,
+    seed: u64,
+    randomise: bool,
+    particles: usize,
+    check: bool,
+) -> PyResult<(Vec<String>, Vec<String>)> {
+    let family = family(scenario, scenario_json, &sets)?;
+    let probe = vibrissa_infer::methods::by_name(method).map_err(value_error)?;
+    let pf = method == "pf";
+    if pf && randomise {
+        return Err(value_error(
+            "randomise applies to the discriminative methods, not to the filter",
+        ));
+    }
+    if pf && particles == 0 {
+        return Err(value_error("particles: at least 1"));
+    }
+    let given = vibrissa_infer::noise::parse_statement(noise)
+        .map_err(|e| value_error(format!("noise: {e}")))?;
+    let mut stated = family.stated_noise();
+    for (c, g) in given.iter().enumerate() {
+        if g.is_some() {
+            stated[c] = *g;
+        }
+    }
+    let needs = probe.channels();
+    let reader = if pf {
+        Reader::Filter
+    } else {
+        Reader::Method(probe.name())
+    };
+    let mut messages = Vec::new();
+    let mut names = Vec::new();
+    let mut recordings = Vec::new();
+    for input in &inputs {
+        let (name, rec) = match input {
+            Input::Path(path) => {
+                let (series, warnings) =
+                    vibrissa_io::series::read_csv_with_sidecar(path).map_err(value_error)?;
+                messages.extend(warnings.into_iter().map(|w| format!("warning: {w}")));
+                let rec = Recording::from_series(&series, path, &needs, reader);
+                (path.clone(), rec)
+            }
+            Input::Arrays(name, t, columns) => {
+                let t = t.as_array().to_vec();
+                let columns = columns
+                    .iter()
+                    .map(|c| c.as_ref().map(|a| a.as_array().to_vec()))
+                    .collect();
+                let rec = Recording::from_columns(name, t, columns, None, &needs, reader);
+                (name.clone(), rec)
+            }
+        };
+        names.push(name);
+        recordings.push(rec.map_err(value_error)?);
+    }
+    let family = if randomise {
+        family
+            .randomised(vibrissa_infer::randomise::Randomisation::default())
+            .map_err(value_error)?
+    } else {
+        family
+    };
+    let several = names.len() > 1;
+    let rows = py.detach(|| -> vibrissa_infer::Result<Vec<String>> {
+        let noise = batch_noise(&names, &recordings, &needs, &stated, "noise={...}")?;
+        messages.extend(noise.warnings.iter().map(|w| format!("warning: {w}")));
+        messages.push(noise.summary.clone());
+        let mut trained = Trained::default();
+        let mut rows = Vec::new();
+        for ((name, rec), level) in names.iter().zip(&recordings).zip(&noise.levels) {
+            let (estimates, seconds, filter, sensor) = if pf {
+                let options = recording::Options {
+                    seed,
+                    ..recording::Options::new(particles)
+                };
+                let fitted = recording::fitted(&family, level, &options)?;
+                let est = recording::estimate(&fitted, &family, rec, &options)?;
+                messages.extend(
+                    est.warnings(name)
+                        .into_iter()
+                        .map(|w| format!("warning: {w}")),
+                );
+                let post = &est.posterior;
+                let named: Vec<(String, Estimate)> = post
+                    .unknowns
+                    .iter()
+                    .map(|n| n.to_string())
+                    .zip(post.last().iter().copied())
+                    .collect();
+                (named, est.seconds, est.counts(), est.sensor)
+            } else {
+                let m = trained.get(
+                    &family,
+                    rec.rate,
+                    rec.t.len(),
+                    level,
+                    method,
+                    seed,
+                    &mut |m| messages.push(m),
+                )?;
+                let start = std::time::Instant::now();
+                let est = m.predict(&rec.values)?;
+                let named = family
+                    .unknowns()
+                    .iter()
+                    .map(|n| n.to_string())
+                    .zip(est)
+                    .collect();
+                (named, start.elapsed().as_secs_f64(), Vec::new(), *level)
+            };
+            let check = if check {
+                let point: Vec<f64> = estimates.iter().map(|(_, e)| e.mean).collect();
+                let checked = family
+                    .nominal()
+                    .with_timing(rec.rate, rec.t.len())
+                    .and_then(|timed| {
+                        vibrissa_infer::check::check(&timed, &rec.values, &point, &sensor, &needs)
+                    });
+                match checked {
+                    Ok(c) => Some(c),
+                    Err(e) => {
+                        messages.push(format!(
+                            "warning: `{name}`: cannot check the recording at its estimate: {e}"
+                        ));
+                        None
+                    }
+                }
+            } else {
+                None
+            };
+            let row = EstimateRow {
+                file: several.then(|| name.clone()),
+                estimates,
+                method: method.to_string(),
+                seconds,
+                noise: needs
+                    .iter()
+                    .map(|&c| (CHANNELS[c].to_string(), sensor[c]))
+                    .collect(),
+                filter,
+                check,
+            };
+            rows.push(serde_json::Value::Object(row.to_json()).to_string());
+        }
+        Ok(rows)
+    });
+    let rows = rows.map_err(value_error)?;
+    Ok((rows, messages))
+}
+
 /// As [`simulate`], for a scenario given as the JSON text of a Python dict (the keys of a
 /// scenario file, tables as nested dicts).
 #[pyfunction]
@@ -226,14 +432,7 @@ fn simulate_json<'py>(
     json: &str,
     sets: Vec<String>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let value: toml::Value =
-        serde_json::from_str(json).map_err(|e| value_error(format!("scenario dict: {e}")))?;
-    if !value.is_table() {
-        return Err(value_error(
-            "scenario dict: expected a dict of scenario keys",
-        ));
-    }
-    let text = toml::to_string(&value).map_err(|e| value_error(format!("scenario dict: {e}")))?;
+    let text = toml_of_json(json)?;
     let scenario =
         vibrissa_io::scenario::load_str(&text, "scenario dict", &sets).map_err(value_error)?;
     run_columns(py, &scenario)
@@ -252,6 +451,12 @@ fn run_columns<'py>(py: Python<'py>, scenario: &sim::Scenario) -> PyResult<Bound
     Ok(columns)
 }
 
+/// The estimators' names.
+#[pyfunction]
+fn methods() -> Vec<&'static str> {
+    vibrissa_infer::methods::NAMES.to_vec()
+}
+
 /// The built-in scenarios' names.
 #[pyfunction]
 fn builtins() -> Vec<&'static str> {
@@ -263,6 +468,8 @@ fn _vibrissa(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
     m.add_function(wrap_pyfunction!(simulate_json, m)?)?;
     m.add_function(wrap_pyfunction!(builtins, m)?)?;
+    m.add_function(wrap_pyfunction!(estimate, m)?)?;
+    m.add_function(wrap_pyfunction!(methods, m)?)?;
     m.add_class::<Filter>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

@@ -91,3 +91,14 @@ def test_bad_samples_raise_and_leave_the_filter_usable():
         f.update(0.001, [0.0, 0.0, "x", 0.0, 0.0])
     post = f.update(0.001, [0.0] * 5)
     assert math.isclose(post["t"], 0.001) and np.isfinite(post["d"]["mean"])
+
+
+def test_a_scenario_dict_gives_the_named_scenario_s_filter():
+    run = vibrissa.simulate("e2", d=0.02, v=0.6)
+    a = vibrissa.Filter("e2", particles=40, noise=NOISE, seed=4)
+    b = vibrissa.Filter({"experiment": "e2"}, particles=40, noise=NOISE, seed=4)
+    for k in range(30):
+        sample = {c: run[c][k] for c in vibrissa.CHANNELS}
+        assert a.update(run["t"][k], sample) == b.update(run["t"][k], sample)
+    with pytest.raises(ValueError, match="scenario dict"):
+        vibrissa.Filter({"experiment": "e2", "nonsense": 1}, noise=NOISE)

@@ -19,7 +19,7 @@ from numbers import Real
 
 from . import _vibrissa
 
-__all__ = ["simulate", "Filter", "builtins", "COLUMNS", "CHANNELS", "__version__"]
+__all__ = ["simulate", "estimate", "methods", "Filter", "builtins", "COLUMNS", "CHANNELS", "__version__"]
 __version__ = _vibrissa.__version__
 
 #: The columns of a run, in order: time (s), the first two joint angles (rad), the base moment
@@ -117,16 +117,11 @@ def simulate(scenario="e2", *, overrides=None, as_frame=False, **keys):
         An argument of the wrong type.
     """
     sets = _overrides(overrides, keys)
-    if isinstance(scenario, Mapping):
-        try:
-            text = json.dumps(scenario, allow_nan=False)
-        except ValueError:
-            raise ValueError("scenario: a dict's values must be finite numbers") from None
-        except TypeError as e:
-            raise TypeError(f"scenario: {e}") from None
+    name, text = _scenario_args(scenario)
+    if text is not None:
         columns = _vibrissa.simulate_json(text, sets)
     else:
-        columns = _vibrissa.simulate(_scenario(scenario), sets)
+        columns = _vibrissa.simulate(name, sets)
     if as_frame:
         try:
             import pandas
@@ -134,6 +129,174 @@ def simulate(scenario="e2", *, overrides=None, as_frame=False, **keys):
             raise ImportError("as_frame=True needs pandas: pip install pandas") from e
         return pandas.DataFrame({name: columns[name] for name in COLUMNS})
     return {name: columns[name] for name in COLUMNS}
+
+
+def _scenario_args(scenario):
+    """``(name or path, JSON text of a dict)``: one of them ``None``."""
+    if isinstance(scenario, Mapping):
+        try:
+            return None, json.dumps(scenario, allow_nan=False)
+        except ValueError:
+            raise ValueError("scenario: a dict's values must be finite numbers") from None
+        except TypeError as e:
+            raise TypeError(f"scenario: {e}") from None
+    return _scenario(scenario), None
+
+
+def _noise_statement(noise):
+    """``noise`` as the command line's ``--noise`` text."""
+    if noise is None:
+        return "auto"
+    if isinstance(noise, str):
+        return noise
+    if hasattr(noise, "items"):
+        parts = []
+        for key, x in noise.items():
+            if key not in CHANNELS:
+                raise ValueError(
+                    f"noise: unknown channel {key!r}; channels are {', '.join(CHANNELS)}"
+                )
+            x = _number(f"noise[{key!r}]", x)
+            if not (math.isfinite(x) and x >= 0):
+                raise ValueError(f"noise[{key!r}] = {x}: a sensor noise is a finite number >= 0")
+            parts.append(f"{key}={x!r}")
+        return ",".join(parts) if parts else "auto"
+    raise TypeError(
+        f"noise: expected 'auto', 'none' or a mapping of channels to sigmas, not {type(noise).__name__}"
+    )
+
+
+def _recording(k, obs):
+    """One recording for the native layer: a path, or (name, t, channels) arrays."""
+    import numpy
+
+    if isinstance(obs, (str, os.PathLike)):
+        return os.fspath(obs)
+    if hasattr(obs, "columns") and hasattr(obs, "to_numpy"):  # a pandas DataFrame
+        obs = {str(c): obs[c].to_numpy() for c in obs.columns}
+    if not hasattr(obs, "items"):
+        raise TypeError(
+            f"recording {k}: expected a CSV path, a dict of arrays or a pandas.DataFrame, "
+            f"not {type(obs).__name__}"
+        )
+    if "t" not in obs:
+        raise ValueError(f"recording {k}: no 't' column (sample times, s)")
+
+    def array(name):
+        try:
+            a = numpy.ascontiguousarray(obs[name], dtype=numpy.float64)
+        except (TypeError, ValueError):
+            raise TypeError(f"recording {k}: column {name!r} is not an array of numbers") from None
+        if a.ndim != 1:
+            raise ValueError(f"recording {k}: column {name!r} has {a.ndim} dimensions, expected 1")
+        return a
+
+    return (
+        f"recording {k}",
+        array("t"),
+        [array(c) if c in obs else None for c in CHANNELS],
+    )
+
+
+def methods():
+    """The estimators' names, as ``vibrissa estimate --list`` gives them."""
+    return list(_vibrissa.methods())
+
+
+def estimate(
+    obs,
+    scenario="e2",
+    method="krr-local",
+    *,
+    noise="auto",
+    seed=1,
+    randomise=False,
+    particles=1000,
+    check=False,
+    overrides=None,
+    verbose=False,
+    **keys,
+):
+    """Estimate the scenario's unknowns (for ``e2``: the distance ``d`` and speed ``v`` of the
+    box) from a recording, as ``vibrissa estimate --json`` does.
+
+    >>> run = vibrissa.simulate("e2", d=0.023, v=0.9)
+    >>> est = vibrissa.estimate(run, "e2", method="knn", noise="none")
+    >>> est["d"]["mean"], est["d"]["ci90"]
+
+    Parameters
+    ----------
+    obs : str, os.PathLike, dict of arrays, pandas.DataFrame, or a list of them
+        A recording: the path of a contract CSV file, or columns ``t`` and any of
+        :data:`CHANNELS` (``theta01`` and ``theta12`` at least) as arrays. Any constant sample
+        rate and length. A list estimates each; their sensor noise is pooled where they agree and
+        each method is trained once per timing, as for several ``--obs`` files.
+    scenario : str, os.PathLike or dict
+        The scenario the recordings come from: a built-in name, a scenario file with
+        ``[unknowns]`` (e.g. written by ``vibrissa calibrate``) or a dict of its keys.
+    method : str
+        An estimator of :func:`methods` (``"pf"`` is the particle filter).
+    noise : "auto", "none" or mapping
+        The sensor noise: estimated from the recordings (``"auto"``), none, or stated per channel
+        (standard deviation, SI; channels left out are estimated).
+    seed : int
+        Seed of the training runs (and of the filter).
+    randomise : bool
+        Train on whiskers drawn around the scenario's (a whisker known only roughly).
+    particles : int
+        Particles of ``method="pf"``.
+    check : bool
+        Add the model check (``"check"``): does the scenario explain the recording at its estimate?
+    verbose : bool
+        Print what is trained and every warning (they are also attached as ``"warnings"``).
+    overrides, **keys
+        Scenario overrides, as for :func:`simulate`.
+
+    Returns
+    -------
+    dict, or a list of dicts for a list of recordings
+        The contract's estimate object: per unknown ``{"mean", "std", "ci90"}``, ``"method"``,
+        ``"seconds"``, ``"noise"`` (per channel read), ``"filter"`` (pf), ``"check"``, and
+        ``"warnings"`` (the messages about this recording or the whole batch, empty when all is
+        well), plus ``"file"`` for each of a list of recordings.
+    """
+    several = isinstance(obs, (list, tuple))
+    inputs = [_recording(k, o) for k, o in enumerate(obs if several else [obs])]
+    if not inputs:
+        raise ValueError("obs: no recordings given")
+    if not isinstance(method, str):
+        raise TypeError(f"method: expected a name (str), not {type(method).__name__}")
+    seed = _count("seed", seed, 0)
+    particles = _count("particles", particles, 1)
+    name, text = _scenario_args(scenario)
+    rows, messages = _vibrissa.estimate(
+        name,
+        text,
+        _overrides(overrides, keys),
+        inputs,
+        method,
+        _noise_statement(noise),
+        seed,
+        bool(randomise),
+        particles,
+        bool(check),
+    )
+    if verbose:
+        import sys
+
+        for m in messages:
+            print(m, file=sys.stderr)
+    warnings = [m[len("warning: "):] for m in messages if m.startswith("warning: ")]
+    names = [i if isinstance(i, str) else i[0] for i in inputs]
+    out = []
+    for name, r in zip(names, rows):
+        row = json.loads(r)
+        # Each recording's own warnings, and those of the batch as a whole.
+        row["warnings"] = [
+            w for w in warnings if f"`{name}`" in w or not any(f"`{n}`" in w for n in names)
+        ]
+        out.append(row)
+    return out if several else out[0]
 
 
 def _count(name, value, least):
@@ -184,8 +347,9 @@ class Filter:
 
     Parameters
     ----------
-    scenario : str or os.PathLike
-        A built-in name (``"e1"``, ``"e2"``) or the path of a scenario file with ``[unknowns]``.
+    scenario : str, os.PathLike or dict
+        A built-in name (``"e1"``, ``"e2"``), the path of a scenario file with ``[unknowns]``, or
+        a dict of its keys.
     particles : int
         Particles (1000 runs in real time on two cores).
     noise : mapping, optional
@@ -207,8 +371,9 @@ class Filter:
         if rate is not None:
             rate = _number("rate", rate)
         values = _channels("noise", noise if noise is not None else {})
+        name, text = _scenario_args(scenario)
         self._inner = _vibrissa.Filter(
-            _scenario(scenario), _overrides(overrides, keys), values, particles, seed, rate
+            name, text, _overrides(overrides, keys), values, particles, seed, rate
         )
 
     def update(self, t, sample):

@@ -10,9 +10,27 @@ CHANNELS: tuple[str, ...]
 
 Value = Union[bool, float, int, str, Sequence[Union[bool, float, int, str]]]
 
+Scenario = Union[str, os.PathLike[str], Mapping[str, Any]]
+Recording = Union[str, os.PathLike[str], Mapping[str, npt.ArrayLike], Any]
+
 def builtins() -> list[str]: ...
+def methods() -> list[str]: ...
+def estimate(
+    obs: Union[Recording, Sequence[Recording]],
+    scenario: Scenario = "e2",
+    method: str = "krr-local",
+    *,
+    noise: Union[str, Mapping[str, float], None] = "auto",
+    seed: int = 1,
+    randomise: bool = False,
+    particles: int = 1000,
+    check: bool = False,
+    overrides: Mapping[str, Value] | None = None,
+    verbose: bool = False,
+    **keys: Value,
+) -> Union[dict[str, Any], list[dict[str, Any]]]: ...
 def simulate(
-    scenario: Union[str, os.PathLike[str], Mapping[str, Any]] = "e2",
+    scenario: Scenario = "e2",
     *,
     overrides: Mapping[str, Value] | None = None,
     as_frame: bool = False,
@@ -22,7 +40,7 @@ def simulate(
 class Filter:
     def __init__(
         self,
-        scenario: Union[str, os.PathLike[str]] = "e2",
+        scenario: Scenario = "e2",
         *,
         particles: int = 1000,
         noise: Mapping[str, float] | None = None,

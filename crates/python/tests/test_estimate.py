@@ -1,0 +1,129 @@
+"""vibrissa.estimate against the command line's `estimate --json`, and its errors."""
+
+import json
+import subprocess
+
+import numpy as np
+import pytest
+
+import vibrissa
+from test_filter import write_csv
+from test_simulate import cli
+
+# Sensor noise added to the simulated runs (1/3 of the e2 noisy variant's levels).
+SIGMA = {"theta01": 2e-3, "theta12": 5e-3, "m0": 8e-7, "fx": 5e-5, "fy": 4e-5}
+
+
+def noisy_run(d, v, seed):
+    rng = np.random.default_rng(seed)
+    run = vibrissa.simulate("e2", d=d, v=v)
+    for c, s in SIGMA.items():
+        run[c] = run[c] + rng.normal(0.0, s, len(run[c]))
+    return run
+
+
+@pytest.fixture(scope="module")
+def recordings(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("recordings")
+    paths = []
+    for k, (d, v) in enumerate([(0.021, 0.7), (0.027, 1.1)]):
+        path = folder / f"r{k}.csv"
+        write_csv(path, noisy_run(d, v, k))
+        paths.append(path)
+    return paths
+
+
+def cli_estimates(paths, *args):
+    out = subprocess.run(
+        [cli(), "estimate", "--experiment", "e2", "--json", *args, "--obs", *paths],
+        check=True, capture_output=True, text=True,
+    )
+    return [json.loads(line) for line in out.stdout.splitlines() if line.strip()] if len(
+        paths) > 1 else [json.loads(out.stdout)]
+
+
+def same(mine, theirs):
+    """Equal to the last digit, apart from the time taken and the warnings."""
+    a = {k: v for k, v in mine.items() if k not in ("seconds", "warnings")}
+    b = {k: v for k, v in theirs.items() if k != "seconds"}
+    # JSON arrays and tuples alike.
+    return json.loads(json.dumps(a)) == b
+
+
+def test_a_discriminative_method_gives_the_command_line_s_estimate(recordings):
+    mine = vibrissa.estimate(recordings[0], "e2", method="krr-local")
+    (theirs,) = cli_estimates(recordings[:1], "--method", "krr-local")
+    assert same(mine, theirs), (mine, theirs)
+    assert abs(mine["d"]["mean"] - 0.021) < 5e-4
+    assert set(mine["noise"]) == set(vibrissa.CHANNELS)
+    assert mine["warnings"] == []
+
+
+def test_the_filter_on_a_batch_gives_the_command_line_s_estimates(recordings):
+    mine = vibrissa.estimate(recordings, "e2", method="pf", particles=200, seed=3, check=True)
+    theirs = cli_estimates(recordings, "--method", "pf", "--particles", "200", "--seed", "3",
+                           "--check")
+    assert len(mine) == 2
+    for m, t in zip(mine, theirs):
+        assert same(m, t), (m, t)
+        assert m["filter"]["diverged_steps"] == 0 and m["check"]["explained"]
+    assert mine[1]["file"] == str(recordings[1])
+
+
+def test_arrays_a_frame_and_a_path_give_the_same_estimate(recordings):
+    run = noisy_run(0.021, 0.7, 0)
+    from_path = vibrissa.estimate(recordings[0], method="knn")
+    from_dict = vibrissa.estimate({c: run[c] for c in ("t",) + vibrissa.CHANNELS}, method="knn")
+    for name in ("d", "v"):
+        assert from_dict[name] == from_path[name]
+    pandas = pytest.importorskip("pandas")
+    frame = pandas.DataFrame(run)
+    from_frame = vibrissa.estimate(frame, method="knn")
+    assert from_frame["d"] == from_path["d"]
+
+
+def test_stated_noise_and_a_scenario_dict(recordings):
+    mine = vibrissa.estimate(recordings[0], {"experiment": "e2"}, method="template",
+                             noise={"theta12": 5e-3})
+    (theirs,) = cli_estimates(recordings[:1], "--method", "template", "--noise", "theta12=0.005")
+    assert same(mine, theirs), (mine, theirs)
+    assert mine["noise"] == {"theta12": 5e-3}
+
+
+def test_a_recording_at_another_rate(recordings):
+    # 2 kHz: the method trains on 2 kHz runs of the scenario.
+    run = vibrissa.simulate("e2", d=0.024, v=0.9, sample_rate=2000.0)
+    est = vibrissa.estimate(run, method="krr-local", noise="none")
+    assert abs(est["d"]["mean"] - 0.024) < 5e-4
+
+
+def test_bad_input_raises_naming_what_is_wrong(recordings):
+    run = noisy_run(0.021, 0.7, 0)
+    with pytest.raises(ValueError, match="unknown method `nope`"):
+        vibrissa.estimate(recordings[0], method="nope")
+    bad = dict(run)
+    bad["theta12"] = bad["theta12"].copy()
+    bad["theta12"][5] = np.nan
+    with pytest.raises(ValueError, match="theta12 has a non-finite value in data row 6"):
+        vibrissa.estimate(bad, method="knn")
+    gap = dict(run)
+    gap["t"] = gap["t"].copy()
+    gap["t"][50:] += 0.01
+    with pytest.raises(ValueError, match="sample step before data row 51"):
+        vibrissa.estimate(gap, method="knn")
+    with pytest.raises(ValueError, match="no 't' column"):
+        vibrissa.estimate({"theta12": run["theta12"]}, method="knn")
+    with pytest.raises(TypeError, match="expected a CSV path, a dict of arrays"):
+        vibrissa.estimate(42, method="knn")
+    with pytest.raises(TypeError, match="column 'theta01' is not an array of numbers"):
+        vibrissa.estimate({"t": run["t"], "theta01": ["a"] * 151, "theta12": run["theta12"]})
+    with pytest.raises(ValueError, match="noise: unknown channel 'x'"):
+        vibrissa.estimate(recordings[0], noise={"x": 1.0})
+    with pytest.raises(ValueError, match="No such file"):
+        vibrissa.estimate("/nonexistent/recording.csv")
+    with pytest.raises(ValueError, match="randomise applies to the discriminative methods"):
+        vibrissa.estimate(recordings[0], method="pf", randomise=True)
+    with pytest.raises(ValueError, match="particles = 0"):
+        vibrissa.estimate(recordings[0], method="pf", particles=0)
+    with pytest.raises(ValueError, match="no recordings"):
+        vibrissa.estimate([])
