@@ -19,6 +19,7 @@ use std::time::{Duration, Instant};
 use vibrissa_core::sim::{self, Output, COLUMNS};
 use vibrissa_io::scenario::{self, Loaded};
 use vibrissa_io::series::{self, Series, EXTENSIONS};
+use vibrissa_io::sweep::series_of;
 
 /// Arguments of `vibrissa simulate`.
 #[derive(Debug, clap::Args)]
@@ -66,7 +67,7 @@ pub fn run(args: &Args) -> Result<()> {
     let seconds = start.elapsed().as_secs_f64();
 
     // Draw the figure (kept aside), write the series, then put the figure in place.
-    let series = to_series(&loaded, &output, &args.scenario, &args.sets);
+    let series = series_of(&loaded, &output, &args.scenario, &args.sets);
     let figure = match &args.plot {
         Some(path) => Some(plot::render_series(
             path,
@@ -111,31 +112,7 @@ pub fn check_series_path(path: &Path) -> Result<()> {
     }
 }
 
-/// The run as a series in the contract's columns, with its metadata (written to the sidecar):
-/// the tool's version, the scenario as named and its overrides, the experiment and its d and v,
-/// segments, dt and seed.
-pub fn to_series(loaded: &Loaded, output: &Output, spec: &str, sets: &[String]) -> Series {
-    let mut series = Series::new(&COLUMNS);
-    for row in &output.rows {
-        series.push_row(row);
-    }
-    series.set_meta("vibrissa", env!("CARGO_PKG_VERSION"));
-    series.set_meta("scenario", spec);
-    if !sets.is_empty() {
-        series.set_meta("set", sets.join(" "));
-    }
-    if let Some(e) = &loaded.experiment {
-        series.set_meta("experiment", e.experiment.name());
-        series.set_meta("d", e.d);
-        series.set_meta("v", e.v);
-    }
-    series.set_meta("segments", output.segments);
-    series.set_meta("dt", output.dt);
-    series.set_meta("seed", loaded.scenario.seed);
-    series
-}
-
-/// A column of a series built by [`to_series`] (every contract column is there).
+/// A column of a series built by [`series_of`] (every contract column is there).
 fn column<'a>(series: &'a Series, name: &str) -> &'a [f64] {
     series.column(name).unwrap_or(&[])
 }

@@ -96,6 +96,9 @@ pub enum Error {
         /// The columns the series has.
         present: Vec<String>,
     },
+    /// A sweep's grid is malformed or would name two runs alike.
+    #[error("{0}")]
+    Grid(String),
     /// A time series that cannot be written as it is (ragged columns, bad names, infinities).
     #[error("invalid time series: {0}")]
     InvalidSeries(String),

@@ -16,6 +16,7 @@ pub mod error;
 pub mod labelled;
 pub mod scenario;
 pub mod series;
+pub mod sweep;
 
 pub use error::{Error, Result};
 pub use scenario::{load, load_str};
