@@ -14,6 +14,7 @@ use vibrissa_infer::experiment::CHANNELS;
 use vibrissa_infer::pf::{self, recording, Pf, TraceRow};
 use vibrissa_infer::recording::batch_noise;
 use vibrissa_infer::{Estimate, Family, Method, Reader, Recording, Trained, Training};
+use vibrissa_io::sweep;
 
 /// The error of a scenario or run, as Python's `ValueError` with the command line's message.
 fn value_error(e: impl std::fmt::Display) -> PyErr {
@@ -451,6 +452,123 @@ fn run_columns<'py>(py: Python<'py>, scenario: &sim::Scenario) -> PyResult<Bound
     Ok(columns)
 }
 
+/// A manifest row's figures: samples, steps, seconds, max_penetration (as written).
+type RowFields = (String, String, String, String);
+
+/// A sweep's plan: the grids' keys, and per run its file name, its `(key, value)` parameters and
+/// whether it is finished in `out` already (its series and sidecar both there).
+#[pyfunction]
+#[pyo3(signature = (scenario, sets, grids, format, out))]
+#[allow(clippy::type_complexity)]
+fn sweep_plan(
+    scenario: &str,
+    sets: Vec<String>,
+    grids: Vec<String>,
+    format: &str,
+    out: Option<&str>,
+) -> PyResult<(Vec<String>, Vec<(String, Vec<(String, String)>, bool)>)> {
+    if !vibrissa_io::series::EXTENSIONS.contains(&format) {
+        return Err(value_error(format!(
+            "format = {format:?}: choose one of {}",
+            vibrissa_io::series::EXTENSIONS.join(", ")
+        )));
+    }
+    let grids = sweep::grids_for(scenario, &sets, &grids).map_err(value_error)?;
+    let jobs = sweep::plan(&grids, format).map_err(value_error)?;
+    // An error shared by every run (a misspelt key) stops the sweep before anything runs.
+    let mut first = None;
+    let all_fail = jobs.iter().all(|j| {
+        let all: Vec<String> = sets.iter().cloned().chain(j.sets()).collect();
+        match vibrissa_io::scenario::load_full(scenario, &all) {
+            Ok(_) => false,
+            Err(e) => {
+                first.get_or_insert(e);
+                true
+            }
+        }
+    });
+    if let (true, Some(e)) = (all_fail, first) {
+        return Err(value_error(e));
+    }
+    let keys = grids.into_iter().map(|g| g.key).collect();
+    let dir = out.map(std::path::Path::new);
+    let jobs = jobs
+        .into_iter()
+        .map(|j| {
+            let done = dir.is_some_and(|d| j.done(d));
+            (j.file, j.params, done)
+        })
+        .collect();
+    Ok((keys, jobs))
+}
+
+/// Runs one job of a sweep of `scenario` (with the sweep's `sets`) and writes its series and
+/// sidecar into `out`, as `vibrissa sweep` does; returns its manifest figures.
+#[pyfunction]
+#[pyo3(signature = (scenario, sets, file, params, out))]
+fn sweep_run(
+    py: Python<'_>,
+    scenario: &str,
+    sets: Vec<String>,
+    file: String,
+    params: Vec<(String, String)>,
+    out: &str,
+) -> PyResult<RowFields> {
+    let job = sweep::Job { params, file };
+    let all: Vec<String> = sets.iter().cloned().chain(job.sets()).collect();
+    let loaded = vibrissa_io::scenario::load_full(scenario, &all).map_err(value_error)?;
+    let dir = std::path::Path::new(out);
+    let row = py
+        .detach(|| sweep::run_one(&loaded, scenario, &sets, &job, dir))
+        .map_err(value_error)?;
+    Ok((row.samples, row.steps, row.seconds, row.max_penetration))
+}
+
+/// The figures of an earlier manifest in `out`, by file name (none when there is none).
+#[pyfunction]
+fn sweep_previous(out: &str) -> std::collections::HashMap<String, RowFields> {
+    sweep::read_manifest(&std::path::Path::new(out).join(sweep::MANIFEST))
+        .into_iter()
+        .map(|(f, r)| (f, (r.samples, r.steps, r.seconds, r.max_penetration)))
+        .collect()
+}
+
+/// Writes `manifest.csv` in `out` (atomically): the finished runs, in the plan's order.
+#[pyfunction]
+#[pyo3(signature = (out, keys, jobs, rows))]
+fn sweep_manifest(
+    out: &str,
+    keys: Vec<String>,
+    jobs: Vec<(String, Vec<(String, String)>)>,
+    rows: Vec<Option<RowFields>>,
+) -> PyResult<String> {
+    if rows.len() != jobs.len() {
+        return Err(value_error("rows: one per job"));
+    }
+    let path = std::path::Path::new(out).join(sweep::MANIFEST);
+    let jobs: Vec<sweep::Job> = jobs
+        .into_iter()
+        .map(|(file, params)| sweep::Job { params, file })
+        .collect();
+    let manifest = sweep::Manifest {
+        path: path.clone(),
+        keys,
+        rows: rows
+            .into_iter()
+            .map(|r| {
+                r.map(|(samples, steps, seconds, max_penetration)| sweep::Row {
+                    samples,
+                    steps,
+                    seconds,
+                    max_penetration,
+                })
+            })
+            .collect(),
+    };
+    manifest.write(&jobs).map_err(value_error)?;
+    Ok(path.display().to_string())
+}
+
 /// The estimators' names.
 #[pyfunction]
 fn methods() -> Vec<&'static str> {
@@ -470,6 +588,10 @@ fn _vibrissa(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(builtins, m)?)?;
     m.add_function(wrap_pyfunction!(estimate, m)?)?;
     m.add_function(wrap_pyfunction!(methods, m)?)?;
+    m.add_function(wrap_pyfunction!(sweep_plan, m)?)?;
+    m.add_function(wrap_pyfunction!(sweep_run, m)?)?;
+    m.add_function(wrap_pyfunction!(sweep_previous, m)?)?;
+    m.add_function(wrap_pyfunction!(sweep_manifest, m)?)?;
     m.add_class::<Filter>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

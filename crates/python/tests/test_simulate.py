@@ -126,3 +126,10 @@ def test_bad_scenario_dicts_raise_an_exception_that_names_them(given, error, wor
         vibrissa.simulate(given)
     for w in words:
         assert w in str(e.value), str(e.value)
+
+
+def test_whole_numbers_stay_whole(tmp_path):
+    # An integer key (segments) takes a Python int as the command line takes `--set segments=10`.
+    mine = vibrissa.simulate("e2", segments=10)
+    theirs = cli_columns(tmp_path, "e2", "--set", "segments=10")
+    assert all(same_bits(mine[c], theirs[c]) for c in vibrissa.COLUMNS)

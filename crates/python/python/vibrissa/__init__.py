@@ -15,11 +15,23 @@ import json
 import math
 import os
 from collections.abc import Mapping
-from numbers import Real
+from numbers import Integral, Real
 
 from . import _vibrissa
+from ._sweep import SweepError, sweep
 
-__all__ = ["simulate", "estimate", "methods", "Filter", "builtins", "COLUMNS", "CHANNELS", "__version__"]
+__all__ = [
+    "simulate",
+    "sweep",
+    "estimate",
+    "methods",
+    "Filter",
+    "SweepError",
+    "builtins",
+    "COLUMNS",
+    "CHANNELS",
+    "__version__",
+]
 __version__ = _vibrissa.__version__
 
 #: The columns of a run, in order: time (s), the first two joint angles (rad), the base moment
@@ -42,6 +54,8 @@ def _value(key, value):
     """A scenario value as the text of a ``key=value`` override."""
     if isinstance(value, bool):
         return "true" if value else "false"
+    if isinstance(value, Integral):
+        return str(int(value))
     if isinstance(value, Real):
         x = float(value)
         if not math.isfinite(x):

@@ -15,6 +15,23 @@ Recording = Union[str, os.PathLike[str], Mapping[str, npt.ArrayLike], Any]
 
 def builtins() -> list[str]: ...
 def methods() -> list[str]: ...
+
+Grid = Union[Mapping[str, Union[str, Sequence[Value]]], Sequence[str], None]
+
+class SweepError(RuntimeError):
+    failures: list[tuple[str, str]]
+
+def sweep(
+    scenario: Union[str, os.PathLike[str]] = "e2",
+    grid: Grid = None,
+    out: Union[str, os.PathLike[str], None] = None,
+    *,
+    format: str = "csv",
+    jobs: int | None = None,
+    progress: bool = False,
+    overrides: Mapping[str, Value] | None = None,
+    **keys: Value,
+) -> Union[list[dict[str, Any]], dict[str, Any]]: ...
 def estimate(
     obs: Union[Recording, Sequence[Recording]],
     scenario: Scenario = "e2",
