@@ -5,30 +5,9 @@ use super::config::{Config, Prior};
 use super::transition::{param, start_delay, ObjState, Y};
 use vibrissa_core::rng::Rng;
 
+/// The standard normal distribution function.
 fn normal_cdf(z: f64) -> f64 {
-    0.5 * erfc(-z / std::f64::consts::SQRT_2)
-}
-
-/// Complementary error function (Numerical Recipes' Chebyshev fit, relative error < 1.2e-7).
-fn erfc(x: f64) -> f64 {
-    let z = x.abs();
-    let t = 1.0 / (1.0 + 0.5 * z);
-    let r = t
-        * (-z * z - 1.265_512_23
-            + t * (1.000_023_68
-                + t * (0.374_091_96
-                    + t * (0.096_784_18
-                        + t * (-0.186_288_06
-                            + t * (0.278_868_07
-                                + t * (-1.135_203_98
-                                    + t * (1.488_515_87
-                                        + t * (-0.822_152_23 + t * 0.170_872_77)))))))))
-            .exp();
-    if x >= 0.0 {
-        r
-    } else {
-        2.0 - r
-    }
+    0.5 * libm::erfc(-z / std::f64::consts::SQRT_2)
 }
 
 /// Density at `x` of a normal truncated to the prior's range.
@@ -236,6 +215,21 @@ fn reflect(x: f64, p: &Prior) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn normal_distribution_function_at_known_points() {
+        // Tabulated values of the standard normal distribution function.
+        for (z, p) in [
+            (0.0, 0.5),
+            (1.644_853_626_951_472, 0.95),
+            (-1.959_963_984_540_054, 0.025),
+            (-3.0, 1.349_898_031_630_094_6e-3),
+            (-8.0, 6.220_960_574_271_785e-16),
+        ] {
+            let got = normal_cdf(z);
+            assert!((got - p).abs() <= 1e-13 * p, "Phi({z}) = {got}, not {p}");
+        }
+    }
 
     #[test]
     fn systematic_resampling_keeps_proportions() {
