@@ -36,12 +36,10 @@
 mod csv;
 mod npy;
 pub mod sidecar;
-mod zip;
 
 pub use csv::{read_csv, read_csv_str, to_csv_string, write_csv};
 pub use npy::{npy_header, write_npy, write_npz};
 pub use sidecar::{merge_sidecar, read_csv_with_sidecar, sidecar_path, SidecarWarning};
-pub use zip::crc32;
 
 pub(crate) use csv::parse_csv;
 

@@ -1,6 +1,5 @@
 //! NumPy's NPY (one array) and NPZ (a ZIP of NPY arrays) formats, float64 only.
 
-use super::zip::ZipWriter;
 use super::Series;
 use crate::atomic::{stage, Staged};
 use crate::error::{Error, Result};
@@ -82,7 +81,12 @@ pub(crate) fn stage_npz(series: &Series, path: &Path) -> Result<Staged> {
         }
     }
     stage(path, |w| {
-        let mut zip = ZipWriter::new(w);
+        let mut zip = zip::ZipWriter::new(w);
+        // Stored (NumPy's own `savez` stores too), with a fixed time stamp: the same data give
+        // the same bytes.
+        let options = zip::write::SimpleFileOptions::default()
+            .compression_method(zip::CompressionMethod::Stored)
+            .last_modified_time(zip::DateTime::default());
         let mut entry = Vec::new();
         for (name, col) in series.columns.iter().zip(&series.data) {
             entry.clear();
@@ -90,9 +94,11 @@ pub(crate) fn stage_npz(series: &Series, path: &Path) -> Result<Staged> {
             for x in col {
                 entry.extend_from_slice(&x.to_le_bytes());
             }
-            zip.add(&format!("{name}.npy"), &entry)?;
+            zip.start_file(format!("{name}.npy"), options)
+                .map_err(std::io::Error::other)?;
+            zip.write_all(&entry)?;
         }
-        zip.finish()?;
+        zip.finish().map_err(std::io::Error::other)?;
         Ok(())
     })
 }
