@@ -5,8 +5,8 @@ use std::fs;
 use std::path::PathBuf;
 use vibrissa_core::sim::COLUMNS;
 use vibrissa_io::series::{
-    merge_sidecar, read_csv, read_csv_str, read_csv_with_sidecar, sidecar_path,
-    to_csv_string, write, write_csv, write_npy, write_npz, Series, SidecarWarning,
+    merge_sidecar, read_csv, read_csv_str, read_csv_with_sidecar, sidecar_path, to_csv_string,
+    write, write_csv, write_npy, write_npz, Series, SidecarWarning,
 };
 use vibrissa_io::Error;
 
@@ -170,7 +170,6 @@ fn csv_errors_name_file_line_and_column() {
         // cannot be written back as a header (found by fuzzing the reader).
         ("\n\u{feff}#\n", "line 2", "byte-order marks"),
         ("t,a\u{7}b\n", "line 1", "column 2 of the header"),
-        ("t,\" a\"\n", "line 1", "surrounding spaces"),
     ];
     for (text, a, b) in cases {
         let e = read_csv_str(text, "obs.csv").unwrap_err().to_string();
@@ -179,6 +178,14 @@ fn csv_errors_name_file_line_and_column() {
             "{text:?}: {e}"
         );
     }
+    // Cells are trimmed, quoted or not: a quoted name's spaces go too.
+    let s = read_csv_str("t,\" a\"\n", "obs.csv").unwrap();
+    assert_eq!(s.columns, ["t", "a"]);
+    // Lines are counted across blank lines and comments.
+    let e = read_csv_str("\n# a = 1\n\nt,x\n\n0,zz\n", "obs.csv")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("line 6") && e.contains("`zz`"), "{e}");
     // A file wrong as a whole names no line.
     for text in ["", "# only a comment\n\n"] {
         let e = read_csv_str(text, "obs.csv").unwrap_err().to_string();

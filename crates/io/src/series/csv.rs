@@ -5,7 +5,6 @@ use super::{is_column_name, is_meta_key, Series, COLUMN_NAME_RULE};
 use crate::atomic::{stage, Staged};
 use crate::error::{Error, Result};
 use std::fmt::Write as _;
-use std::io::Write;
 use std::path::Path;
 
 /// Writes `series` as CSV (see the [module documentation](super)): the header row and the data,
@@ -17,45 +16,34 @@ pub fn write_csv(series: &Series, path: impl AsRef<Path>) -> Result<()> {
 /// Writes the CSV of `series` under a temporary name beside `path`.
 pub(crate) fn stage_csv(series: &Series, path: &Path) -> Result<Staged> {
     series.check()?;
-    stage(path, |w| {
-        w.write_all(header_text(series).as_bytes())?;
-        let mut line = String::new();
-        for row in 0..series.rows() {
-            line.clear();
-            push_row(&mut line, series, row);
-            w.write_all(line.as_bytes())?;
-        }
-        Ok(())
-    })
+    stage(path, |w| write_records(series, w))
 }
 
 /// The CSV text of `series` (what [`write_csv`] writes), e.g. for standard output.
 pub fn to_csv_string(series: &Series) -> Result<String> {
     series.check()?;
-    let mut text = header_text(series);
+    let mut bytes = Vec::new();
+    write_records(series, &mut bytes).map_err(|e| Error::InvalidSeries(e.to_string()))?;
+    String::from_utf8(bytes).map_err(|e| Error::InvalidSeries(e.to_string()))
+}
+
+/// The header row, then one record per row, `\n`-terminated. No comment lines come before the
+/// header: the first line of the file is the header, as every common reader expects by default.
+/// (Checked column names and numbers never need quoting.)
+fn write_records(series: &Series, out: impl std::io::Write) -> std::io::Result<()> {
+    let mut w = csv::WriterBuilder::new()
+        .terminator(csv::Terminator::Any(b'\n'))
+        .from_writer(out);
+    w.write_record(&series.columns)?;
+    let mut cells: Vec<String> = vec![String::new(); series.columns.len()];
     for row in 0..series.rows() {
-        push_row(&mut text, series, row);
-    }
-    Ok(text)
-}
-
-/// The header row. No comment lines come before it: the first line of the file is the header, as
-/// every common reader expects by default.
-fn header_text(series: &Series) -> String {
-    let mut text = series.columns.join(",");
-    text.push('\n');
-    text
-}
-
-/// Appends one data row, newline included.
-fn push_row(line: &mut String, series: &Series, row: usize) {
-    for (c, col) in series.data.iter().enumerate() {
-        if c > 0 {
-            line.push(',');
+        for (cell, col) in cells.iter_mut().zip(&series.data) {
+            cell.clear();
+            push_number(cell, col[row]);
         }
-        push_number(line, col[row]);
+        w.write_record(&cells)?;
     }
-    line.push('\n');
+    w.flush()
 }
 
 /// Appends `x` with the fewest digits that read back to the same bits: plain decimals for
@@ -91,29 +79,57 @@ pub fn read_csv_str(text: &str, origin: &str) -> Result<Series> {
 }
 
 /// Parses CSV text into a series and the 1-based line number of each data row.
+///
+/// Lines whose first non-blank character is `#` are comments (`# key = value` ones carry
+/// metadata); blank lines are skipped; the first other line is the header. Cells are trimmed and
+/// may be quoted.
 pub(crate) fn parse_csv(text: &str, origin: &str) -> Result<(Series, Vec<usize>)> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let mut series = Series::default();
-    let mut row_lines = Vec::new();
-    let mut header = false;
-    for (k, raw) in text.lines().enumerate() {
-        let (line_no, line) = (k + 1, raw.trim());
-        // Blank lines are skipped; comments may carry `key = value` metadata.
-        if line.is_empty() {
-            continue;
-        }
-        if let Some(comment) = line.strip_prefix('#') {
-            if let Some((key, value)) = comment.split_once('=') {
-                if is_meta_key(key.trim()) {
-                    series.set_meta(key.trim(), value.trim());
+    // Comments first (blanked, so that the records keep their line numbers).
+    let mut records = String::with_capacity(text.len());
+    for line in text.lines() {
+        match line.trim().strip_prefix('#') {
+            Some(comment) => {
+                if let Some((key, value)) = comment.split_once('=') {
+                    if is_meta_key(key.trim()) {
+                        series.set_meta(key.trim(), value.trim());
+                    }
                 }
             }
+            None => records.push_str(line),
+        }
+        records.push('\n');
+    }
+    let mut reader = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .from_reader(records.as_bytes());
+    let mut row_lines = Vec::new();
+    let mut header = false;
+    let mut record = csv::StringRecord::new();
+    loop {
+        match reader.read_record(&mut record) {
+            Ok(true) => {}
+            Ok(false) => break,
+            Err(e) => {
+                let line = e.position().map_or(0, |p| {
+                    record_line(&records, p.byte() as usize, p.line() as usize)
+                });
+                return Err(Error::data(origin, line, format!("not a CSV record: {e}")));
+            }
+        }
+        let line_no = record.position().map_or(0, |p| {
+            record_line(&records, p.byte() as usize, p.line() as usize)
+        });
+        // A line of blanks only.
+        if record.len() == 1 && record[0].is_empty() {
             continue;
         }
         // The first other line is the header.
         if !header {
-            for (c, cell) in line.split(',').enumerate() {
-                let name = unquote(cell.trim());
+            for (c, name) in record.iter().enumerate() {
                 if name.is_empty() {
                     return Err(Error::data(
                         origin,
@@ -145,19 +161,18 @@ pub(crate) fn parse_csv(text: &str, origin: &str) -> Result<(Series, Vec<usize>)
             continue;
         }
         // Data rows: one number (or NaN) per column.
-        let cells = line.split(',').count();
-        if cells != series.columns.len() {
+        if record.len() != series.columns.len() {
             return Err(Error::data(
                 origin,
                 line_no,
                 format!(
-                    "{cells} values, but the header has {} columns",
+                    "{} values, but the header has {} columns",
+                    record.len(),
                     series.columns.len()
                 ),
             ));
         }
-        for (c, cell) in line.split(',').enumerate() {
-            let cell = cell.trim();
+        for (c, cell) in record.iter().enumerate() {
             let x = parse_number(cell).ok_or_else(|| {
                 let what = if cell.is_empty() {
                     "the cell is empty (write NaN for a missing value)".to_string()
@@ -186,14 +201,21 @@ pub(crate) fn parse_csv(text: &str, origin: &str) -> Result<(Series, Vec<usize>)
     Ok((series, row_lines))
 }
 
+/// The line of a record that the reader placed at `byte` and `line`: the reader counts from
+/// where it began to scan, before the blank lines it skipped, so those are added.
+fn record_line(text: &str, byte: usize, line: usize) -> usize {
+    let skipped = text
+        .as_bytes()
+        .get(byte..)
+        .unwrap_or_default()
+        .iter()
+        .take_while(|b| matches!(b, b'\n' | b'\r'))
+        .filter(|&&b| b == b'\n')
+        .count();
+    line + skipped
+}
+
 /// A finite number or NaN.
 fn parse_number(cell: &str) -> Option<f64> {
     cell.parse::<f64>().ok().filter(|x| !x.is_infinite())
-}
-
-/// `name` without surrounding double quotes.
-fn unquote(name: &str) -> &str {
-    name.strip_prefix('"')
-        .and_then(|n| n.strip_suffix('"'))
-        .unwrap_or(name)
 }
