@@ -1,17 +1,18 @@
-//! Progress on standard error: a bar redrawn in place on a terminal, a line every tenth of the
-//! way otherwise (a log file then reads well).
+//! Progress on standard error: a bar redrawn in place on a terminal (indicatif), a line every
+//! tenth of the way otherwise (a log file then reads well).
 //!
 //! ```text
 //! [#####.....] 37/80 runs, 0.4 s
 //! ```
 
-use std::io::{self, IsTerminal, Write};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::io::{self, IsTerminal};
 use std::time::{Duration, Instant};
 
 /// Cells of the bar.
 const WIDTH: usize = 10;
-/// Shortest interval between two redraws on a terminal.
-const REDRAW: Duration = Duration::from_millis(50);
+/// Steps of a bar that shows a fraction.
+const FRACTION_STEPS: u64 = 1000;
 
 /// What is counted.
 #[derive(Debug, Clone)]
@@ -37,8 +38,8 @@ pub struct Progress {
     done: f64,
     /// Tenths already printed as lines (off a terminal).
     tenths: usize,
-    /// When the bar was last drawn (on a terminal), if it is on screen.
-    drawn: Option<Instant>,
+    /// The bar on a terminal, once shown.
+    bar: Option<ProgressBar>,
 }
 
 impl Progress {
@@ -66,7 +67,7 @@ impl Progress {
             terminal: io::stderr().is_terminal(),
             done: 0.0,
             tenths: 0,
-            drawn: None,
+            bar: None,
         }
     }
 
@@ -97,11 +98,10 @@ impl Progress {
             return;
         }
         if self.terminal {
-            // Redraw in place, at most every REDRAW, and always at the end.
-            let due = self.drawn.map_or(true, |t| t.elapsed() >= REDRAW);
-            if due || self.done >= 1.0 {
-                self.draw();
-            }
+            let position = self.position();
+            self.bar
+                .get_or_insert_with(|| terminal_bar(&self.measure, self.start))
+                .set_position(position);
         } else {
             // A line at each tenth passed (one for several tenths passed at once).
             let tenths = (self.done * 10.0 + 1e-9).floor() as usize;
@@ -114,20 +114,26 @@ impl Progress {
 
     /// Prints `text` on its own line without garbling the bar.
     pub fn message(&mut self, text: &str) {
-        if self.drawn.is_some() {
-            self.clear();
-            eprintln!("{text}");
-            self.draw();
-        } else {
-            eprintln!("{text}");
+        match &self.bar {
+            Some(bar) => bar.suspend(|| eprintln!("{text}")),
+            None => eprintln!("{text}"),
         }
     }
 
-    /// Ends the report: the bar, if drawn, is left on screen with a line break after it.
+    /// Ends the report: the bar, if shown, is left on screen with a line break after it.
     pub fn finish(&mut self) {
-        if self.drawn.take().is_some() {
-            self.draw_text();
+        if let Some(bar) = self.bar.take() {
+            bar.set_position(self.position());
+            bar.abandon();
             eprintln!();
+        }
+    }
+
+    /// The bar's position: items done, or thousandths of the work.
+    fn position(&self) -> u64 {
+        match &self.measure {
+            Measure::Count { total, .. } => (self.done * *total as f64).round() as u64,
+            Measure::Fraction => (self.done * FRACTION_STEPS as f64).round() as u64,
         }
     }
 
@@ -144,24 +150,27 @@ impl Progress {
         };
         format!("[{bar}] {amount}, {:.1} s", self.elapsed())
     }
+}
 
-    fn draw(&mut self) {
-        self.draw_text();
-        self.drawn = Some(Instant::now());
-    }
-
-    fn draw_text(&self) {
-        let mut err = io::stderr().lock();
-        // Errors on standard error have nowhere to be reported.
-        let _ = write!(err, "\r{}\x1b[K", self.line());
-        let _ = err.flush();
-    }
-
-    fn clear(&self) {
-        let mut err = io::stderr().lock();
-        let _ = write!(err, "\r\x1b[K");
-        let _ = err.flush();
-    }
+/// A bar on standard error that shows `measure` as [`Progress::line`] words it.
+fn terminal_bar(measure: &Measure, start: Instant) -> ProgressBar {
+    let (length, amount) = match measure {
+        Measure::Count { total, unit } => (*total as u64, format!("{{pos}}/{{len}} {unit}")),
+        Measure::Fraction => (FRACTION_STEPS, "{percent} %".to_string()),
+    };
+    let template = format!("[{{bar:{WIDTH}}}] {amount}, {{elapsed_seconds}}");
+    let style = ProgressStyle::with_template(&template)
+        .unwrap_or_else(|_| ProgressStyle::default_bar())
+        .progress_chars("#.")
+        .with_key(
+            "elapsed_seconds",
+            move |_: &indicatif::ProgressState, w: &mut dyn std::fmt::Write| {
+                let _ = write!(w, "{:.1} s", start.elapsed().as_secs_f64());
+            },
+        );
+    let bar = ProgressBar::with_draw_target(Some(length), ProgressDrawTarget::stderr());
+    bar.set_style(style);
+    bar
 }
 
 #[cfg(test)]
