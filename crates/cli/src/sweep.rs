@@ -4,7 +4,7 @@
 //! A grid names `--set` keys (`d`, `v`, `whisker.length`, `objects.0.friction`) with lists or
 //! ranges of values; every combination is one run, its values applied as overrides after the
 //! command line's own `--set`s. A built-in experiment (or a file naming one) with no `--grid`
-//! sweeps its own grid from EXPERIMENTS.md.
+//! sweeps its own grid (docs/experiments.md).
 //!
 //! Each run writes its series and, beside it, a JSON sidecar with its metadata (`d0.015_v0.3.csv`
 //! and `d0.015_v0.3.json`). Both are renamed into place only when complete, the series last, so

@@ -238,7 +238,7 @@ fn unknown_discretisation_lists_the_rules() {
     }
 }
 
-/// The contract's time-series columns (CONTRACT.md), in order.
+/// The contract's time-series columns (docs/files.md), in order.
 const CONTRACT_COLUMNS: &str = "t,theta01,theta12,m0,fx,fy,contact,cx,cy,s";
 
 /// The header (the first line) and data rows of a time-series CSV.

@@ -26,7 +26,7 @@ pub fn peg(x: f64, y: f64, radius: f64, friction: f64) -> Object {
 }
 
 /// The seed experiments' box: 10 mm square, top-left corner at (d, -1 mm) at t = 0, moving +y at
-/// `v` (EXPERIMENTS.md).
+/// `v` (docs/experiments.md).
 pub fn e2_box(d: f64, v: f64) -> Object {
     Object {
         shape: Shape::Box {

@@ -6,7 +6,7 @@ use serde::Serialize;
 /// Names of the channels [`Sensors`] provides, in CSV order.
 pub const CHANNELS: [&str; 5] = ["theta01", "theta12", "m0", "fx", "fy"];
 
-/// Base observations at one instant (CONTRACT.md).
+/// Base observations at one instant (docs/files.md).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Sensors {
     /// Angle of the first segment against the base direction, rad.

@@ -75,7 +75,7 @@ pub struct WhiskerParams {
 pub const PRESETS: [&str; 3] = ["w30", "rat", "robot"];
 
 impl WhiskerParams {
-    /// The seed experiments' whisker (EXPERIMENTS.md): 30 mm, uniform radius 0.1 mm, E = 3 GPa,
+    /// The seed experiments' whisker (docs/experiments.md): 30 mm, uniform radius 0.1 mm, E = 3 GPa,
     /// ρ = 1100 kg/m³, straight, clamped, first-mode damping ratio 0.05 (stiffness-proportional).
     pub fn w30() -> Self {
         WhiskerParams {
@@ -255,7 +255,7 @@ mod tests {
     #[test]
     fn w30_matches_experiments_constants() {
         let w = WhiskerParams::w30().check().unwrap();
-        // EXPERIMENTS.md: EI = 2.3562e-7 N·m², mass per length 3.4558e-5 kg/m, mass 1.0367e-6 kg.
+        // docs/experiments.md: EI = 2.3562e-7 N·m², mass per length 3.4558e-5 kg/m, mass 1.0367e-6 kg.
         assert!((w.ei(0.01) / 2.3562e-7 - 1.0).abs() < 1e-4);
         assert!((w.rho_a(0.01) / 3.4558e-5 - 1.0).abs() < 1e-4);
         assert!((w.mass() / 1.0367e-6 - 1.0).abs() < 1e-4);

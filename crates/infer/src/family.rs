@@ -442,7 +442,7 @@ impl Family {
     /// with (no estimator is told it). `noisy` is a sensor noise of 5% of each channel's
     /// peak-to-peak range over the clean reference runs, plus [`crate::experiment::PROCESS_NOISE`].
     /// The reference runs are the family's grid; for a family built on the experiment box they
-    /// are the `e2` grid of its own scenario (EXPERIMENTS.md defines `noisy` by the `e2` runs).
+    /// are the `e2` grid of its own scenario (docs/experiments.md defines `noisy` by the `e2` runs).
     pub fn noise(&self, variant: Variant) -> Result<Noise> {
         match variant {
             Variant::Clean => Ok(Noise::NONE),

@@ -1,4 +1,4 @@
-//! Labelled recordings (CONTRACT.md, "Labelled recordings"): a folder of time series in the
+//! Labelled recordings (docs/files.md, "Labelled recordings"): a folder of time series in the
 //! contract's CSV columns plus `truth.csv`, which names each recording in a `file` column and
 //! gives its labels (the scenario keys whose values are known for it, such as `d` and `v`), in SI
 //! units.

@@ -1,7 +1,7 @@
 //! Scenario files: TOML in, [`vibrissa_core::sim::Scenario`] out.
 //!
 //! A scenario is named by [`load`] as a built-in (`e1`, `e2`: the seed's experiments, see
-//! EXPERIMENTS.md) or as the path of a TOML file. Built-ins are TOML text too ([`builtin`]), read
+//! docs/experiments.md) or as the path of a TOML file. Built-ins are TOML text too ([`builtin`]), read
 //! by the same parser. `key=value` overrides (`--set` on the command line) are applied to the
 //! document before it is read, so they obey the same schema.
 //!
@@ -150,7 +150,7 @@ pub const BOX_SIDE: f64 = 0.010;
 /// Gap between the experiments' box and the whisker at t = 0, m.
 pub const BOX_GAP: f64 = 0.001;
 
-/// The seed's experiment families (EXPERIMENTS.md).
+/// The seed's experiment families (docs/experiments.md).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Experiment {

@@ -211,7 +211,7 @@ pub fn number_value(x: f64) -> String {
     }
 }
 
-/// The grid of an experiment family (EXPERIMENTS.md): e1 varies d = 15, 16, …, 30 mm; e2 also
+/// The grid of an experiment family (docs/experiments.md): e1 varies d = 15, 16, …, 30 mm; e2 also
 /// v = 0.3, 0.6, …, 1.5 m/s.
 pub fn experiment_grid(experiment: Experiment) -> Vec<Grid> {
     let d = Grid {

@@ -37,7 +37,7 @@ fn builtins_are_the_seed_experiments() {
         assert!(text.contains(&format!("experiment = \"{name}\"")));
         let loaded = load_full(name, &[]).unwrap();
         let s = &loaded.scenario;
-        // EXPERIMENTS.md: w30, 150 ms at 1 kHz; this project's N = 20 and dt = 0.1 ms.
+        // docs/experiments.md: w30, 150 ms at 1 kHz; this project's N = 20 and dt = 0.1 ms.
         assert_eq!(s.whisker, WhiskerParams::w30());
         assert_eq!(s.segments, 20);
         assert_eq!(s.duration, 0.15);
