@@ -3,6 +3,7 @@
 //! `main` only reports: every command runs in [`run`] and returns its error, which is printed
 //! with its causes. Usage errors are clap's (exit status 2); any other failure exits with 1.
 
+mod animate;
 mod bench;
 mod bench_pf;
 mod calibrate;
@@ -10,6 +11,7 @@ mod estimate;
 mod estimate_pf;
 mod experiment;
 mod files;
+mod frames;
 mod inverse;
 mod output;
 mod plot;
@@ -51,7 +53,8 @@ enum Command {
     /// overrides any of its keys. The series has the contract's columns (t, theta01, theta12,
     /// m0, fx, fy, contact, cx, cy, s); the run's metadata goes into a JSON sidecar beside it
     /// (`run.json` beside `run.csv`). `--plot` draws the angles, the base moment and the base
-    /// forces over time with the contact period shaded. No output file is left behind on error.
+    /// forces over time with the contact period shaded; `--animate` draws the whisker and the
+    /// objects as an animated GIF. No output file is left behind on error.
     Simulate(simulate::Args),
     /// Run every combination of a grid of parameter values, in parallel, one file per run.
     ///
