@@ -20,8 +20,6 @@ pub struct Frames {
     pub nodes: Vec<Vec<[f64; 2]>>,
     /// The scenario's objects (their shapes and motions).
     pub objects: Vec<Object>,
-    /// Radii of the whisker at its base and tip, m.
-    pub radius: [f64; 2],
 }
 
 /// Every how many output samples a frame is kept so that at most `max_frames` are shown.
@@ -31,7 +29,8 @@ pub fn stride(samples: usize, max_frames: usize) -> usize {
 
 /// Frames kept of `samples` output samples at most `max_frames` of them: every
 /// [`stride`]-th sample from the first.
-pub fn frame_count(samples: usize, max_frames: usize) -> usize {
+#[cfg(test)]
+fn frame_count(samples: usize, max_frames: usize) -> usize {
     samples.div_ceil(stride(samples, max_frames))
 }
 
@@ -61,7 +60,6 @@ pub fn simulate(
         samples: kept,
         nodes,
         objects: scenario.objects.clone(),
-        radius: [scenario.whisker.base_radius, scenario.whisker.tip_radius],
     })
 }
 

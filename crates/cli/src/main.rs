@@ -16,6 +16,7 @@ mod inverse;
 mod output;
 mod plot;
 mod progress;
+mod report;
 mod simulate;
 mod sweep;
 mod validate;
@@ -69,7 +70,8 @@ enum Command {
     /// Simulates the grid, fits each method on the runs its budget allows (the templates, or
     /// simulated training runs that avoid the evaluated ones), estimates every evaluated run and
     /// prints the mean absolute errors and the coverage of the 90% intervals beside the paper's
-    /// figures. Writes results.json and figures (PNG) into --out.
+    /// figures. Writes results.json and figures (PNG) into --out, and with --report an HTML page
+    /// of it all (see `report`).
     Experiment(experiment::Args),
     /// Estimate the object's distance (and speed) from recorded time series.
     ///
@@ -92,6 +94,14 @@ enum Command {
     /// Pegs at d = 5…29 mm, read at tip deflections of 0.5…20% of the whisker's length; prints
     /// the worst relative error over the pegs for each estimator and deflection.
     Inverse(inverse::Args),
+    /// Write one self-contained HTML page for an experiment's output folder.
+    ///
+    /// DIR is what `vibrissa experiment ... --out DIR` wrote. The page (DIR/report.html) holds
+    /// the methods' errors and coverage beside the paper's figures, the experiment's figures,
+    /// and animations of some of its runs (re-simulated): the whisker and the object, a time
+    /// series with a cursor, and the particle filter's cloud when the experiment scored it.
+    /// Everything is inline; the page needs no network.
+    Report(report::Args),
 }
 
 fn main() -> ExitCode {
@@ -121,6 +131,7 @@ fn run() -> Result<()> {
         Command::Estimate(args) => estimate::run(args),
         Command::Inverse(args) => inverse::run(args),
         Command::Calibrate(args) => calibrate::run(args),
+        Command::Report(args) => report::run(args),
     }
 }
 
