@@ -56,14 +56,22 @@ pub enum Selection {
 }
 
 impl Selection {
-    /// The grid indices chosen among `n` runs; an index beyond the grid is refused.
-    fn indices(&self, n: usize) -> Result<Vec<usize>> {
+    /// The grid indices chosen among the runs (`is_template` has one entry per run); an index
+    /// beyond the grid is refused.
+    fn indices(&self, is_template: &[bool]) -> Result<Vec<usize>> {
+        let n = is_template.len();
         match self {
             Selection::All => Ok((0..n).collect()),
             Selection::Default => {
-                let m = DEFAULT_RUNS.min(n);
+                // Evaluated runs (which have every method's estimates) if there are any.
+                let pool: Vec<usize> = match (0..n).filter(|&k| !is_template[k]).collect::<Vec<_>>()
+                {
+                    evaluated if !evaluated.is_empty() => evaluated,
+                    _ => (0..n).collect(),
+                };
+                let (p, m) = (pool.len(), DEFAULT_RUNS.min(pool.len()));
                 let mut k: Vec<usize> = (0..m)
-                    .map(|i| if m > 1 { i * (n - 1) / (m - 1) } else { 0 })
+                    .map(|i| pool[if m > 1 { i * (p - 1) / (m - 1) } else { 0 }])
                     .collect();
                 k.dedup();
                 Ok(k)
@@ -135,7 +143,7 @@ pub fn run(args: &Args) -> Result<()> {
 pub fn write(dir: &Path, selection: &Selection) -> Result<Written> {
     let start = Instant::now();
     let results = Results::read(dir)?;
-    let chosen = selection.indices(results.grid.len())?;
+    let chosen = selection.indices(&results.is_template)?;
     let spec = results.family_spec();
     let family = Family::open(&spec, &results.sets).with_context(|| {
         format!(
@@ -197,13 +205,25 @@ mod tests {
 
     #[test]
     fn runs_are_chosen_within_the_grid() {
-        assert_eq!(Selection::Default.indices(80).unwrap(), [0, 26, 53, 79]);
-        assert_eq!(Selection::Default.indices(2).unwrap(), [0, 1]);
-        assert_eq!(Selection::Default.indices(1).unwrap(), [0]);
-        assert_eq!(Selection::All.indices(3).unwrap(), [0, 1, 2]);
-        assert_eq!(Selection::Runs(vec![5, 2, 5]).indices(6).unwrap(), [2, 5]);
+        let plain = |n: usize| vec![false; n];
+        assert_eq!(
+            Selection::Default.indices(&plain(80)).unwrap(),
+            [0, 26, 52, 79]
+        );
+        assert_eq!(Selection::Default.indices(&plain(2)).unwrap(), [0, 1]);
+        assert_eq!(Selection::Default.indices(&plain(1)).unwrap(), [0]);
+        // Evaluated runs are preferred to templates.
+        let mut some = vec![true; 10];
+        (some[3], some[4], some[8]) = (false, false, false);
+        assert_eq!(Selection::Default.indices(&some).unwrap(), [3, 4, 8]);
+        assert_eq!(Selection::Default.indices(&[true, true]).unwrap(), [0, 1]);
+        assert_eq!(Selection::All.indices(&plain(3)).unwrap(), [0, 1, 2]);
+        assert_eq!(
+            Selection::Runs(vec![5, 2, 5]).indices(&plain(6)).unwrap(),
+            [2, 5]
+        );
         let e = Selection::Runs(vec![1, 80])
-            .indices(80)
+            .indices(&plain(80))
             .unwrap_err()
             .to_string();
         assert!(

@@ -205,10 +205,11 @@ fn cloud(pf: &Pf, family: &Family, frames: &Frames) -> Result<Cloud> {
         .iter()
         .map(|u| u.to_string())
         .collect();
-    // d in µm, v in mm/s, anything else in millionths.
+    // d in units of 10 µm, v in mm/s, anything else in hundred-thousandths: finer than a
+    // plot's pixel.
     let scale: Vec<f64> = unknowns
         .iter()
-        .map(|u| if u == "v" { 1e3 } else { MICRONS })
+        .map(|u| if u == "v" { 1e3 } else { 1e5 })
         .collect();
     let mut next = frames.samples.iter().peekable();
     let (mut points, mut mean) = (Vec::new(), Vec::new());
