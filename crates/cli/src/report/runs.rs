@@ -14,7 +14,7 @@ use vibrissa_infer::{Family, Method, Training};
 
 /// Most frames of a run's animation.
 pub const MAX_FRAMES: usize = 150;
-/// Particles drawn of the filter's cloud at each frame (equally weighted draws).
+/// Most particles drawn of the filter's cloud at each frame (equally weighted draws).
 pub const CLOUD_POINTS: usize = 120;
 /// Positions are stored in micrometres.
 const MICRONS: f64 = 1e6;
@@ -222,7 +222,7 @@ fn cloud(pf: &Pf, family: &Family, frames: &Frames) -> Result<Cloud> {
             next.next();
             let cloud = filter.particles();
             let mut drawn = Vec::with_capacity(CLOUD_POINTS * shown);
-            for i in systematic(&cloud.weights, CLOUD_POINTS) {
+            for i in systematic(&cloud.weights, CLOUD_POINTS.min(cloud.weights.len())) {
                 for (values, s) in cloud.values.iter().zip(&scale) {
                     drawn.push((values[i] * s).round() as i64);
                 }
