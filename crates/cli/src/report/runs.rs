@@ -246,7 +246,7 @@ fn cloud(pf: &Pf, family: &Family, frames: &Frames) -> Result<Cloud> {
 fn systematic(weights: &[f64], n: usize) -> Vec<usize> {
     let total: f64 = weights.iter().sum();
     let mut out = Vec::with_capacity(n);
-    if !(total > 0.0) || weights.is_empty() {
+    if total.is_nan() || total <= 0.0 || weights.is_empty() {
         return out;
     }
     let mut cum = 0.0;
