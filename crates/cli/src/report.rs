@@ -24,6 +24,8 @@ use vibrissa_infer::Family;
 
 /// The file a report is written to, in the experiment's folder.
 pub const REPORT: &str = "report.html";
+/// Where the note names the page's size until it is known.
+const PAGE_SIZE: &str = "[page size]";
 /// Runs animated by default.
 pub const DEFAULT_RUNS: usize = 4;
 
@@ -165,7 +167,7 @@ pub fn write(dir: &Path, selection: &Selection) -> Result<Written> {
             .collect(),
     })?;
     let note = format!(
-        "{} of the experiment's {} runs animated (re-simulated from its family, seed and noise){}. `vibrissa report DIR --runs K,…` picks others, --all-runs takes every one.",
+        "{} of the experiment's {} runs animated (re-simulated from its family, seed and noise){}. `vibrissa report DIR --runs K,…` picks others, --all-runs takes every one. This page: {PAGE_SIZE}.",
         chosen.len(),
         results.grid.len(),
         if pf.is_some() {
@@ -175,6 +177,12 @@ pub fn write(dir: &Path, selection: &Selection) -> Result<Written> {
         }
     );
     let html = page::render(&results, dir, &json, &note)?;
+    // The page states its own size (to the kilobyte, which the number itself does not change).
+    let html = html.replacen(
+        PAGE_SIZE,
+        &format!("{} kB", sig(html.len() as f64 / 1e3, 3)),
+        1,
+    );
     let path = dir.join(REPORT);
     crate::files::write_atomic(&path, html.as_bytes())?;
     Ok(Written {

@@ -98,6 +98,14 @@ fn experiment_report_is_self_contained_and_animates_runs_with_the_filter_s_cloud
     let dir = experiment();
     let html = fs::read_to_string(dir.join("report.html")).unwrap();
     assert!(html.starts_with("<!DOCTYPE html>"));
+    // The page states its size, in kB to three digits.
+    let at = html.find("This page: ").expect("the page's size") + "This page: ".len();
+    let stated: f64 = html[at..].split(" kB").next().unwrap().parse().unwrap();
+    let kb = html.len() as f64 / 1e3;
+    assert!(
+        (stated - kb).abs() <= 0.01 * kb,
+        "{stated} kB stated, {kb} kB"
+    );
     assert_eq!(external_references(&html), Vec::<String>::new());
     // One inline script besides the data; no script is fetched.
     assert_eq!(html.matches("<script").count(), 2);
