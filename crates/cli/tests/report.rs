@@ -361,3 +361,58 @@ fn simulate_refuses_bad_animation_paths_before_writing_anything() {
     );
     assert!(listing(&dir).is_empty());
 }
+
+#[test]
+fn report_re_simulates_a_scenario_family_with_its_overrides_from_anywhere() {
+    let dir = temp("family");
+    fs::write(
+        dir.join("soft_e1.toml"),
+        "experiment = \"e1\"\n[whisker]\nyoungs_modulus = 2.6e9\n[unknowns]\nd = [0.016, 0.028]\n[grid]\nd = [0.017, 0.021, 0.025]\n",
+    )
+    .unwrap();
+    // The experiment names its scenario relative to its own folder, with an override.
+    ok(&vibrissa()
+        .current_dir(&dir)
+        .args([
+            "experiment",
+            "--scenario",
+            "soft_e1.toml",
+            "--set",
+            "whisker.density=1300",
+        ])
+        .args(["--particles", "16", "--out", "out"])
+        .output()
+        .unwrap());
+    let results: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(dir.join("out/results.json")).unwrap()).unwrap();
+    assert_eq!(results["sets"], serde_json::json!(["whisker.density=1300"]));
+    assert!(Path::new(results["scenario_file"].as_str().unwrap()).is_absolute());
+    // The report, made from elsewhere, re-simulates the very recordings.
+    ok(&vibrissa()
+        .current_dir(std::env::temp_dir())
+        .arg("report")
+        .arg(dir.join("out"))
+        .arg("--all-runs")
+        .output()
+        .unwrap());
+    let data = page_data(&fs::read_to_string(dir.join("out/report.html")).unwrap());
+    let runs = data["runs"].as_array().unwrap();
+    assert_eq!(runs.len(), 3);
+    for run in runs {
+        let k = run["index"].as_u64().unwrap() as usize;
+        for (a, b) in run["theta12"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .zip(results["theta12"][k].as_array().unwrap())
+        {
+            let (a, b) = (a.as_f64().unwrap(), b.as_f64().unwrap());
+            assert!(
+                (a - b).abs() <= 1e-4 * b.abs() + 1e-12,
+                "run {k}: {a} vs {b}"
+            );
+        }
+        // One unknown: the cloud is over d alone.
+        assert_eq!(run["pf"]["unknowns"], serde_json::json!(["d"]));
+    }
+}
