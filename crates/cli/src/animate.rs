@@ -186,6 +186,9 @@ fn draw_frame(
     // Objects, their outline red while the whisker touches one.
     for o in &frames.objects {
         let points: Vec<(i32, i32)> = outline(o, t, reach).into_iter().map(px).collect();
+        let Some(&first) = points.first() else {
+            continue;
+        };
         let (fill, edge) = if touching {
             (TOUCHING_FILL, TOUCHING)
         } else {
@@ -194,7 +197,7 @@ fn draw_frame(
         root.draw(&Polygon::new(points.clone(), fill.filled()))
             .map_err(plotting)?;
         let mut closed = points;
-        closed.push(closed[0]);
+        closed.push(first);
         root.draw(&PathElement::new(closed, edge.stroke_width(2)))
             .map_err(plotting)?;
     }

@@ -167,7 +167,7 @@ pub fn write(dir: &Path, selection: &Selection) -> Result<Written> {
             .collect(),
     })?;
     let note = format!(
-        "{} of the experiment's {} runs animated (re-simulated from its family, seed and noise){}. `vibrissa report DIR --runs K,…` picks others, --all-runs takes every one. This page: {PAGE_SIZE}.",
+        "{} of the experiment's {} runs animated (re-simulated from its family, seed and noise){}. vibrissa report DIR --runs K,… picks others; --all-runs takes every one. This page: {PAGE_SIZE}.",
         chosen.len(),
         results.grid.len(),
         if pf.is_some() {

@@ -291,7 +291,6 @@
     var r = current();
     state.view = viewOf(r, whisker.width / (whisker.height - CAPTION));
     scrub.max = String(r.frames.length - 1);
-    cloud.hidden = false;
     showEstimates();
     seek(0);
   }

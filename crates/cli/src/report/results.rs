@@ -171,6 +171,9 @@ impl Results {
         if n == 0 {
             bail!("`{}`: field `grid` holds no runs", path.display());
         }
+        if k == 0 {
+            bail!("`{}`: field `unknowns` names no unknown", path.display());
+        }
         if self.is_template.len() != n {
             bail!(
                 "`{}`: field `is_template` has {} entries for {n} runs of `grid`",
