@@ -94,7 +94,6 @@ pub fn run_data(results: &Results, family: &Family, k: usize, pf: Option<&Pf>) -
         )
         .with_context(|| format!("run {k} ({})", results.describe(k)))?;
     let frames = frames::simulate(&scenario, MAX_FRAMES, &mut |_| {})
-        .map_err(|e| anyhow!("{e}"))
         .with_context(|| format!("cannot re-simulate run {k} ({})", results.describe(k)))?;
     let rows = &frames.output.rows;
     let estimates = match results.evaluated_index(k) {
