@@ -57,6 +57,10 @@ pub struct Args {
     /// per particle, calibrated with 4000 particles).
     #[arg(long, value_name = "NAME", default_value = "coarse")]
     pf_model: String,
+    /// Also write report.html into the output folder: the tables, the figures and animations of
+    /// a few runs, in one page that needs no network (see `vibrissa report`).
+    #[arg(long, conflicts_with = "max_delay")]
+    report: bool,
     #[command(flatten)]
     format: FormatArgs,
 }
@@ -70,6 +74,20 @@ struct Report {
     files: Vec<PathBuf>,
 }
 
+/// What results.json holds: the evaluation, and what re-simulating its runs needs beyond it
+/// (`vibrissa report` reads it back).
+#[derive(Debug, Serialize)]
+struct Saved<'a> {
+    #[serde(flatten)]
+    evaluation: &'a Evaluation,
+    /// The scenario file's absolute path, for a family given by --scenario.
+    scenario_file: Option<PathBuf>,
+    /// The overrides of the scenario's keys, in order.
+    sets: &'a [String],
+    /// The particle filter's transition model.
+    pf_model: &'static str,
+}
+
 /// Runs the experiment, writes its files and prints the table.
 pub fn run(args: &Args) -> Result<()> {
     let family = match (&args.scenario, &args.experiment) {
@@ -79,6 +97,13 @@ pub fn run(args: &Args) -> Result<()> {
             Family::open(name, &args.sets)?
         }
         (None, None) => anyhow::bail!("name an experiment (e1, e2) or give --scenario FILE.toml"),
+    };
+    let scenario_file = match &args.scenario {
+        Some(file) => Some(
+            std::fs::canonicalize(file)
+                .with_context(|| format!("cannot find the scenario file `{file}`"))?,
+        ),
+        None => None,
     };
     let label = Path::new(family.name())
         .file_stem()
@@ -152,9 +177,20 @@ pub fn run(args: &Args) -> Result<()> {
     // Files: results.json and the figures.
     let mut files = Vec::new();
     let json = out.join("results.json");
-    crate::files::write_atomic(&json, serde_json::to_string_pretty(&evaluation)?.as_bytes())?;
+    let saved = Saved {
+        evaluation: &evaluation,
+        scenario_file,
+        sets: &args.sets,
+        pf_model: pf_model.name(),
+    };
+    crate::files::write_atomic(&json, serde_json::to_string_pretty(&saved)?.as_bytes())?;
     files.push(json);
     files.extend(figures(&evaluation, &out)?);
+    if args.report {
+        eprintln!("[{:6.2} s] report", start.elapsed().as_secs_f64());
+        let written = crate::report::write(&out, &crate::report::Selection::Default)?;
+        files.push(written.path);
+    }
     eprintln!("[{:6.2} s] done", start.elapsed().as_secs_f64());
     args.format.format().print(&Report { evaluation, files })?;
     Ok(())

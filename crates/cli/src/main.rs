@@ -3,6 +3,7 @@
 //! `main` only reports: every command runs in [`run`] and returns its error, which is printed
 //! with its causes. Usage errors are clap's (exit status 2); any other failure exits with 1.
 
+mod animate;
 mod bench;
 mod bench_pf;
 mod calibrate;
@@ -10,10 +11,12 @@ mod estimate;
 mod estimate_pf;
 mod experiment;
 mod files;
+mod frames;
 mod inverse;
 mod output;
 mod plot;
 mod progress;
+mod report;
 mod simulate;
 mod sweep;
 mod validate;
@@ -51,7 +54,8 @@ enum Command {
     /// overrides any of its keys. The series has the contract's columns (t, theta01, theta12,
     /// m0, fx, fy, contact, cx, cy, s); the run's metadata goes into a JSON sidecar beside it
     /// (`run.json` beside `run.csv`). `--plot` draws the angles, the base moment and the base
-    /// forces over time with the contact period shaded. No output file is left behind on error.
+    /// forces over time with the contact period shaded; `--animate` draws the whisker and the
+    /// objects as an animated GIF. No output file is left behind on error.
     Simulate(simulate::Args),
     /// Run every combination of a grid of parameter values, in parallel, one file per run.
     ///
@@ -66,7 +70,8 @@ enum Command {
     /// Simulates the grid, fits each method on the runs its budget allows (the templates, or
     /// simulated training runs that avoid the evaluated ones), estimates every evaluated run and
     /// prints the mean absolute errors and the coverage of the 90% intervals beside the paper's
-    /// figures. Writes results.json and figures (PNG) into --out.
+    /// figures. Writes results.json and figures (PNG) into --out, and with --report an HTML page
+    /// of it all (see `report`).
     Experiment(experiment::Args),
     /// Estimate the object's distance (and speed) from recorded time series.
     ///
@@ -89,6 +94,14 @@ enum Command {
     /// Pegs at d = 5…29 mm, read at tip deflections of 0.5…20% of the whisker's length; prints
     /// the worst relative error over the pegs for each estimator and deflection.
     Inverse(inverse::Args),
+    /// Write one self-contained HTML page for an experiment's output folder.
+    ///
+    /// DIR is what `vibrissa experiment ... --out DIR` wrote. The page (DIR/report.html) holds
+    /// the methods' errors and coverage beside the paper's figures, the experiment's figures,
+    /// and animations of some of its runs (re-simulated): the whisker and the object, a time
+    /// series with a cursor, and the particle filter's cloud when the experiment scored it.
+    /// Everything is inline; the page needs no network.
+    Report(report::Args),
 }
 
 fn main() -> ExitCode {
@@ -118,6 +131,7 @@ fn run() -> Result<()> {
         Command::Estimate(args) => estimate::run(args),
         Command::Inverse(args) => inverse::run(args),
         Command::Calibrate(args) => calibrate::run(args),
+        Command::Report(args) => report::run(args),
     }
 }
 

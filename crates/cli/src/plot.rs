@@ -29,7 +29,7 @@ use std::sync::OnceLock;
 /// DejaVu Sans (licence: assets/DejaVuSans-LICENSE.txt).
 const FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
 /// The family name under which [`FONT`] is registered.
-const FAMILY: &str = "sans-serif";
+pub const FAMILY: &str = "sans-serif";
 
 /// Figure width, px.
 const WIDTH: u32 = 1000;
@@ -151,7 +151,7 @@ pub fn check_png(path: &Path) -> Result<()> {
 }
 
 /// Registers the embedded font with plotters (once per process).
-fn register_font() -> Result<()> {
+pub fn register_font() -> Result<()> {
     static REGISTERED: OnceLock<bool> = OnceLock::new();
     let ok = *REGISTERED
         .get_or_init(|| plotters::style::register_font(FAMILY, FontStyle::Normal, FONT).is_ok());
@@ -307,7 +307,7 @@ fn draw_panel(
 }
 
 /// A plotters error as an `anyhow` error.
-fn plotting<E: std::fmt::Display>(e: E) -> anyhow::Error {
+pub fn plotting<E: std::fmt::Display>(e: E) -> anyhow::Error {
     anyhow!("{e}")
 }
 

@@ -7,7 +7,9 @@
 //! file, the series and its sidecar are written (atomically), and only then is the figure
 //! renamed into place. On any error no output file is left behind.
 
+use crate::animate;
 use crate::files;
+use crate::frames;
 use crate::output::{sig, FormatArgs, Render};
 use crate::plot::{self, Axis, Curve, Panel};
 use crate::progress::Progress;
@@ -38,6 +40,10 @@ pub struct Args {
     /// Also draw the observed channels over time into this PNG file.
     #[arg(long, value_name = "FILE.png")]
     plot: Option<PathBuf>,
+    /// Also animate the whisker and the objects into this GIF file (600 × 300 px, 25 frames
+    /// per second, at most 150 frames spread evenly over the run).
+    #[arg(long, value_name = "FILE.gif")]
+    animate: Option<PathBuf>,
     #[command(flatten)]
     format: FormatArgs,
 }
@@ -57,12 +63,27 @@ pub fn run(args: &Args) -> Result<()> {
             bail!("--out and --plot name the same file `{}`", plot.display());
         }
     }
+    if let Some(gif) = &args.animate {
+        animate::check_gif(gif)?;
+        files::check_folder(gif, "--animate")?;
+        if gif == &args.out {
+            bail!("--out and --animate name the same file `{}`", gif.display());
+        }
+    }
 
     // Load and run, with progress on standard error for long runs.
     let loaded = scenario::load_full(&args.scenario, &args.sets)?;
     let start = Instant::now();
     let mut progress = Progress::fraction(PROGRESS_DELAY);
-    let output = sim::run(&loaded.scenario, &mut |f| progress.set(f))?;
+    let (output, frames) = match &args.animate {
+        Some(_) => {
+            let frames = frames::simulate(&loaded.scenario, animate::MAX_FRAMES, &mut |f| {
+                progress.set(f)
+            })?;
+            (frames.output.clone(), Some(frames))
+        }
+        None => (sim::run(&loaded.scenario, &mut |f| progress.set(f))?, None),
+    };
     progress.finish();
     let seconds = start.elapsed().as_secs_f64();
 
@@ -82,13 +103,30 @@ pub fn run(args: &Args) -> Result<()> {
         )?),
         None => None,
     };
+    let animation = match (&args.animate, &frames) {
+        (Some(path), Some(frames)) => Some(animate::render_gif(
+            path,
+            &title(&loaded, &args.scenario, &args.sets),
+            frames,
+        )?),
+        _ => None,
+    };
     series::write(&series, &args.out)?;
-    if let Some(figure) = figure {
-        if let Err(e) = figure.commit() {
-            let _ = std::fs::remove_file(&args.out);
-            let _ = std::fs::remove_file(series::sidecar_path(&args.out));
+    // The figure and the animation, renamed into place; on a failure, whatever this run put in
+    // place is removed again.
+    let mut placed = vec![args.out.clone(), series::sidecar_path(&args.out)];
+    let extras = [(&args.plot, figure), (&args.animate, animation)];
+    for (path, pending) in extras {
+        let (Some(path), Some(pending)) = (path, pending) else {
+            continue;
+        };
+        if let Err(e) = pending.commit() {
+            for p in &placed {
+                let _ = std::fs::remove_file(p);
+            }
             return Err(e);
         }
+        placed.push(path.clone());
     }
 
     let summary = Summary::new(&loaded, &output, seconds, args);
@@ -309,6 +347,8 @@ struct Summary {
     sidecar: String,
     /// The figure written, if any.
     plot: Option<String>,
+    /// The animation written, if any.
+    animation: Option<String>,
     /// Samples (rows).
     samples: usize,
     /// Time of the last sample, s.
@@ -342,6 +382,7 @@ impl Summary {
             out: args.out.display().to_string(),
             sidecar: series::sidecar_path(&args.out).display().to_string(),
             plot: args.plot.as_ref().map(|p| p.display().to_string()),
+            animation: args.animate.as_ref().map(|p| p.display().to_string()),
             samples: output.rows.len(),
             duration: output.rows.last().map_or(0.0, |r| r[t]),
             steps: output.steps,
@@ -408,7 +449,7 @@ impl Render for Summary {
         )?;
         line(out, "wall time", format!("{} s", sig(self.seconds, 3)))?;
         let mut wrote = format!("{}, {}", self.out, self.sidecar);
-        if let Some(p) = &self.plot {
+        for p in self.plot.iter().chain(&self.animation) {
             wrote.push_str(", ");
             wrote.push_str(p);
         }

@@ -490,6 +490,28 @@ fn explain_divergence(e: Error, scenario: &Scenario, dt: f64) -> Error {
 
 /// Runs `scenario`, calling `progress` with the fraction done now and then.
 pub fn run(scenario: &Scenario, progress: &mut dyn FnMut(f64)) -> Result<Output> {
+    run_observed(scenario, progress, None)
+}
+
+/// The whisker at one output sample, as [`run_observed`] shows it.
+#[derive(Debug, Clone, Copy)]
+pub struct Snapshot<'a> {
+    /// Sample index.
+    pub k: usize,
+    /// Sample time, s.
+    pub t: f64,
+    /// Node positions of the whisker, base first, world frame, m (`[N+1]`).
+    pub nodes: &'a [[f64; 2]],
+}
+
+/// [`run`], showing the whisker's shape at every output sample to `observe` (for animations).
+/// The shape is computed in a workspace of its own, so the run's output is [`run`]'s, bit for
+/// bit.
+pub fn run_observed(
+    scenario: &Scenario,
+    progress: &mut dyn FnMut(f64),
+    mut observe: Option<&mut dyn FnMut(Snapshot<'_>)>,
+) -> Result<Output> {
     scenario.check()?;
     let whisker = scenario.whisker.check()?;
     let model = Model::new(&whisker, scenario.segments, scenario.discretisation)?;
@@ -523,6 +545,7 @@ pub fn run(scenario: &Scenario, progress: &mut dyn FnMut(f64)) -> Result<Output>
     let mut rows = Vec::with_capacity(samples);
     let mut max_penetration = 0.0f64;
     let mut steps = 0;
+    let mut shape = observe.as_ref().map(|_| Workspace::new(&model));
     for k in 0..samples {
         if k > 0 {
             for j in 1..=per_sample {
@@ -536,6 +559,14 @@ pub fn run(scenario: &Scenario, progress: &mut dyn FnMut(f64)) -> Result<Output>
                     max_penetration = max_penetration.max(p);
                 }
             }
+        }
+        if let (Some(observe), Some(ws)) = (observe.as_mut(), shape.as_mut()) {
+            ws.evaluate(&model, &state);
+            observe(Snapshot {
+                k,
+                t: k as f64 * period,
+                nodes: ws.nodes(),
+            });
         }
         rows.push(sample(
             &state,

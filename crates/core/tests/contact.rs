@@ -155,3 +155,51 @@ fn sample_rates_above_a_megahertz_are_refused() {
     sc.duration = 1e-3;
     assert!(sim::run(&sc, &mut |_| {}).is_ok());
 }
+
+#[test]
+fn an_observed_run_shows_every_sample_and_gives_the_same_output() {
+    let mut sc = Scenario {
+        duration: 0.05,
+        ..Scenario::default()
+    };
+    sc.objects.push(vibrissa_core::scenes::e2_box(0.02, 0.6));
+    sc.process_noise = 2e-5;
+    let plain = sim::run(&sc, &mut |_| {}).unwrap();
+    let mut shapes: Vec<(usize, f64, Vec<[f64; 2]>)> = Vec::new();
+    let observed = sim::run_observed(
+        &sc,
+        &mut |_| {},
+        Some(&mut |s: sim::Snapshot<'_>| shapes.push((s.k, s.t, s.nodes.to_vec()))),
+    )
+    .unwrap();
+    // The same bits (NaN where nothing is touched, so compared as bits).
+    let bits =
+        |o: &sim::Output| -> Vec<u64> { o.rows.iter().flatten().map(|x| x.to_bits()).collect() };
+    assert_eq!(bits(&plain), bits(&observed));
+    assert_eq!(
+        (plain.steps, plain.dt, plain.max_penetration),
+        (observed.steps, observed.dt, observed.max_penetration)
+    );
+    assert_eq!(shapes.len(), plain.rows.len());
+    let length = sc.whisker.length;
+    for (k, (index, t, nodes)) in shapes.iter().enumerate() {
+        assert_eq!((*index, *t), (k, plain.rows[k][0]));
+        assert_eq!(nodes.len(), plain.segments + 1);
+        // The base stays at the origin; the chain keeps its length.
+        assert!(nodes[0][0].abs() < 1e-12 && nodes[0][1].abs() < 1e-12);
+        let chain: f64 = nodes
+            .windows(2)
+            .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
+            .sum();
+        assert!(
+            (chain - length).abs() < 1e-3 * length,
+            "{chain} vs {length}"
+        );
+    }
+    // At rest the tip lies on +x; in contact the box has pushed it up.
+    let tip = |k: usize| shapes[k].2[plain.segments];
+    assert!(tip(0)[1].abs() < 1e-4 * length && tip(0)[0] > 0.9 * length);
+    let touching = plain.rows.iter().position(|r| r[6] > 0.5).expect("contact");
+    let later = (touching + 5).min(shapes.len() - 1);
+    assert!(tip(later)[1] > 1e-3 * length, "{:?}", tip(later));
+}

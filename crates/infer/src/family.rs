@@ -358,6 +358,36 @@ impl Family {
         noise: &Noise,
         seed: u64,
     ) -> Result<Sample> {
+        let s = self.recording_scenario(p, delay, noise, seed)?;
+        let out = sim::run(&s, &mut |_| {}).map_err(|source| self.run_error(p, source))?;
+        // Columns 1..=5 of the contract's rows are the observed channels.
+        let series = (0..CHANNELS.len())
+            .map(|c| out.rows.iter().map(|r| r[c + 1]).collect())
+            .collect();
+        Ok(Sample {
+            series,
+            params: p.to_vec(),
+        })
+    }
+
+    /// The error of a failed run at `p`, naming its parameters.
+    pub fn run_error(&self, p: &[f64], source: vibrissa_core::Error) -> Error {
+        Error::Run {
+            params: self.describe(p),
+            source,
+        }
+    }
+
+    /// The scenario that [`Family::simulate_delayed`] runs: the run at `p` with its randomised
+    /// whisker and sensors (if any), recorded from `delay` seconds early, with `noise`, seeded by
+    /// `seed`.
+    pub fn recording_scenario(
+        &self,
+        p: &[f64],
+        delay: f64,
+        noise: &Noise,
+        seed: u64,
+    ) -> Result<Scenario> {
         let mut s = self.scenario(p)?;
         if let Some(around) = &self.randomised {
             around.apply(&mut s, seed);
@@ -393,18 +423,12 @@ impl Family {
             fy,
         };
         s.seed = seed;
-        let out = sim::run(&s, &mut |_| {}).map_err(|source| Error::Run {
-            params: self.describe(p),
-            source,
-        })?;
-        // Columns 1..=5 of the contract's rows are the observed channels.
-        let series = (0..CHANNELS.len())
-            .map(|c| out.rows.iter().map(|r| r[c + 1]).collect())
-            .collect();
-        Ok(Sample {
-            series,
-            params: p.to_vec(),
-        })
+        Ok(s)
+    }
+
+    /// The seed of run `k` of [`Family::simulate_all`] seeded by `seed`.
+    pub fn run_seed(seed: u64, k: usize) -> u64 {
+        Rng::stream(seed, k as u64).next_u64()
     }
 
     /// Simulates every run of `params` in parallel; run `k` is seeded by stream `k` of `seed`.
@@ -420,8 +444,7 @@ impl Family {
             .par_iter()
             .enumerate()
             .map(|(k, p)| {
-                let run_seed = Rng::stream(seed, k as u64).next_u64();
-                let s = self.simulate(p, noise, run_seed);
+                let s = self.simulate(p, noise, Family::run_seed(seed, k));
                 tick();
                 s
             })

@@ -126,8 +126,22 @@ fn fed_one_sample_at_a_time_the_filter_gives_the_same_bits_as_on_a_whole_recordi
     let mut online = pf::Filter::new(&config, 1e-3).unwrap();
     for (k, &t) in obs.t.iter().enumerate() {
         let y: [f64; 5] = std::array::from_fn(|c| obs.values[c][k]);
-        let row = online.update(t, &y).unwrap();
-        assert_eq!(row, &whole.trace[k], "sample {k}");
+        let row = online.update(t, &y).unwrap().clone();
+        assert_eq!(&row, &whole.trace[k], "sample {k}");
+        // The cloud, read after every sample, is the one the posterior summarises.
+        let cloud = online.particles();
+        assert_eq!(cloud.unknowns, ["d", "v"]);
+        assert_eq!(cloud.weights.len(), 200);
+        assert!((cloud.weights.iter().sum::<f64>() - 1.0).abs() < 1e-9);
+        for (u, values) in cloud.values.iter().enumerate() {
+            let mean: f64 = values.iter().zip(&cloud.weights).map(|(x, w)| x * w).sum();
+            let reported = row.estimates[u].mean;
+            assert!(
+                (mean - reported).abs() <= 1e-9 * reported.abs().max(1.0),
+                "sample {k}, {}: {mean} vs {reported}",
+                cloud.unknowns[u]
+            );
+        }
         if k == 30 {
             // A sample out of step is refused and leaves the filter as it was.
             let e = online.update(t + 0.5e-3, &y).unwrap_err().to_string();

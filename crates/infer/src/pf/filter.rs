@@ -53,6 +53,17 @@ pub fn run(
     Ok(filter.finish())
 }
 
+/// The particle cloud of a [`Filter`] after a sample ([`Filter::particles`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Particles {
+    /// Names of the free unknowns.
+    pub unknowns: Vec<&'static str>,
+    /// `[unknowns][particles]`: each particle's value of each free unknown, SI.
+    pub values: Vec<Vec<f64>>,
+    /// Normalised weight of each particle.
+    pub weights: Vec<f64>,
+}
+
 /// The particle filter as a running object, fed one sample at a time (online use: on a robot,
 /// each sample as it arrives). [`run`] feeds it a whole recording.
 pub struct Filter {
@@ -183,6 +194,36 @@ impl Filter {
     /// The posterior so far (its trace holds one row per sample).
     pub fn posterior(&self) -> &Posterior {
         &self.post
+    }
+
+    /// The particles after the last sample: their values of the free unknowns (in the order
+    /// of [`Posterior`]'s estimates) and their normalised weights. Reading them changes nothing
+    /// (for plots of the cloud as it evolves).
+    pub fn particles(&self) -> Particles {
+        let values = self
+            .free
+            .iter()
+            .map(|&p| {
+                self.objs
+                    .iter()
+                    .map(|o| param(o, p, self.config.gap))
+                    .collect()
+            })
+            .collect();
+        let weights = match &self.last {
+            Some((_, w)) => w.clone(),
+            None => {
+                let max = self.logw.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+                let w: Vec<f64> = self.logw.iter().map(|l| (l - max).exp()).collect();
+                let total: f64 = w.iter().sum();
+                w.iter().map(|x| x / total).collect()
+            }
+        };
+        Particles {
+            unknowns: self.config.unknowns(),
+            values,
+            weights,
+        }
     }
 
     /// The posterior after the last sample, with the share of particle-samples on the

@@ -36,7 +36,7 @@ mod sampling;
 mod transition;
 
 pub use config::{coarse_segments, Config, Injection, Prior, PARAMS};
-pub use filter::{run, Filter};
+pub use filter::{run, Filter, Particles};
 pub use likelihood::{
     noise_from_series, observation_sigma, temper_for, TransitionModel, FINE_TEMPER, MODEL_ERROR,
     TRANSITION_MODELS, UNKNOWN_START_TEMPER,
