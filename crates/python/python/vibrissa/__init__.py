@@ -24,6 +24,7 @@ __all__ = [
     "simulate",
     "sweep",
     "estimate",
+    "calibrate",
     "methods",
     "Filter",
     "SweepError",
@@ -311,6 +312,80 @@ def estimate(
         ]
         out.append(row)
     return out if several else out[0]
+
+
+def calibrate(
+    scenario,
+    labelled,
+    out=None,
+    *,
+    ignore_unlisted=False,
+    gain_prior=None,
+    max_iterations=None,
+    verbose=False,
+    overrides=None,
+    **keys,
+):
+    """Fit the whisker and sensors of a nominal scenario to labelled recordings, as
+    ``vibrissa calibrate`` does.
+
+    >>> fit = vibrissa.calibrate("nominal.toml", "strikes/", out="fitted.toml")
+    >>> [(p["key"], p["value"], p["std_error"]) for p in fit["parameters"] if p["determined"]]
+    >>> vibrissa.estimate("strike.csv", "fitted.toml", method="krr-local")
+
+    Parameters
+    ----------
+    scenario : str or os.PathLike
+        The nominal scenario: what you believe of your whisker, its sensors and the experiment.
+    labelled : str or os.PathLike
+        A folder of recordings (CSV) with ``truth.csv``: a ``file`` column, then one column per
+        label named by its scenario key (``file,d,v``), SI units.
+    out : str or os.PathLike, optional
+        Where the fitted scenario (TOML) goes; written only when the fit succeeds.
+    ignore_unlisted : bool
+        Skip CSV files of the folder that ``truth.csv`` does not name (otherwise an error).
+    gain_prior : float, optional
+        The sensors' gains' relative prior standard deviation about the nominal's (0.1 = known
+        to 10%; 0 = none). Default: the command line's.
+    max_iterations : int, optional
+        Most Levenberg–Marquardt iterations of one fit. Default: the command line's.
+    verbose : bool
+        Print the fit's stages as they pass.
+    overrides, **keys
+        Overrides of the nominal scenario, as for :func:`simulate`.
+
+    Returns
+    -------
+    dict
+        The command line's ``--json`` report: ``parameters`` (per parameter ``key``, ``unit``,
+        ``nominal``, ``value``, ``std_error``, ``determined``, ``note``), ``channels`` (residual
+        RMS before and after, noise), ``recordings``, ``iterations``, ``fits``, ``simulations``,
+        ``seconds``; plus ``overrides`` (the ``key=value`` texts that make the nominal the fitted
+        scenario) and ``scenario``, the fitted scenario's TOML text.
+    """
+    if gain_prior is not None:
+        gain_prior = _number("gain_prior", gain_prior)
+    if max_iterations is not None:
+        max_iterations = _count("max_iterations", max_iterations, 1)
+    if not isinstance(labelled, (str, os.PathLike)):
+        raise TypeError(f"labelled: expected a folder's path, not {type(labelled).__name__}")
+    if out is not None and not isinstance(out, (str, os.PathLike)):
+        raise TypeError(f"out: expected a file's path, not {type(out).__name__}")
+    report, stages = _vibrissa.calibrate(
+        _scenario(scenario),
+        _overrides(overrides, keys),
+        os.fspath(labelled),
+        None if out is None else os.fspath(out),
+        bool(ignore_unlisted),
+        gain_prior,
+        max_iterations,
+    )
+    if verbose:
+        import sys
+
+        for s in stages:
+            print(s, file=sys.stderr)
+    return json.loads(report)
 
 
 def _count(name, value, least):

@@ -15,6 +15,18 @@ Recording = Union[str, os.PathLike[str], Mapping[str, npt.ArrayLike], Any]
 
 def builtins() -> list[str]: ...
 def methods() -> list[str]: ...
+def calibrate(
+    scenario: Union[str, os.PathLike[str]],
+    labelled: Union[str, os.PathLike[str]],
+    out: Union[str, os.PathLike[str], None] = None,
+    *,
+    ignore_unlisted: bool = False,
+    gain_prior: float | None = None,
+    max_iterations: int | None = None,
+    verbose: bool = False,
+    overrides: Mapping[str, Value] | None = None,
+    **keys: Value,
+) -> dict[str, Any]: ...
 
 Grid = Union[Mapping[str, Union[str, Sequence[Value]]], Sequence[str], None]
 

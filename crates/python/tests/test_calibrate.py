@@ -1,0 +1,56 @@
+"""vibrissa.calibrate against the command line's `vibrissa calibrate`, and its errors."""
+
+import json
+import subprocess
+
+import pytest
+
+import vibrissa
+from test_filter import write_csv
+from test_simulate import cli
+
+
+@pytest.fixture(scope="module")
+def labelled(tmp_path_factory):
+    """Two e1 strikes of a whisker stiffer than the nominal's (E = 3.4 GPa, not 3.0)."""
+    folder = tmp_path_factory.mktemp("labelled")
+    rows = ["file,d"]
+    for k, d in enumerate([0.017, 0.026]):
+        write_csv(folder / f"r{k}.csv", vibrissa.simulate("e1", d=d, whisker__youngs_modulus=3.4e9))
+        rows.append(f"r{k}.csv,{d}")
+    (folder / "truth.csv").write_text("\n".join(rows) + "\n")
+    return folder
+
+
+def test_the_fit_and_the_fitted_file_are_the_command_line_s(labelled, tmp_path):
+    mine = vibrissa.calibrate("e1", labelled, out=tmp_path / "py.toml")
+    out = subprocess.run(
+        [cli(), "calibrate", "--scenario", "e1", "--labelled", labelled, "--out",
+         tmp_path / "cli.toml", "--json"],
+        check=True, capture_output=True, text=True,
+    )
+    theirs = json.loads(out.stdout)
+    assert mine["parameters"] == theirs["parameters"]
+    assert mine["channels"] == theirs["channels"]
+    assert (tmp_path / "py.toml").read_text() == (tmp_path / "cli.toml").read_text()
+    assert mine["scenario"] == (tmp_path / "py.toml").read_text()
+    modulus = next(p for p in mine["parameters"] if p["key"] == "whisker.youngs_modulus")
+    assert modulus["determined"] and modulus["value"] > 3.0e9
+    # The fitted file is a scenario every function takes.
+    est = vibrissa.estimate(labelled / "r0.csv", tmp_path / "py.toml", method="krr-local",
+                            noise="none")
+    assert abs(est["d"]["mean"] - 0.017) < 1e-3
+
+
+def test_bad_input_raises_and_writes_nothing(labelled, tmp_path):
+    with pytest.raises(ValueError, match="ending in .toml"):
+        vibrissa.calibrate("e1", labelled, out=tmp_path / "fitted.txt")
+    with pytest.raises(ValueError, match="truth.csv"):
+        vibrissa.calibrate("e1", tmp_path, out=tmp_path / "fitted.toml")
+    with pytest.raises(ValueError, match="did not converge"):
+        vibrissa.calibrate("e1", labelled, out=tmp_path / "fitted.toml", max_iterations=1)
+    assert not (tmp_path / "fitted.toml").exists()
+    with pytest.raises(ValueError, match="max_iterations = 0"):
+        vibrissa.calibrate("e1", labelled, max_iterations=0)
+    with pytest.raises(TypeError, match="labelled"):
+        vibrissa.calibrate("e1", 3)
