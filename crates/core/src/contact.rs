@@ -309,6 +309,10 @@ pub(crate) fn solve(
     // Narrow phase: candidates.
     let mut count = 0usize;
     for (k, obj) in inputs.objects.iter().enumerate() {
+        // An object out of the whisker's plane at the end of the step cannot hold it.
+        if !obj.in_plane(t_end) {
+            continue;
+        }
         // Features are found with the object where it starts the step, so that a fast object
         // cannot jump past a feature of the whisker (its tip) within one step; its motion over the
         // step enters the end-of-step gap.

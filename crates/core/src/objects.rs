@@ -131,9 +131,52 @@ pub struct Object {
     pub motion: Motion,
     /// Coulomb friction coefficient against the whisker.
     pub friction: f64,
+    /// The object's extent across the whisker's plane and its motion across it (`None`: a
+    /// prism through the plane, always cut by it).
+    pub vertical: Option<Vertical>,
+}
+
+/// An object's extent normal to the whisker's plane (z, the plane at z = 0) and its constant
+/// speed along z. The whisker can touch the object only while the plane cuts it:
+/// `bottom + velocity·t ≤ 0 ≤ top + velocity·t`. An object that lifts out of the plane during
+/// contact releases the whisker at once (the seed paper's plucking).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Vertical {
+    /// z of the object's bottom at t = 0, m.
+    pub bottom: f64,
+    /// z of its top at t = 0, m.
+    pub top: f64,
+    /// Its speed along z, m/s.
+    #[serde(default)]
+    pub velocity: f64,
+}
+
+impl Vertical {
+    /// Whether the plane z = 0 cuts the object at time `t`.
+    pub fn cuts_plane(&self, t: f64) -> bool {
+        let dz = self.velocity * t;
+        self.bottom + dz <= 0.0 && 0.0 <= self.top + dz
+    }
+
+    /// The interval of times in which the plane cuts the object (`None`: never).
+    pub fn in_plane(&self) -> Option<[f64; 2]> {
+        if self.velocity == 0.0 {
+            return self
+                .cuts_plane(0.0)
+                .then_some([f64::NEG_INFINITY, f64::INFINITY]);
+        }
+        let (a, b) = (-self.top / self.velocity, -self.bottom / self.velocity);
+        Some([a.min(b), a.max(b)])
+    }
 }
 
 impl Object {
+    /// Whether the whisker's plane cuts the object at time `t` (so that they can touch).
+    pub fn in_plane(&self, t: f64) -> bool {
+        self.vertical.is_none_or(|v| v.cuts_plane(t))
+    }
+
     /// The object's pose at time `t`.
     pub fn pose(&self, t: f64) -> Pose {
         match &self.motion {
@@ -217,6 +260,25 @@ impl Object {
         finite("position[0]", self.position[0])?;
         finite("position[1]", self.position[1])?;
         finite("angle", self.angle)?;
+        if let Some(v) = &self.vertical {
+            finite("vertical.bottom", v.bottom)?;
+            finite("vertical.top", v.top)?;
+            finite("vertical.velocity", v.velocity)?;
+            if v.top <= v.bottom {
+                return Err(Error::invalid(
+                    format!("{name}.vertical.top"),
+                    v.top,
+                    format!("a height above the bottom ({} m)", v.bottom),
+                ));
+            }
+            if v.velocity.abs() > MAX_SPEED {
+                return Err(Error::invalid(
+                    format!("{name}.vertical.velocity"),
+                    v.velocity,
+                    format!("a speed of at most {MAX_SPEED} m/s (in m/s, not mm/s)"),
+                ));
+            }
+        }
         if !(self.friction.is_finite() && self.friction >= 0.0) {
             return Err(Error::invalid(
                 format!("{name}.friction"),
@@ -1284,6 +1346,7 @@ mod tests {
             angle: 0.5,
             motion,
             friction: 0.3,
+            vertical: None,
         }
     }
 

@@ -22,6 +22,7 @@ pub fn peg(x: f64, y: f64, radius: f64, friction: f64) -> Object {
         angle: 0.0,
         motion: Motion::default(),
         friction,
+        vertical: None,
     }
 }
 
@@ -40,6 +41,7 @@ pub fn e2_box(d: f64, v: f64) -> Object {
             angular_velocity: 0.0,
         },
         friction: 0.0,
+        vertical: None,
     }
 }
 
@@ -278,6 +280,7 @@ pub fn press_and_shear(mu: f64, mut each: impl FnMut(f64, &State)) -> Result<Cou
             ],
         },
         friction: mu,
+        vertical: None,
     };
     let objects = [plate];
     let st = Integrator::with_dt(1e-4).check()?;

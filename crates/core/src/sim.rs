@@ -539,7 +539,7 @@ pub fn run_observed(
         objects: &scenario.objects,
     };
     initialize(&model, &mut state, &inputs, &mut ws)?;
-    check_clear(&model, &ws, &scenario.objects)?;
+    check_clear(&model, &ws, &scenario.objects, 0.0)?;
 
     let mut sensor_rng = Rng::stream(scenario.seed, 1);
     let mut rows = Vec::with_capacity(samples);
@@ -551,9 +551,14 @@ pub fn run_observed(
             for j in 1..=per_sample {
                 let t = ((k - 1) * per_sample + j) as f64 * stepper.dt;
                 inputs.base = scenario.base.at(t);
+                let entering = entering(&scenario.objects, state.t, t);
                 step(&model, &stepper, &mut state, &inputs, &mut ws)
                     .map_err(|e| explain_divergence(e, scenario, stepper.dt))?;
                 steps += 1;
+                if entering {
+                    ws.evaluate(&model, &state);
+                    check_clear(&model, &ws, &scenario.objects, state.t)?;
+                }
                 if state.contact.is_some() {
                     let p = penetration(&model, &state, &mut ws, &scenario.objects);
                     max_penetration = max_penetration.max(p);
@@ -629,23 +634,45 @@ fn sample(
     [t, theta01, theta12, m0, fx, fy, contact, cx, cy, arc]
 }
 
-/// Refuses objects that overlap the whisker at t = 0.
-fn check_clear(model: &Model, ws: &Workspace, objects: &[Object]) -> Result<()> {
+/// Whether an object enters the whisker's plane within the step from `t0` to `t1`.
+fn entering(objects: &[Object], t0: f64, t1: f64) -> bool {
+    objects.iter().any(|o| !o.in_plane(t0) && o.in_plane(t1))
+}
+
+/// Refuses objects in the whisker's plane that overlap the whisker at time `t` (the start, or
+/// when an object enters the plane: a planar whisker cannot be struck from out of its plane).
+fn check_clear(model: &Model, ws: &Workspace, objects: &[Object], t: f64) -> Result<()> {
     for (k, o) in objects.iter().enumerate() {
-        let pose = o.pose(0.0);
+        if !o.in_plane(t) {
+            continue;
+        }
+        let pose = o.pose(t);
         for i in 0..model.n {
             let nodes = ws.nodes();
             let c = closest(&o.shape, &pose, nodes[i], nodes[i + 1]);
             let r = model.radius[i] + c.u * (model.radius[i + 1] - model.radius[i]);
             if c.distance < r {
-                return Err(Error::invalid(
-                    format!("objects[{k}]"),
-                    format!(
-                        "an object overlapping the whisker at t = 0 (segment {i}, gap {:.3e} m)",
-                        c.distance - r
-                    ),
-                    "objects clear of the whisker's surface at t = 0",
-                ));
+                return Err(if t == 0.0 {
+                    Error::invalid(
+                        format!("objects[{k}]"),
+                        format!(
+                            "an object overlapping the whisker at t = 0 (segment {i}, gap {:.3e} m)",
+                            c.distance - r
+                        ),
+                        "objects clear of the whisker's surface at t = 0",
+                    )
+                } else {
+                    Error::invalid(
+                        format!("objects[{k}].vertical"),
+                        format!(
+                            "an object entering the whisker's plane on the whisker at t = {t:.4} \
+                             s (segment {i}, gap {:.3e} m)",
+                            c.distance - r
+                        ),
+                        "objects that enter the plane clear of the whisker (a planar whisker \
+                         cannot be struck from above or below)",
+                    )
+                });
             }
         }
     }
@@ -658,7 +685,7 @@ pub fn penetration(model: &Model, state: &State, ws: &mut Workspace, objects: &[
     ws.evaluate(model, state);
     let nodes = ws.nodes();
     let mut worst = 0.0f64;
-    for o in objects {
+    for o in objects.iter().filter(|o| o.in_plane(state.t)) {
         let pose = o.pose(state.t);
         for i in 0..model.n {
             let c = closest(&o.shape, &pose, nodes[i], nodes[i + 1]);

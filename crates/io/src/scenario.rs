@@ -289,6 +289,7 @@ pub fn experiment_box(d: f64, v: f64) -> Object {
             angular_velocity: 0.0,
         },
         friction: 0.0,
+        vertical: None,
     }
 }
 

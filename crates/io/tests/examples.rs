@@ -28,6 +28,7 @@ fn every_example_loads() {
         "wall_ramp",
         "polygon_friction",
         "rat_curved",
+        "pluck",
     ] {
         assert!(
             names.iter().any(|n| n == expected),

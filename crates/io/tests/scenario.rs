@@ -789,3 +789,39 @@ fn the_experiment_box_must_lie_beyond_the_base() {
     }
     assert!(load_full("e2", &sets(&["d=0.0005"])).is_ok());
 }
+
+#[test]
+fn objects_may_cross_the_whisker_s_plane() {
+    let s = load_str(
+        "[[objects]]\nshape = \"box\"\nwidth = 0.01\nheight = 0.01\nposition = [0.025, -0.006]\n\
+         velocity = [0.0, 0.6]\nvertical = { bottom = -0.0035, top = 0.01, velocity = 0.1 }\n",
+        "test.toml",
+        &[],
+    )
+    .unwrap();
+    let v = s.objects[0].vertical.unwrap();
+    assert_eq!((v.bottom, v.top, v.velocity), (-0.0035, 0.01, 0.1));
+    assert!(s.objects[0].in_plane(0.0349) && !s.objects[0].in_plane(0.0351));
+    // Without a speed it stays where it is; an unknown key or a top below the bottom is named.
+    let s = load_str(
+        "[[objects]]\nshape = \"circle\"\nradius = 0.001\nposition = [0.02, 0.004]\n\
+         vertical = { bottom = -0.01, top = 0.01 }\n",
+        "test.toml",
+        &[],
+    )
+    .unwrap();
+    assert_eq!(s.objects[0].vertical.unwrap().velocity, 0.0);
+    let base = "[[objects]]\nshape = \"circle\"\nradius = 0.001\nposition = [0.02, 0.004]\n";
+    let e = load_err(
+        &format!("{base}vertical = {{ bottom = 0.0, top = 0.01, speed = 1.0 }}\n"),
+        &[],
+    );
+    assert!(e.contains("speed"), "{e}");
+    let e = load_err(
+        &format!("{base}vertical = {{ bottom = 0.01, top = 0.0 }}\n"),
+        &[],
+    );
+    assert!(e.contains("objects[0].vertical.top"), "{e}");
+    let e = load_err(base, &["objects.0.vertical.bottom=1"]);
+    assert!(e.contains("vertical"), "{e}");
+}

@@ -30,6 +30,7 @@ fn object_of(o: &ObjState) -> Object {
             angular_velocity: 0.0,
         },
         friction: mu,
+        vertical: None,
     }
 }
 

@@ -159,6 +159,7 @@ struct ObjectTable {
     velocity: Option<[f64; 2]>,
     angular_velocity: Option<f64>,
     waypoints: Option<Vec<[f64; 4]>>,
+    vertical: Option<vibrissa_core::objects::Vertical>,
 }
 
 #[derive(Debug, Clone, Copy, Deserialize)]
@@ -577,6 +578,7 @@ impl ObjectTable {
             angle,
             motion,
             friction: self.friction.unwrap_or(0.0),
+            vertical: self.vertical,
         })
     }
 }
