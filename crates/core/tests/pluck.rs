@@ -45,12 +45,7 @@ fn a_box_lifted_away_releases_the_whisker_which_rings_at_its_first_mode() {
         }
     }
     // In contact just before, free from the first sample after it, for good.
-    let before = plucked
-        .rows
-        .iter()
-        .filter(|r| t(r) < lift)
-        .next_back()
-        .unwrap();
+    let before = plucked.rows.iter().rfind(|r| t(r) < lift).unwrap();
     assert!(contact(before), "no contact at t = {}", t(before));
     assert!(plucked
         .rows
