@@ -194,8 +194,11 @@ fn draw_frame(
         } else {
             (OBJECT, OBJECT_EDGE)
         };
-        root.draw(&Polygon::new(points.clone(), fill.filled()))
-            .map_err(plotting)?;
+        // An object out of the whisker's plane (above or below it) is drawn as an outline only.
+        if o.in_plane(t) {
+            root.draw(&Polygon::new(points.clone(), fill.filled()))
+                .map_err(plotting)?;
+        }
         let mut closed = points;
         closed.push(first);
         root.draw(&PathElement::new(closed, edge.stroke_width(2)))
