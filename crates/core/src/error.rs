@@ -31,6 +31,14 @@ pub enum Error {
         /// Residual, iterations, hint.
         detail: String,
     },
+    /// A whisker of an array failed.
+    #[error("whisker `{name}`: {detail}")]
+    Whisker {
+        /// The whisker's name.
+        name: String,
+        /// What went wrong.
+        detail: String,
+    },
 }
 
 impl Error {

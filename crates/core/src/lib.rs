@@ -9,6 +9,7 @@
 //! - [`batch`]: many states stepped in parallel against one model.
 #![warn(missing_docs)]
 
+pub mod array;
 pub mod batch;
 pub mod beam;
 pub mod chain;
