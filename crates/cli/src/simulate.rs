@@ -73,6 +73,9 @@ pub fn run(args: &Args) -> Result<()> {
 
     // Load and run, with progress on standard error for long runs.
     let loaded = scenario::load_full(&args.scenario, &args.sets)?;
+    if !loaded.whiskers.is_empty() {
+        return run_array(args, &loaded);
+    }
     let start = Instant::now();
     let mut progress = Progress::fraction(PROGRESS_DELAY);
     let (output, frames) = match &args.animate {
@@ -329,6 +332,83 @@ impl ContactSummary {
             samples,
             intervals,
         })
+    }
+}
+
+/// Runs and writes a scenario with an array of whiskers, then prints each whisker's contacts.
+fn run_array(args: &Args, loaded: &Loaded) -> Result<()> {
+    if args.plot.is_some() || args.animate.is_some() {
+        bail!(
+            "{}: --plot and --animate draw one whisker; this scenario has an array of {} \
+             (simulate each alone by giving it as the only entry of [[whiskers]])",
+            loaded.origin,
+            loaded.whiskers.len()
+        );
+    }
+    let start = Instant::now();
+    let (series, outputs) = vibrissa_io::sweep::run_series(loaded, &args.scenario, &args.sets)?;
+    let seconds = start.elapsed().as_secs_f64();
+    series::write(&series, &args.out)?;
+    let summary = ArraySummary {
+        scenario: args.scenario.clone(),
+        out: args.out.display().to_string(),
+        sidecar: series::sidecar_path(&args.out).display().to_string(),
+        samples: series.rows(),
+        whiskers: loaded
+            .whiskers
+            .iter()
+            .zip(&outputs)
+            .map(|(m, o)| WhiskerSummary {
+                name: m.name.clone(),
+                steps: o.steps,
+                contact: ContactSummary::of(&o.rows),
+                max_penetration: o.max_penetration,
+            })
+            .collect(),
+        seconds,
+    };
+    args.format.format().print(&summary)?;
+    Ok(())
+}
+
+/// What `vibrissa simulate` prints for an array of whiskers.
+#[derive(Debug, Serialize)]
+struct ArraySummary {
+    scenario: String,
+    out: String,
+    sidecar: String,
+    samples: usize,
+    whiskers: Vec<WhiskerSummary>,
+    seconds: f64,
+}
+
+/// One whisker of an array's run.
+#[derive(Debug, Serialize)]
+struct WhiskerSummary {
+    name: String,
+    steps: usize,
+    contact: Option<ContactSummary>,
+    max_penetration: f64,
+}
+
+impl Render for ArraySummary {
+    fn render(&self, out: &mut dyn Write) -> io::Result<()> {
+        writeln!(
+            out,
+            "simulated {} ({} whiskers, {} samples each) in {:.3} s",
+            self.scenario,
+            self.whiskers.len(),
+            self.samples,
+            self.seconds
+        )?;
+        for w in &self.whiskers {
+            let contact = match &w.contact {
+                Some(c) => intervals_text(&c.intervals),
+                None => "no contact".to_string(),
+            };
+            writeln!(out, "  {:10} {contact}", w.name)?;
+        }
+        writeln!(out, "  wrote      {}, {}", self.out, self.sidecar)
     }
 }
 

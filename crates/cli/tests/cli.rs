@@ -594,3 +594,79 @@ fn bench_pf_reports_the_real_time_factor_per_particle_count() {
     assert!(!bad.status.success());
     assert!(stderr(&bad).contains("at least 1"), "{}", stderr(&bad));
 }
+
+#[test]
+fn simulate_writes_an_array_s_columns_per_whisker() {
+    let dir = Scratch::new("array");
+    let example = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../examples/scenarios/array_row.toml"
+    );
+    let out = dir.path().join("row.csv");
+    let run = vibrissa(&[
+        "simulate",
+        example,
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let summary = json(&run);
+    assert_eq!(summary["whiskers"].as_array().unwrap().len(), 3);
+    let (header, rows) = csv_rows(&out);
+    let names: Vec<&str> = header.split(',').collect();
+    assert_eq!(names.len(), 1 + 3 * 9);
+    assert_eq!(&names[..3], ["t", "c1.theta01", "c1.theta12"]);
+    assert_eq!(names[19], "c3.theta01");
+    let meta: Value =
+        serde_json::from_str(&fs::read_to_string(dir.path().join("row.json")).unwrap()).unwrap();
+    assert_eq!(meta["meta"]["whiskers"], "c1 c2 c3");
+
+    // c1 sits at the origin with the scenario's whisker: its columns are the single-whisker run
+    // of the same box.
+    let single = dir.path().join("single.toml");
+    let text = fs::read_to_string(example).unwrap();
+    let objects = &text[text.find("[[objects]]").unwrap()..];
+    fs::write(
+        &single,
+        format!("duration = 0.1\n[whisker]\npreset = \"w30\"\n{objects}"),
+    )
+    .unwrap();
+    let one = dir.path().join("one.csv");
+    let run = vibrissa(&[
+        "simulate",
+        single.to_str().unwrap(),
+        "--out",
+        one.to_str().unwrap(),
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let (_, one_rows) = csv_rows(&one);
+    for (a, b) in rows.iter().zip(&one_rows) {
+        for c in 0..10 {
+            assert!(
+                a[c] == b[c] || (a[c].is_nan() && b[c].is_nan()),
+                "{a:?} {b:?}"
+            );
+        }
+    }
+    // c3, the shortest and farthest, is struck last.
+    let first = |k: usize| rows.iter().position(|r| r[k] == 1.0).unwrap();
+    assert!(first(6) < first(15) && first(15) < first(24));
+
+    // A figure of an array is refused before anything is written.
+    let refused = vibrissa(&[
+        "simulate",
+        example,
+        "--out",
+        dir.path().join("x.csv").to_str().unwrap(),
+        "--plot",
+        dir.path().join("x.png").to_str().unwrap(),
+    ]);
+    assert_refused(&refused);
+    assert!(
+        stderr(&refused).contains("draw one whisker"),
+        "{}",
+        stderr(&refused)
+    );
+    assert!(!dir.path().join("x.csv").exists());
+}

@@ -199,6 +199,9 @@ pub struct Loaded {
     /// Estimators take a stated channel's noise as given and estimate the others from the
     /// recordings.
     pub stated_sensor_noise: [Option<f64>; 5],
+    /// The file's `[[whiskers]]`: an array of whiskers, each run in its own frame against the
+    /// objects (empty: the one whisker of `scenario`, at the origin).
+    pub whiskers: Vec<vibrissa_core::array::Mount>,
 }
 
 /// TOML text of the built-in `e1`.

@@ -47,6 +47,53 @@ pub fn series_of(loaded: &Loaded, output: &Output, spec: &str, sets: &[String]) 
     series
 }
 
+/// The series of a run of a whisker array (see [`vibrissa_core::array`]): the shared `t`, then
+/// every other column of each whisker prefixed with its name and a dot (`c1.theta01`, ...,
+/// `c2.theta01`, ...), and the metadata of [`series_of`] (segments, dt and steps of the first
+/// whisker's chain; they are the same for all) with the whiskers' names.
+pub fn array_series_of(loaded: &Loaded, outputs: &[Output], spec: &str, sets: &[String]) -> Series {
+    let mut columns = vec!["t".to_string()];
+    for m in &loaded.whiskers {
+        columns.extend(COLUMNS[1..].iter().map(|c| format!("{}.{c}", m.name)));
+    }
+    let mut series = Series::new(&columns);
+    let rows = outputs.first().map_or(0, |o| o.rows.len());
+    let mut row = Vec::with_capacity(columns.len());
+    for k in 0..rows {
+        row.clear();
+        row.push(outputs[0].rows[k][0]);
+        for o in outputs {
+            row.extend_from_slice(&o.rows[k][1..]);
+        }
+        series.push_row(&row);
+    }
+    let first = series_of(loaded, &outputs[0], spec, sets);
+    series.meta = first.meta;
+    series.set_meta(
+        "whiskers",
+        loaded
+            .whiskers
+            .iter()
+            .map(|m| m.name.as_str())
+            .collect::<Vec<_>>()
+            .join(" "),
+    );
+    series
+}
+
+/// Runs `loaded` (a single whisker or an array) and its series.
+pub fn run_series(loaded: &Loaded, spec: &str, sets: &[String]) -> Result<(Series, Vec<Output>)> {
+    if loaded.whiskers.is_empty() {
+        let output = sim::run(&loaded.scenario, &mut |_| {})?;
+        let series = series_of(loaded, &output, spec, sets);
+        Ok((series, vec![output]))
+    } else {
+        let outputs = vibrissa_core::array::run(&loaded.scenario, &loaded.whiskers)?;
+        let series = array_series_of(loaded, &outputs, spec, sets);
+        Ok((series, outputs))
+    }
+}
+
 /// The grids of a sweep: `texts` (`key=v1,v2,...` or `key=start:stop:count`), or, when there are
 /// none, the grid of the experiment that the scenario `spec` (with `sets`) names.
 pub fn grids_for(spec: &str, sets: &[String], texts: &[String]) -> Result<Vec<Grid>> {
@@ -108,18 +155,21 @@ impl Job {
 /// Runs one job and writes its series and sidecar; returns its manifest row.
 pub fn run_one(loaded: &Loaded, spec: &str, sets: &[String], job: &Job, dir: &Path) -> Result<Row> {
     let start = Instant::now();
-    let output = sim::run(&loaded.scenario, &mut |_| {})?;
     let all_sets: Vec<String> = sets.iter().cloned().chain(job.sets()).collect();
-    let series = series_of(loaded, &output, spec, &all_sets);
+    let (series, outputs) = run_series(loaded, spec, &all_sets)?;
     series::write(&series, dir.join(&job.file))?;
+    let penetration = outputs
+        .iter()
+        .map(|o| o.max_penetration)
+        .fold(0.0, f64::max);
     Ok(Row {
-        samples: output.rows.len().to_string(),
-        steps: output.steps.to_string(),
+        samples: series.rows().to_string(),
+        steps: outputs.iter().map(|o| o.steps).sum::<usize>().to_string(),
         seconds: format!("{:.6}", start.elapsed().as_secs_f64()),
-        max_penetration: if output.max_penetration == 0.0 {
+        max_penetration: if penetration == 0.0 {
             "0".to_string()
         } else {
-            format!("{:e}", output.max_penetration)
+            format!("{penetration:e}")
         },
     })
 }

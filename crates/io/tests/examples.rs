@@ -29,6 +29,7 @@ fn every_example_loads() {
         "polygon_friction",
         "rat_curved",
         "pluck",
+        "array_row",
     ] {
         assert!(
             names.iter().any(|n| n == expected),

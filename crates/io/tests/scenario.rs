@@ -825,3 +825,39 @@ fn objects_may_cross_the_whisker_s_plane() {
     let e = load_err(base, &["objects.0.vertical.bottom=1"]);
     assert!(e.contains("vertical"), "{e}");
 }
+
+#[test]
+fn an_array_of_whiskers_is_read_and_checked() {
+    let base = "[whisker]\npreset = \"w30\"\n";
+    let text = format!(
+        "{base}[[whiskers]]\nname = \"c1\"\n[[whiskers]]\nname = \"c2\"\nposition = [0.0, 0.004]\n\
+         angle = 0.1\nwhisker = {{ length = 0.025 }}\nbase = {{ kind = \"sinusoid\", amplitude = 0.2, \
+         frequency = 8.0, phase = 0.5, offset = 0.0 }}\n"
+    );
+    let (_, loaded) = scenario::open_str(&text, "test.toml", &[]).unwrap();
+    let w = &loaded.whiskers;
+    assert_eq!(w.len(), 2);
+    assert_eq!(
+        (w[0].name.as_str(), w[0].position, w[0].angle),
+        ("c1", [0.0, 0.0], 0.0)
+    );
+    assert!(w[0].whisker.is_none() && w[0].base.is_none());
+    assert_eq!(w[1].whisker.as_ref().unwrap().length, 0.025);
+    assert!(matches!(w[1].base, Some(BaseDrive::Sinusoid { frequency, .. }) if frequency == 8.0));
+    // Without [[whiskers]] there is no array.
+    assert!(load_full("e2", &[]).unwrap().whiskers.is_empty());
+    // Errors name the field.
+    for (extra, field) in [
+        ("[[whiskers]]\nname = \"c1\"\n[[whiskers]]\nname = \"c1\"\nposition = [0.0, 0.01]\n", "whiskers[1].name"),
+        ("[[whiskers]]\nname = \"a b\"\n", "whiskers[0].name"),
+        ("[[whiskers]]\nname = \"c1\"\n[[whiskers]]\nname = \"c2\"\nposition = [0.015, -0.01]\nangle = 1.57\n", "whiskers[1]"),
+        ("[[whiskers]]\nname = \"c1\"\nreach = 3\n", "reach"),
+        ("[[whiskers]]\nposition = [0.0, 0.0]\n", "name"),
+    ] {
+        let e = match scenario::open_str(&format!("{base}{extra}"), "test.toml", &[]) {
+            Ok(_) => panic!("{extra}: loaded"),
+            Err(e) => e.to_string(),
+        };
+        assert!(e.contains(field), "{field}: {e}");
+    }
+}

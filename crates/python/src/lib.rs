@@ -8,7 +8,6 @@ use numpy::{IntoPyArray, PyReadonlyArray1};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use vibrissa_core::sim::{self, COLUMNS};
 use vibrissa_infer::contract::EstimateRow;
 use vibrissa_infer::experiment::CHANNELS;
 use vibrissa_infer::pf::{self, recording, Pf, TraceRow};
@@ -33,7 +32,7 @@ fn simulate<'py>(
     sets: Vec<String>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let loaded = vibrissa_io::scenario::load_full(scenario, &sets).map_err(value_error)?;
-    run_columns(py, &loaded.scenario)
+    run_columns(py, &loaded, scenario, &sets)
 }
 
 /// The particle filter fed one sample at a time (see `vibrissa.Filter`).
@@ -435,20 +434,25 @@ fn simulate_json<'py>(
     sets: Vec<String>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let text = toml_of_json(json)?;
-    let scenario =
-        vibrissa_io::scenario::load_str(&text, "scenario dict", &sets).map_err(value_error)?;
-    run_columns(py, &scenario)
+    let (_, loaded) =
+        vibrissa_io::scenario::open_str(&text, "scenario dict", &sets).map_err(value_error)?;
+    run_columns(py, &loaded, "scenario dict", &sets)
 }
 
-/// Runs `scenario` with the interpreter released and returns its columns.
-fn run_columns<'py>(py: Python<'py>, scenario: &sim::Scenario) -> PyResult<Bound<'py, PyDict>> {
-    let output = py
-        .detach(|| sim::run(scenario, &mut |_| {}))
+/// Runs `loaded` (one whisker or an array) with the interpreter released and returns its
+/// columns, in the order of the command line's series.
+fn run_columns<'py>(
+    py: Python<'py>,
+    loaded: &vibrissa_io::scenario::Loaded,
+    spec: &str,
+    sets: &[String],
+) -> PyResult<Bound<'py, PyDict>> {
+    let (series, _) = py
+        .detach(|| sweep::run_series(loaded, spec, sets))
         .map_err(value_error)?;
     let columns = PyDict::new(py);
-    for (c, name) in COLUMNS.iter().enumerate() {
-        let values: Vec<f64> = output.rows.iter().map(|r| r[c]).collect();
-        columns.set_item(*name, values.into_pyarray(py))?;
+    for (name, values) in series.columns.iter().zip(series.data) {
+        columns.set_item(name, values.into_pyarray(py))?;
     }
     Ok(columns)
 }

@@ -133,3 +133,12 @@ def test_whole_numbers_stay_whole(tmp_path):
     mine = vibrissa.simulate("e2", segments=10)
     theirs = cli_columns(tmp_path, "e2", "--set", "segments=10")
     assert all(same_bits(mine[c], theirs[c]) for c in vibrissa.COLUMNS)
+
+
+def test_an_array_of_whiskers_gives_each_whisker_s_columns(tmp_path):
+    example = str(ROOT / "examples" / "scenarios" / "array_row.toml")
+    mine = vibrissa.simulate(example)
+    theirs = cli_columns(tmp_path, example)
+    assert list(mine) == list(theirs)
+    assert list(mine)[:3] == ["t", "c1.theta01", "c1.theta12"] and "c3.s" in mine
+    assert all(same_bits(mine[c], theirs[c]) for c in mine)

@@ -42,12 +42,28 @@ pub(super) struct FileTable {
     sensor_noise: Option<SensorNoiseTable>,
     base: Option<BaseTable>,
     objects: Vec<ObjectTable>,
+    whiskers: Vec<MountTable>,
     unknowns: Option<toml::Table>,
     templates: Option<toml::Table>,
     grid: Option<toml::Table>,
     // Sensor gains and offsets, and a calibration's record (calibration.rs).
     sensors: Option<SensorsTable>,
     calibration: Option<Calibration>,
+}
+
+/// `[[whiskers]]`: one whisker of an array.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MountTable {
+    name: String,
+    #[serde(default)]
+    position: [f64; 2],
+    #[serde(default)]
+    angle: f64,
+    /// Overrides of the scenario's `[whisker]` for this whisker.
+    whisker: Option<WhiskerTable>,
+    /// This whisker's base motion instead of the scenario's `[base]`.
+    base: Option<BaseTable>,
 }
 
 /// `[whisker]`: a preset, then overrides of its fields.
@@ -336,6 +352,25 @@ impl FileTable {
             seed: self.seed.unwrap_or(defaults.seed),
         };
         scenario.check().map_err(|e| ctx.invalid(e))?;
+        let whiskers = self
+            .whiskers
+            .into_iter()
+            .map(|m| {
+                Ok(vibrissa_core::array::Mount {
+                    name: m.name,
+                    position: m.position,
+                    angle: m.angle,
+                    whisker: m
+                        .whisker
+                        .map(|w| w.into_params(ctx, scenario.whisker.clone()))
+                        .transpose()?,
+                    base: m.base.map(|b| b.into_drive(ctx)).transpose()?,
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        if !whiskers.is_empty() {
+            vibrissa_core::array::check(&whiskers, &scenario).map_err(|e| ctx.invalid(e))?;
+        }
         if let Some(c) = &self.calibration {
             c.check(ctx)?;
         }
@@ -349,6 +384,7 @@ impl FileTable {
                 .sensor_noise
                 .as_ref()
                 .map_or([None; 5], SensorNoiseTable::stated),
+            whiskers,
         })
     }
 }

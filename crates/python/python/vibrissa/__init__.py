@@ -121,7 +121,9 @@ def simulate(scenario="e2", *, overrides=None, as_frame=False, **keys):
     Returns
     -------
     dict of str to numpy.ndarray, or pandas.DataFrame
-        The columns of :data:`COLUMNS`, one value per output sample, SI units.
+        The columns of :data:`COLUMNS`, one value per output sample, SI units; for a scenario
+        with an array of whiskers (``[[whiskers]]``), ``t`` and each whisker's other columns
+        prefixed with its name (``c1.theta01``, ...).
 
     Raises
     ------
@@ -142,8 +144,8 @@ def simulate(scenario="e2", *, overrides=None, as_frame=False, **keys):
             import pandas
         except ImportError as e:
             raise ImportError("as_frame=True needs pandas: pip install pandas") from e
-        return pandas.DataFrame({name: columns[name] for name in COLUMNS})
-    return {name: columns[name] for name in COLUMNS}
+        return pandas.DataFrame(dict(columns))
+    return dict(columns)
 
 
 def _scenario_args(scenario):

@@ -189,7 +189,7 @@ def sweep(
     ValueError, TypeError
         A malformed grid, an unknown key or value, as the command line's messages.
     """
-    from . import COLUMNS, _count
+    from . import _count
 
     plan = Plan(scenario, grid, out, format, overrides, keys)
     workers = (os.cpu_count() or 1) if jobs is None else _count("jobs", jobs, 1)
@@ -199,7 +199,7 @@ def sweep(
             return {
                 "params": plan.values(k),
                 "file": plan.files[k],
-                "run": {name: columns[name] for name in COLUMNS},
+                "run": dict(columns),
             }
 
         with ThreadPoolExecutor(max_workers=workers) as pool:
