@@ -54,6 +54,10 @@ pub struct Args {
     /// own templates) or `pf`.
     #[arg(long)]
     pub(crate) randomise: bool,
+    /// For recordings of an array of whiskers (columns `c1.theta01`, ...): the whisker whose
+    /// columns are read.
+    #[arg(long, value_name = "NAME")]
+    pub(crate) whisker: Option<String>,
     /// Seed of the training runs.
     #[arg(long, default_value_t = 1)]
     pub(crate) seed: u64,
@@ -251,7 +255,14 @@ pub fn run(args: &Args) -> Result<()> {
     let recordings = args
         .obs
         .iter()
-        .map(|f| read_recording(f, &needs, Reader::Method(probe.name())))
+        .map(|f| {
+            read_recording(
+                f,
+                &needs,
+                Reader::Method(probe.name()),
+                args.whisker.as_deref(),
+            )
+        })
         .collect::<Result<Vec<_>>>()?;
 
     // The sensor noise of every recording, then training once per distinct timing and noise
@@ -497,18 +508,20 @@ pub(crate) fn trained_for<'a>(
 
 /// Reads one recording (see [`Recording::from_series`]), with its sidecar's metadata where
 /// there is one: what is wrong with the sidecar is a warning, never an error.
-pub(crate) fn read_recording(file: &Path, needs: &[usize], reader: Reader) -> Result<Recording> {
+pub(crate) fn read_recording(
+    file: &Path,
+    needs: &[usize],
+    reader: Reader,
+    whisker: Option<&str>,
+) -> Result<Recording> {
     let (series, warnings) = vibrissa_io::series::read_csv_with_sidecar(file)
         .with_context(|| format!("cannot read `{}`", file.display()))?;
     for w in warnings {
         eprintln!("warning: {w}");
     }
-    Ok(Recording::from_series(
-        &series,
-        &file.display().to_string(),
-        needs,
-        reader,
-    )?)
+    let name = file.display().to_string();
+    let series = vibrissa_infer::recording::whisker_view(&series, &name, whisker)?;
+    Ok(Recording::from_series(&series, &name, needs, reader)?)
 }
 
 /// The model check of one recording at `point` (see [`vibrissa_infer::check`]), with a warning

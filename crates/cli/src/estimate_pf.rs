@@ -50,7 +50,7 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
     let recordings = args
         .obs
         .iter()
-        .map(|f| read_recording(f, &channels, Reader::Filter))
+        .map(|f| read_recording(f, &channels, Reader::Filter, args.whisker.as_deref()))
         .collect::<Result<Vec<_>>>()?;
 
     // The sensor noise of every recording (the filter is fitted to each level: no runs).

@@ -670,3 +670,44 @@ fn simulate_writes_an_array_s_columns_per_whisker() {
     );
     assert!(!dir.path().join("x.csv").exists());
 }
+
+#[test]
+fn estimate_reads_one_whisker_of_an_array_recording() {
+    let dir = Scratch::new("array-estimate");
+    let example = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../examples/scenarios/array_row.toml"
+    );
+    let out = dir.path().join("row.csv");
+    let out = out.to_str().unwrap();
+    assert!(vibrissa(&["simulate", example, "--out", out])
+        .status
+        .success());
+    // c1 is the e2 whisker struck by the e2 box at d = 15 mm, v = 0.3 m/s.
+    let base = [
+        "estimate",
+        "--experiment",
+        "e2",
+        "--method",
+        "knn",
+        "--noise",
+        "none",
+        "--json",
+        "--obs",
+        out,
+    ];
+    let run = vibrissa(&[&base[..], &["--whisker", "c1"]].concat());
+    assert!(run.status.success(), "{}", stderr(&run));
+    let d = json(&run)["d"]["mean"].as_f64().unwrap();
+    assert!((d - 0.015).abs() < 1e-3, "{d}");
+    let run = vibrissa(&base);
+    assert_refused(&run);
+    assert!(
+        stderr(&run).contains("several whiskers (c1, c2, c3)"),
+        "{}",
+        stderr(&run)
+    );
+    let run = vibrissa(&[&base[..], &["--whisker", "c9"]].concat());
+    assert_refused(&run);
+    assert!(stderr(&run).contains("no whisker `c9`"), "{}", stderr(&run));
+}

@@ -45,6 +45,69 @@ fn short(x: f64) -> String {
     format!("{}", format!("{x:.3e}").parse::<f64>().unwrap_or(x))
 }
 
+/// The names of the whiskers whose columns `series` holds (`c1` for `c1.theta01`), in order.
+pub fn whiskers_in(series: &Series) -> Vec<String> {
+    let mut names: Vec<String> = Vec::new();
+    for c in &series.columns {
+        if let Some((name, "theta01")) = c.rsplit_once('.') {
+            if !names.iter().any(|n| n == name) {
+                names.push(name.to_string());
+            }
+        }
+    }
+    names
+}
+
+/// One whisker's view of a recording: `t` and that whisker's columns without their prefix (for a
+/// recording of an array of whiskers, whose columns are `c1.theta01`, ...). `whisker` names it;
+/// `None` takes the recording's own unprefixed columns, and is refused, naming the whiskers, for
+/// a recording that has only prefixed ones.
+pub fn whisker_view(series: &Series, name: &str, whisker: Option<&str>) -> Result<Series> {
+    let names = whiskers_in(series);
+    match whisker {
+        None => {
+            if series.column("theta01").is_none() && !names.is_empty() {
+                return Err(bad(format!(
+                    "`{name}` holds the columns of several whiskers ({}): choose one (--whisker \
+                     NAME on the command line, whisker= in Python)",
+                    names.join(", ")
+                )));
+            }
+            Ok(series.clone())
+        }
+        Some(w) => {
+            if !names.iter().any(|n| n == w) {
+                return Err(bad(format!(
+                    "`{name}` has no whisker `{w}`; {}",
+                    if names.is_empty() {
+                        "it holds one whisker's unprefixed columns".to_string()
+                    } else {
+                        format!("its whiskers are {}", names.join(", "))
+                    }
+                )));
+            }
+            let prefix = format!("{w}.");
+            let mut view = Series {
+                columns: Vec::new(),
+                data: Vec::new(),
+                meta: series.meta.clone(),
+            };
+            for (c, data) in series.columns.iter().zip(&series.data) {
+                let own = if c == "t" {
+                    Some(c.as_str())
+                } else {
+                    c.strip_prefix(&prefix)
+                };
+                if let Some(own) = own {
+                    view.columns.push(own.to_string());
+                    view.data.push(data.clone());
+                }
+            }
+            Ok(view)
+        }
+    }
+}
+
 impl Recording {
     /// The recording `name` (a file name, for messages) from a contract series: `t`, `theta01`
     /// and `theta12` always, the channels `needs` as `reader` requires, and the metadata
@@ -296,6 +359,25 @@ mod tests {
         c[0] = Some(vec![0.0; n]);
         c[1] = Some((0..n).map(|k| k as f64 * 1e-3).collect());
         c
+    }
+
+    #[test]
+    fn one_whisker_of_an_array() {
+        let mut s = Series::new(&["t", "c1.theta01", "c1.theta12", "c2.theta01", "c2.theta12"]);
+        s.push_row(&[0.0, 1.0, 2.0, 3.0, 4.0]);
+        s.push_row(&[0.001, 1.5, 2.5, 3.5, 4.5]);
+        assert_eq!(whiskers_in(&s), ["c1", "c2"]);
+        let v = whisker_view(&s, "a.csv", Some("c2")).unwrap();
+        assert_eq!(v.columns, ["t", "theta01", "theta12"]);
+        assert_eq!(v.data[1], [3.0, 3.5]);
+        let r = Recording::from_series(&v, "a.csv", &[0, 1], Reader::Filter).unwrap();
+        assert_eq!(r.values[1], [4.0, 4.5]);
+        let e = whisker_view(&s, "a.csv", None).unwrap_err().to_string();
+        assert!(e.contains("several whiskers (c1, c2)"), "{e}");
+        let e = whisker_view(&s, "a.csv", Some("c3"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("no whisker `c3`") && e.contains("c1, c2"), "{e}");
     }
 
     #[test]

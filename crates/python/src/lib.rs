@@ -264,7 +264,7 @@ enum Input<'py> {
 /// `vibrissa estimate --json` does; returns one estimate object per recording as JSON text,
 /// and the messages the command line prints on standard error (warnings, what is trained).
 #[pyfunction]
-#[pyo3(signature = (scenario, scenario_json, sets, inputs, method, noise, seed, randomise, particles, check))]
+#[pyo3(signature = (scenario, scenario_json, sets, inputs, method, noise, seed, randomise, particles, check, whisker=None))]
 #[allow(clippy::too_many_arguments)]
 fn estimate(
     py: Python<'_>,
@@ -278,6 +278,7 @@ fn estimate(
     randomise: bool,
     particles: usize,
     check: bool,
+    whisker: Option<&str>,
 ) -> PyResult<(Vec<String>, Vec<String>)> {
     let family = family(scenario, scenario_json, &sets)?;
     let probe = vibrissa_infer::methods::by_name(method).map_err(value_error)?;
@@ -313,6 +314,8 @@ fn estimate(
                 let (series, warnings) =
                     vibrissa_io::series::read_csv_with_sidecar(path).map_err(value_error)?;
                 messages.extend(warnings.into_iter().map(|w| format!("warning: {w}")));
+                let series = vibrissa_infer::recording::whisker_view(&series, path, whisker)
+                    .map_err(value_error)?;
                 let rec = Recording::from_series(&series, path, &needs, reader);
                 (path.clone(), rec)
             }

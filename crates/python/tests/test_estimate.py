@@ -127,3 +127,22 @@ def test_bad_input_raises_naming_what_is_wrong(recordings):
         vibrissa.estimate(recordings[0], method="pf", particles=0)
     with pytest.raises(ValueError, match="no recordings"):
         vibrissa.estimate([])
+
+
+def test_one_whisker_of_an_array_recording(tmp_path):
+    from test_simulate import ROOT
+
+    example = str(ROOT / "examples" / "scenarios" / "array_row.toml")
+    run = vibrissa.simulate(example)
+    path = tmp_path / "row.csv"
+    subprocess.run([cli(), "simulate", example, "--out", path], check=True, capture_output=True)
+    from_path = vibrissa.estimate(path, "e2", method="knn", noise="none", whisker="c1")
+    from_arrays = vibrissa.estimate(run, "e2", method="knn", noise="none", whisker="c1")
+    assert from_path["d"] == from_arrays["d"]
+    assert abs(from_path["d"]["mean"] - 0.015) < 1e-3
+    with pytest.raises(ValueError, match=r"several whiskers \(c1, c2, c3\)"):
+        vibrissa.estimate(run, "e2", method="knn")
+    with pytest.raises(ValueError, match="several whiskers"):
+        vibrissa.estimate(path, "e2", method="knn")
+    with pytest.raises(ValueError, match="no whisker 'c9'"):
+        vibrissa.estimate(run, "e2", method="knn", whisker="c9")

@@ -183,8 +183,9 @@ def _noise_statement(noise):
     )
 
 
-def _recording(k, obs):
-    """One recording for the native layer: a path, or (name, t, channels) arrays."""
+def _recording(k, obs, whisker=None):
+    """One recording for the native layer: a path, or (name, t, channels) arrays; of an array
+    of whiskers' recording, the columns of ``whisker``."""
     import numpy
 
     if isinstance(obs, (str, os.PathLike)):
@@ -195,6 +196,20 @@ def _recording(k, obs):
         raise TypeError(
             f"recording {k}: expected a CSV path, a dict of arrays or a pandas.DataFrame, "
             f"not {type(obs).__name__}"
+        )
+    names = [c[: -len(".theta01")] for c in obs if isinstance(c, str) and c.endswith(".theta01")]
+    if whisker is not None:
+        if whisker not in names:
+            raise ValueError(
+                f"recording {k} has no whisker {whisker!r}; its whiskers are "
+                f"{', '.join(names) if names else 'none (one whisker, unprefixed columns)'}"
+            )
+        prefix = whisker + "."
+        obs = {"t": obs["t"], **{c[len(prefix):]: v for c, v in obs.items() if c.startswith(prefix)}}
+    elif "theta01" not in obs and names:
+        raise ValueError(
+            f"recording {k} holds the columns of several whiskers ({', '.join(names)}): "
+            "choose one with whisker="
         )
     if "t" not in obs:
         raise ValueError(f"recording {k}: no 't' column (sample times, s)")
@@ -230,6 +245,7 @@ def estimate(
     randomise=False,
     particles=1000,
     check=False,
+    whisker=None,
     overrides=None,
     verbose=False,
     **keys,
@@ -264,6 +280,9 @@ def estimate(
         Particles of ``method="pf"``.
     check : bool
         Add the model check (``"check"``): does the scenario explain the recording at its estimate?
+    whisker : str, optional
+        For a recording of an array of whiskers (columns ``c1.theta01``, ...), the whisker whose
+        columns are read.
     verbose : bool
         Print what is trained and every warning (they are also attached as ``"warnings"``).
     overrides, **keys
@@ -278,7 +297,9 @@ def estimate(
         well), plus ``"file"`` for each of a list of recordings.
     """
     several = isinstance(obs, (list, tuple))
-    inputs = [_recording(k, o) for k, o in enumerate(obs if several else [obs])]
+    if whisker is not None and not isinstance(whisker, str):
+        raise TypeError(f"whisker: expected a name (str), not {type(whisker).__name__}")
+    inputs = [_recording(k, o, whisker) for k, o in enumerate(obs if several else [obs])]
     if not inputs:
         raise ValueError("obs: no recordings given")
     if not isinstance(method, str):
@@ -297,6 +318,7 @@ def estimate(
         bool(randomise),
         particles,
         bool(check),
+        whisker,
     )
     if verbose:
         import sys

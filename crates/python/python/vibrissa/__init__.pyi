@@ -54,6 +54,7 @@ def estimate(
     randomise: bool = False,
     particles: int = 1000,
     check: bool = False,
+    whisker: str | None = None,
     overrides: Mapping[str, Value] | None = None,
     verbose: bool = False,
     **keys: Value,
