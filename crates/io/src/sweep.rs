@@ -235,7 +235,10 @@ pub fn parse_grid(text: &str) -> Result<Grid> {
             })
             .collect()
     } else {
-        let list: Vec<String> = values.split(',').map(|v| v.trim().to_string()).collect();
+        let list: Vec<String> = split_values(values)
+            .into_iter()
+            .map(|v| v.trim().to_string())
+            .collect();
         if list.iter().any(String::is_empty) {
             return Err(fail("a value is empty"));
         }
@@ -245,6 +248,27 @@ pub fn parse_grid(text: &str) -> Result<Grid> {
         key: key.to_string(),
         values,
     })
+}
+
+/// A grid's values split at the commas that are not inside brackets or quotes, so that a value
+/// may be an array (`[0.0, 0.3]`) or a string with a comma.
+fn split_values(text: &str) -> Vec<&str> {
+    let (mut out, mut start, mut depth, mut quote) = (Vec::new(), 0, 0i32, None);
+    for (i, c) in text.char_indices() {
+        match (c, quote) {
+            ('"' | '\'', None) => quote = Some(c),
+            (q, Some(open)) if q == open => quote = None,
+            ('[', None) => depth += 1,
+            (']', None) => depth -= 1,
+            (',', None) if depth == 0 => {
+                out.push(&text[start..i]);
+                start = i + 1;
+            }
+            _ => {}
+        }
+    }
+    out.push(&text[start..]);
+    out
 }
 
 /// `x` as a `--set` value: 12 significant digits, without rounding noise; whole numbers as
@@ -494,6 +518,14 @@ pub fn read_manifest(path: &Path) -> HashMap<String, Row> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn values_may_be_arrays_or_quoted() {
+        let g = parse_grid("objects.0.velocity=[0.0, 0.3], [0.0,0.6]").unwrap();
+        assert_eq!(g.values, ["[0.0, 0.3]", "[0.0,0.6]"]);
+        let g = parse_grid("whisker.preset=\"w30\",'a,b'").unwrap();
+        assert_eq!(g.values, ["\"w30\"", "'a,b'"]);
+    }
 
     #[test]
     fn lists_and_ranges() {
