@@ -22,6 +22,9 @@
 //! - with probability 1/2, the joints follow the seed paper's stiffness rule (`k = EI/l`) instead
 //!   of the scenario's.
 //!
+//! A randomised family trains on three times as many random runs as the scenario's own
+//! ([`Randomisation::runs`]).
+//!
 //! The last two stand for the recording's own chain, which a user rarely knows. Another engine,
 //! or a rig whose angles are read off a tracked shape, measures `theta01` and `theta12` between
 //! its own segments, and a joint angle is the curvature times the joint spacing: the same strike
@@ -65,7 +68,14 @@ pub struct Randomisation {
     /// Probability that a run's joints follow the seed paper's stiffness rule
     /// ([`Discretisation::Seed`]) instead of the scenario's.
     pub seed_rule: f64,
+    /// How many times as many random training runs as for the scenario's own whisker
+    /// ([`crate::evaluate::random_runs`]), 1 to [`MAX_RUNS`]: the runs also spread over the prior's
+    /// whiskers, and a method needs more of them to see its neighbourhood of every strike.
+    pub runs: usize,
 }
+
+/// Largest [`Randomisation::runs`] accepted.
+pub const MAX_RUNS: usize = 20;
 
 impl Default for Randomisation {
     fn default() -> Self {
@@ -82,6 +92,7 @@ impl Default for Randomisation {
             resegment: 0.5,
             segments: [0.5, 3.0],
             seed_rule: 0.5,
+            runs: 3,
         }
     }
 }
@@ -106,6 +117,7 @@ impl Randomisation {
             p.segments[0],
             p.segments[1],
             p.seed_rule,
+            p.runs as f64,
         ]
         .iter()
         .fold(0xcbf2_9ce4_8422_2325u64, |h, x| {
@@ -171,6 +183,12 @@ impl Around {
             return Err(Error::Setting(format!(
                 "randomisation: segments = [{lo}, {hi}]: allowed is a positive, increasing range \
                  of factors on the scenario's segment count"
+            )));
+        }
+        if !(1..=MAX_RUNS).contains(&prior.runs) {
+            return Err(Error::Setting(format!(
+                "randomisation: runs = {}: allowed is a whole number from 1 to {MAX_RUNS}",
+                prior.runs
             )));
         }
         let reference = Reference::of(base)?;
@@ -368,6 +386,13 @@ mod tests {
                 "segments",
                 Randomisation {
                     segments: [0.5, f64::INFINITY],
+                    ..Randomisation::default()
+                },
+            ),
+            (
+                "runs",
+                Randomisation {
+                    runs: 0,
                     ..Randomisation::default()
                 },
             ),
