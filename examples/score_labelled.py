@@ -3,6 +3,7 @@
 
     python3 examples/score_labelled.py --labelled DIR --scenario FILE.toml [--method knn ...]
         [--vibrissa target/release/vibrissa] [--noise auto|none|CHANNEL=SIGMA,...]
+        [--randomise] [--seed N]
 
 Prints, per method and per labelled unknown, the mean absolute error and the share of files
 whose 90% interval holds the truth. Needs only the Python standard library.
@@ -25,6 +26,7 @@ def main():
                     "estimated from them)")
     ap.add_argument("--randomise", action="store_true",
                     help="train on randomised whiskers (estimate --randomise)")
+    ap.add_argument("--seed", help="seed of the training runs (estimate --seed)")
     a = ap.parse_args()
 
     with open(os.path.join(a.labelled, "truth.csv"), newline="") as f:
@@ -46,6 +48,8 @@ def main():
             cmd += ["--noise", a.noise]
         if a.randomise:
             cmd += ["--randomise"]
+        if a.seed:
+            cmd += ["--seed", a.seed]
         for f in files:
             cmd += ["--obs", f]
         out = subprocess.run(cmd, capture_output=True, text=True)

@@ -47,11 +47,12 @@ pub struct Args {
     /// Deprecated and ignored: the noise is estimated from the recordings (see --noise).
     #[arg(long, value_name = "clean|noisy", hide = true)]
     pub(crate) variant: Option<String>,
-    /// Train on runs whose whisker and sensor gains are drawn around the scenario's (modulus,
-    /// density and damping within a factor 0.74–1.35, half of them with a compliant follicle,
-    /// half tapered, gains within 5%): estimates that hold, with wider intervals, on a whisker
-    /// known only roughly. Not for `template` and `template-interp` (they keep the scenario's
-    /// own templates) or `pf`.
+    /// Train on runs whose whisker, sensor gains and chain are drawn around the scenario's
+    /// (modulus, density and damping within a factor 0.74–1.35, half of them with a compliant
+    /// follicle, half tapered, gains within 5%, half with 0.5–3 times the segments, half with
+    /// the seed paper's stiffness rule; three times the training runs): estimates that hold,
+    /// with wider intervals, on a whisker known only roughly, recorded by another chain. Not for
+    /// `template` and `template-interp` (they keep the scenario's own templates) or `pf`.
     #[arg(long)]
     pub(crate) randomise: bool,
     /// For recordings of an array of whiskers (columns `c1.theta01`, ...): the whisker whose

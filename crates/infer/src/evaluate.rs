@@ -12,12 +12,15 @@ use std::time::Instant;
 use vibrissa_core::rng::Rng;
 
 /// Random training runs of the free-budget methods: 150 for one unknown, 400 for two, and 200
-/// more per further unknown.
+/// more per further unknown; a randomised family ([`Family::randomised`]) has
+/// [`crate::randomise::Randomisation::runs`] times as many, since its runs also spread over the
+/// whiskers of the prior.
 pub fn random_runs(family: &Family) -> usize {
-    match family.unknowns().len() {
+    let n = match family.unknowns().len() {
         0 | 1 => 150,
         n => 400 + 200 * (n - 2),
-    }
+    };
+    n * family.randomisation().map_or(1, |p| p.runs)
 }
 
 /// The seed paper's mean absolute errors for its experiments, SI (empty for other families).

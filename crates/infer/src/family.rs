@@ -318,8 +318,8 @@ impl Family {
     /// A digest of the family and its timing, for caches of training runs.
     pub fn digest(&self) -> u64 {
         let mut h = self.doc.digest();
-        if self.randomised.is_some() {
-            h = (h ^ 0x7a11_d0e5).wrapping_mul(0x0000_0100_0000_01b3);
+        if let Some(around) = &self.randomised {
+            h = (h ^ 0x7a11_d0e5 ^ around.prior.digest()).wrapping_mul(0x0000_0100_0000_01b3);
         }
         for x in [self.base.sample_rate, self.base.duration] {
             h = (h ^ x.to_bits()).wrapping_mul(0x0000_0100_0000_01b3);

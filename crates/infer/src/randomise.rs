@@ -12,14 +12,29 @@
 //! The prior ([`Randomisation::default`]), per run and independently:
 //! - modulus, density and the damping coefficient each times `e^u`, `u` uniform in ±0.3 (a factor
 //!   0.74–1.35);
-//! - with probability 1/2, the follicle becomes a spring whose compliance is 0.3–3 times the
+//! - with probability 1/2, the follicle becomes a spring whose compliance is 0.3–10 times the
 //!   nominal chain's base joint's (log-uniform), damped with a time constant `e^±1` times the
 //!   whisker's own; a follicle that is already a spring has its stiffness times `e^u`, `u` in ±0.5;
 //! - with probability 1/2, the tip radius times a factor uniform in 0.5–0.95;
-//! - every sensor gain times a factor uniform in 0.95–1.05.
+//! - every sensor gain times a factor uniform in 0.95–1.05;
+//! - with probability 1/2, the chain is cut into another number of segments: the scenario's count
+//!   times a factor log-uniform in 0.5–3 (rounded; 10–60 for the 20 segments of `e2`);
+//! - with probability 1/2, the joints follow the seed paper's stiffness rule (`k = EI/l`) instead
+//!   of the scenario's.
+//!
+//! A randomised family trains on three times as many random runs as the scenario's own
+//! ([`Randomisation::runs`]).
+//!
+//! The last two stand for the recording's own chain, which a user rarely knows. Another engine,
+//! or a rig whose angles are read off a tracked shape, measures `theta01` and `theta12` between
+//! its own segments, and a joint angle is the curvature times the joint spacing: the same strike
+//! on a 50-segment chain shows angles less than half those of a 20-segment one, while the base
+//! moment and forces agree within a few percent. The stiffness rule moves compliance towards the
+//! base (by half a segment with the seed rule).
 
 use crate::error::{Error, Result};
 use crate::reference::Reference;
+use vibrissa_core::chain::{Discretisation, MAX_SEGMENTS};
 use vibrissa_core::rng::Rng;
 use vibrissa_core::sim::{Response, Scenario, SensorResponse};
 use vibrissa_core::whisker::{Damping, Follicle};
@@ -45,7 +60,22 @@ pub struct Randomisation {
     pub tip: [f64; 2],
     /// Half-width of the uniform relative change of each sensor gain.
     pub gain: f64,
+    /// Probability that a run's chain has another segment count than the scenario's.
+    pub resegment: f64,
+    /// Range of the factor on the scenario's segment count (log-uniform; the count is rounded
+    /// and kept within 2 to [`MAX_SEGMENTS`]).
+    pub segments: [f64; 2],
+    /// Probability that a run's joints follow the seed paper's stiffness rule
+    /// ([`Discretisation::Seed`]) instead of the scenario's.
+    pub seed_rule: f64,
+    /// How many times as many random training runs as for the scenario's own whisker
+    /// ([`crate::evaluate::random_runs`]), 1 to [`MAX_RUNS`]: the runs also spread over the prior's
+    /// whiskers, and a method needs more of them to see its neighbourhood of every strike.
+    pub runs: usize,
 }
+
+/// Largest [`Randomisation::runs`] accepted.
+pub const MAX_RUNS: usize = 20;
 
 impl Default for Randomisation {
     fn default() -> Self {
@@ -54,12 +84,45 @@ impl Default for Randomisation {
             density: 0.3,
             damping: 0.3,
             follicle: 0.5,
-            compliance: [0.3, 3.0],
+            compliance: [0.3, 10.0],
             spring: 0.5,
             taper: 0.5,
             tip: [0.5, 0.95],
             gain: 0.05,
+            resegment: 0.5,
+            segments: [0.5, 3.0],
+            seed_rule: 0.5,
+            runs: 3,
         }
+    }
+}
+
+impl Randomisation {
+    /// A digest of the prior, for caches of training runs.
+    pub fn digest(&self) -> u64 {
+        let p = self;
+        [
+            p.modulus,
+            p.density,
+            p.damping,
+            p.follicle,
+            p.compliance[0],
+            p.compliance[1],
+            p.spring,
+            p.taper,
+            p.tip[0],
+            p.tip[1],
+            p.gain,
+            p.resegment,
+            p.segments[0],
+            p.segments[1],
+            p.seed_rule,
+            p.runs as f64,
+        ]
+        .iter()
+        .fold(0xcbf2_9ce4_8422_2325u64, |h, x| {
+            (h ^ x.to_bits()).wrapping_mul(0x0000_0100_0000_01b3)
+        })
     }
 }
 
@@ -91,20 +154,42 @@ impl Around {
                 )));
             }
         }
-        if !(0.0..=1.0).contains(&prior.follicle) || !(0.0..=1.0).contains(&prior.taper) {
-            return Err(Error::Setting(
-                "randomisation: probabilities must lie in [0, 1]".into(),
-            ));
+        for (what, x) in [
+            ("follicle", prior.follicle),
+            ("taper", prior.taper),
+            ("resegment", prior.resegment),
+            ("seed_rule", prior.seed_rule),
+        ] {
+            if !(0.0..=1.0).contains(&x) {
+                return Err(Error::Setting(format!(
+                    "randomisation: {what} = {x}: allowed is a probability in [0, 1]"
+                )));
+            }
         }
-        if !(prior.compliance[0] > 0.0 && prior.compliance[1] >= prior.compliance[0]) {
-            return Err(Error::Setting(
-                "randomisation: the compliance range must be positive and increasing".into(),
-            ));
+        let [lo, hi] = prior.compliance;
+        if !(lo > 0.0 && hi.is_finite() && hi >= lo) {
+            return Err(Error::Setting(format!(
+                "randomisation: compliance = [{lo}, {hi}]: allowed is a positive, increasing range"
+            )));
         }
-        if !(prior.tip[0] > 0.0 && prior.tip[1] <= 1.0 && prior.tip[1] >= prior.tip[0]) {
-            return Err(Error::Setting(
-                "randomisation: the tip factor range must lie in (0, 1] and increase".into(),
-            ));
+        let [lo, hi] = prior.tip;
+        if !(lo > 0.0 && hi <= 1.0 && hi >= lo) {
+            return Err(Error::Setting(format!(
+                "randomisation: tip = [{lo}, {hi}]: allowed is an increasing range in (0, 1]"
+            )));
+        }
+        let [lo, hi] = prior.segments;
+        if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && hi >= lo) {
+            return Err(Error::Setting(format!(
+                "randomisation: segments = [{lo}, {hi}]: allowed is a positive, increasing range \
+                 of factors on the scenario's segment count"
+            )));
+        }
+        if !(1..=MAX_RUNS).contains(&prior.runs) {
+            return Err(Error::Setting(format!(
+                "randomisation: runs = {}: allowed is a whole number from 1 to {MAX_RUNS}",
+                prior.runs
+            )));
         }
         let reference = Reference::of(base)?;
         Ok(Around {
@@ -162,6 +247,15 @@ impl Around {
             gain: nominal[c].gain * (1.0 + p.gain * (2.0 * rng.uniform() - 1.0)),
             offset: nominal[c].offset,
         }));
+        let (u_resegment, u_segments, u_rule) = (rng.uniform(), rng.uniform(), rng.uniform());
+        if u_resegment < p.resegment {
+            let [lo, hi] = p.segments;
+            let factor = (lo.ln() + u_segments * (hi / lo).ln()).exp();
+            s.segments = ((s.segments as f64 * factor).round() as usize).clamp(2, MAX_SEGMENTS);
+        }
+        if u_rule < p.seed_rule {
+            s.discretisation = Discretisation::Seed;
+        }
     }
 }
 
@@ -175,7 +269,7 @@ mod tests {
         let f = Family::builtin("e2").unwrap();
         let base = f.base().clone();
         let around = Around::new(&base, Randomisation::default()).unwrap();
-        let (mut springs, mut tapers) = (0, 0);
+        let (mut springs, mut tapers, mut resegmented, mut seed_rule) = (0, 0, 0, 0);
         for seed in 0..200 {
             let mut s = base.clone();
             around.apply(&mut s, seed);
@@ -189,12 +283,65 @@ mod tests {
                 assert!((0.95..=1.05).contains(&r.gain), "{}", r.gain);
             }
             s.whisker.check().expect("a valid whisker");
+            assert!((10..=60).contains(&s.segments), "{}", s.segments);
+            resegmented += usize::from(s.segments != base.segments);
+            seed_rule += usize::from(s.discretisation == Discretisation::Seed);
+            s.check().expect("a valid scenario");
             let mut again = base.clone();
             around.apply(&mut again, seed);
             assert_eq!(again.whisker.youngs_modulus, s.whisker.youngs_modulus);
         }
         assert!((70..130).contains(&springs), "{springs}");
         assert!((70..130).contains(&tapers), "{tapers}");
+        // A drawn count may round to the scenario's own.
+        assert!((60..130).contains(&resegmented), "{resegmented}");
+        assert!((70..130).contains(&seed_rule), "{seed_rule}");
+    }
+
+    #[test]
+    fn segment_counts_stay_within_the_chain_s_limits() {
+        let f = Family::builtin("e2").unwrap();
+        let prior = Randomisation {
+            resegment: 1.0,
+            segments: [0.01, 100.0],
+            ..Randomisation::default()
+        };
+        let around = Around::new(f.base(), prior).unwrap();
+        for seed in 0..100 {
+            let mut s = f.base().clone();
+            around.apply(&mut s, seed);
+            assert!((2..=MAX_SEGMENTS).contains(&s.segments), "{}", s.segments);
+        }
+        // Without resegmenting, every run keeps the scenario's chain.
+        let around = Around::new(
+            f.base(),
+            Randomisation {
+                resegment: 0.0,
+                seed_rule: 0.0,
+                ..Randomisation::default()
+            },
+        )
+        .unwrap();
+        for seed in 0..50 {
+            let mut s = f.base().clone();
+            around.apply(&mut s, seed);
+            assert_eq!(s.segments, f.base().segments);
+            assert_eq!(s.discretisation, f.base().discretisation);
+        }
+    }
+
+    #[test]
+    fn the_prior_is_part_of_the_family_s_digest() {
+        let f = Family::builtin("e2").unwrap();
+        let a = f.randomised(Randomisation::default()).unwrap();
+        let b = f
+            .randomised(Randomisation {
+                resegment: 0.0,
+                ..Randomisation::default()
+            })
+            .unwrap();
+        assert_ne!(a.digest(), b.digest());
+        assert_ne!(a.digest(), f.digest());
     }
 
     #[test]
@@ -206,5 +353,59 @@ mod tests {
         };
         let e = Around::new(f.base(), prior).unwrap_err().to_string();
         assert!(e.contains("density"), "{e}");
+        for (what, prior) in [
+            (
+                "resegment",
+                Randomisation {
+                    resegment: 1.5,
+                    ..Randomisation::default()
+                },
+            ),
+            (
+                "seed_rule",
+                Randomisation {
+                    seed_rule: -0.1,
+                    ..Randomisation::default()
+                },
+            ),
+            (
+                "segments",
+                Randomisation {
+                    segments: [2.0, 1.0],
+                    ..Randomisation::default()
+                },
+            ),
+            (
+                "segments",
+                Randomisation {
+                    segments: [0.0, 3.0],
+                    ..Randomisation::default()
+                },
+            ),
+            (
+                "segments",
+                Randomisation {
+                    segments: [0.5, f64::INFINITY],
+                    ..Randomisation::default()
+                },
+            ),
+            (
+                "runs",
+                Randomisation {
+                    runs: 0,
+                    ..Randomisation::default()
+                },
+            ),
+            (
+                "taper",
+                Randomisation {
+                    taper: f64::NAN,
+                    ..Randomisation::default()
+                },
+            ),
+        ] {
+            let e = Around::new(f.base(), prior).unwrap_err().to_string();
+            assert!(e.contains(what), "{what}: {e}");
+        }
     }
 }
