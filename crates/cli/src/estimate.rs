@@ -500,11 +500,7 @@ pub(crate) fn trained_for<'a>(
     name: &str,
     seed: u64,
 ) -> Result<&'a dyn Method> {
-    Ok(
-        trained.get(family, rec.rate, rec.t.len(), noise, name, seed, &mut |m| {
-            eprintln!("{m}")
-        })?,
-    )
+    Ok(trained.get(family, rec, noise, name, seed, &mut |m| eprintln!("{m}"))?)
 }
 
 /// Reads one recording (see [`Recording::from_series`]), with its sidecar's metadata where
@@ -538,6 +534,10 @@ pub(crate) fn check_recording(
 ) -> Option<Check> {
     let result = family
         .with_timing(rec.rate, rec.t.len())
+        .and_then(|timed| match rec.segments {
+            Some(n) if n != timed.segments() => timed.with_segments(n),
+            _ => Ok(timed),
+        })
         .and_then(|timed| check::check(&timed, &rec.values, point, noise, channels));
     match result {
         Ok(c) => {

@@ -711,3 +711,48 @@ fn estimate_reads_one_whisker_of_an_array_recording() {
     assert_refused(&run);
     assert!(stderr(&run).contains("no whisker `c9`"), "{}", stderr(&run));
 }
+
+#[test]
+fn estimate_trains_on_the_chain_a_recording_names() {
+    // A recording of a 40-segment chain (its sidecar says so): its joint angles are about half a
+    // 20-segment chain's, and the methods train on 40 segments to read it.
+    let dir = Scratch::new("segments");
+    let out = dir.path().join("r40.csv");
+    let out = out.to_str().unwrap();
+    let run = vibrissa(&[
+        "simulate",
+        "e2",
+        "--set",
+        "d=0.022",
+        "--set",
+        "v=0.8",
+        "--set",
+        "segments=40",
+        "--out",
+        out,
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let run = vibrissa(&[
+        "estimate",
+        "--experiment",
+        "e2",
+        "--method",
+        "knn",
+        "--noise",
+        "none",
+        "--check",
+        "--json",
+        "--obs",
+        out,
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    assert!(
+        stderr(&run).contains("40-segment chain"),
+        "{}",
+        stderr(&run)
+    );
+    let est = json(&run);
+    let d = est["d"]["mean"].as_f64().unwrap();
+    assert!((d - 0.022).abs() < 1e-3, "{d}");
+    assert_eq!(est["check"]["explained"], true, "{est}");
+}

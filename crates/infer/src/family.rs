@@ -294,6 +294,23 @@ impl Family {
         Ok(f)
     }
 
+    /// The same family with its runs made by a chain of `segments` segments (the chain that made
+    /// a recording, as its metadata says): joint angles are the chain's own, so a method must
+    /// learn them from the same chain.
+    pub fn with_segments(&self, segments: usize) -> Result<Family> {
+        let mut f = self.clone();
+        f.base.segments = segments;
+        f.base.check().map_err(|e| {
+            Error::Observation(format!("{}: {e} (a recording's `segments`)", self.name))
+        })?;
+        Ok(f)
+    }
+
+    /// The segment count of the family's chain.
+    pub fn segments(&self) -> usize {
+        self.base.segments
+    }
+
     /// The same family with every run's whisker and sensor gains drawn from `prior` around the
     /// scenario's (domain randomisation, for training runs: see [`crate::randomise`]).
     pub fn randomised(&self, prior: Randomisation) -> Result<Family> {
@@ -324,7 +341,7 @@ impl Family {
         for x in [self.base.sample_rate, self.base.duration] {
             h = (h ^ x.to_bits()).wrapping_mul(0x0000_0100_0000_01b3);
         }
-        h
+        (h ^ self.base.segments as u64).wrapping_mul(0x0000_0100_0000_01b3)
     }
 
     /// The scenario of the run at `p` (one value per unknown), with this family's timing.
@@ -341,6 +358,7 @@ impl Family {
         let mut s = self.doc.with_values(&values)?.scenario;
         s.sample_rate = self.base.sample_rate;
         s.duration = self.base.duration;
+        s.segments = self.base.segments;
         Ok(s)
     }
 

@@ -7,11 +7,13 @@
 use crate::evaluate::training_for;
 use crate::experiment::CHANNELS;
 use crate::method::Method;
+use crate::recording::Recording;
 use crate::{methods, Family, Result};
 use std::time::Instant;
 
-/// What a fitted method is kept by: sample rate (Hz), samples, sensor noise per channel.
-type Key = (f64, usize, [f64; 5]);
+/// What a fitted method is kept by: sample rate (Hz), samples, sensor noise per channel, and
+/// the segments of the recording's chain (when its metadata says).
+type Key = (f64, usize, [f64; 5], Option<usize>);
 
 /// Methods trained per timing (sample rate and length) and noise level of the recordings.
 #[derive(Default)]
@@ -53,29 +55,36 @@ impl std::fmt::Display for Short {
 }
 
 impl Trained {
-    /// The method `name` fitted on `family`'s runs at `rate` Hz and `samples` samples with the
-    /// sensor noise `noise` (trained on first use; `log` hears what is trained and how long it
-    /// took).
-    #[allow(clippy::too_many_arguments)]
+    /// The method `name` fitted on `family`'s runs at `rec`'s timing (and chain, when its
+    /// metadata gives its segments) with the sensor noise `noise` (trained on first use; `log`
+    /// hears what is trained and how long it took).
     pub fn get(
         &mut self,
         family: &Family,
-        rate: f64,
-        samples: usize,
+        rec: &Recording,
         noise: &[f64; 5],
         name: &str,
         seed: u64,
         log: &mut dyn FnMut(String),
     ) -> Result<&dyn Method> {
-        let key = (rate, samples, *noise);
-        let found = self
-            .fitted
-            .iter()
-            .position(|(k, _)| (k.0 - key.0).abs() <= 1e-9 * key.0 && k.1 == key.1 && k.2 == key.2);
+        let (rate, samples) = (rec.rate, rec.t.len());
+        let key = (rate, samples, *noise, rec.segments);
+        let found = self.fitted.iter().position(|(k, _)| {
+            (k.0 - key.0).abs() <= 1e-9 * key.0 && k.1 == key.1 && k.2 == key.2 && k.3 == key.3
+        });
         let k = match found {
             Some(k) => k,
             None => {
                 let timed = family.with_timing(rate, samples)?;
+                let timed = match rec.segments {
+                    Some(n) if n != timed.segments() => {
+                        log(format!(
+                            "the recordings were made by a {n}-segment chain: training on it"
+                        ));
+                        timed.with_segments(n)?
+                    }
+                    _ => timed,
+                };
                 let mut method = methods::by_name(name)?;
                 let t0 = Instant::now();
                 log(format!(

@@ -368,15 +368,8 @@ fn estimate(
                     .collect();
                 (named, est.seconds, est.counts(), est.sensor)
             } else {
-                let m = trained.get(
-                    &family,
-                    rec.rate,
-                    rec.t.len(),
-                    level,
-                    method,
-                    seed,
-                    &mut |m| messages.push(m),
-                )?;
+                let m =
+                    trained.get(&family, rec, level, method, seed, &mut |m| messages.push(m))?;
                 let start = std::time::Instant::now();
                 let est = m.predict(&rec.values)?;
                 let named = family
@@ -392,6 +385,10 @@ fn estimate(
                 let checked = family
                     .nominal()
                     .with_timing(rec.rate, rec.t.len())
+                    .and_then(|timed| match rec.segments {
+                        Some(n) if n != timed.segments() => timed.with_segments(n),
+                        _ => Ok(timed),
+                    })
                     .and_then(|timed| {
                         vibrissa_infer::check::check(&timed, &rec.values, &point, &sensor, &needs)
                     });

@@ -146,3 +146,13 @@ def test_one_whisker_of_an_array_recording(tmp_path):
         vibrissa.estimate(path, "e2", method="knn")
     with pytest.raises(ValueError, match="no whisker 'c9'"):
         vibrissa.estimate(run, "e2", method="knn", whisker="c9")
+
+
+def test_a_recording_of_another_chain_trains_on_that_chain(tmp_path):
+    path = tmp_path / "r40.csv"
+    subprocess.run([cli(), "simulate", "e2", "--set", "d=0.022", "--set", "v=0.8", "--set",
+                    "segments=40", "--out", path], check=True, capture_output=True)
+    mine = vibrissa.estimate(path, "e2", method="knn", noise="none")
+    (theirs,) = cli_estimates([path], "--method", "knn", "--noise", "none")
+    assert same(mine, theirs), (mine, theirs)
+    assert abs(mine["d"]["mean"] - 0.022) < 1e-3
