@@ -533,11 +533,7 @@ pub(crate) fn check_recording(
     channels: &[usize],
 ) -> Option<Check> {
     let result = family
-        .with_timing(rec.rate, rec.t.len())
-        .and_then(|timed| match rec.segments {
-            Some(n) if n != timed.segments() => timed.with_segments(n),
-            _ => Ok(timed),
-        })
+        .for_recording(rec)
         .and_then(|timed| check::check(&timed, &rec.values, point, noise, channels));
     match result {
         Ok(c) => {

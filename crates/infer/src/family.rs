@@ -306,6 +306,16 @@ impl Family {
         Ok(f)
     }
 
+    /// The family as a recording was made: its timing, and its chain's segments when its
+    /// metadata says.
+    pub fn for_recording(&self, rec: &crate::recording::Recording) -> Result<Family> {
+        let timed = self.with_timing(rec.rate, rec.t.len())?;
+        match rec.segments {
+            Some(n) if n != timed.segments() => timed.with_segments(n),
+            _ => Ok(timed),
+        }
+    }
+
     /// The segment count of the family's chain.
     pub fn segments(&self) -> usize {
         self.base.segments

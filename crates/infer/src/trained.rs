@@ -75,16 +75,12 @@ impl Trained {
         let k = match found {
             Some(k) => k,
             None => {
-                let timed = family.with_timing(rate, samples)?;
-                let timed = match rec.segments {
-                    Some(n) if n != timed.segments() => {
-                        log(format!(
-                            "the recordings were made by a {n}-segment chain: training on it"
-                        ));
-                        timed.with_segments(n)?
-                    }
-                    _ => timed,
-                };
+                let timed = family.for_recording(rec)?;
+                if let Some(n) = rec.segments.filter(|&n| n != family.segments()) {
+                    log(format!(
+                        "the recordings were made by a {n}-segment chain: training on it"
+                    ));
+                }
                 let mut method = methods::by_name(name)?;
                 let t0 = Instant::now();
                 log(format!(

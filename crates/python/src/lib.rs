@@ -382,16 +382,9 @@ fn estimate(
             };
             let check = if check {
                 let point: Vec<f64> = estimates.iter().map(|(_, e)| e.mean).collect();
-                let checked = family
-                    .nominal()
-                    .with_timing(rec.rate, rec.t.len())
-                    .and_then(|timed| match rec.segments {
-                        Some(n) if n != timed.segments() => timed.with_segments(n),
-                        _ => Ok(timed),
-                    })
-                    .and_then(|timed| {
-                        vibrissa_infer::check::check(&timed, &rec.values, &point, &sensor, &needs)
-                    });
+                let checked = family.nominal().for_recording(rec).and_then(|timed| {
+                    vibrissa_infer::check::check(&timed, &rec.values, &point, &sensor, &needs)
+                });
                 match checked {
                     Ok(c) => Some(c),
                     Err(e) => {
