@@ -542,7 +542,8 @@ pub(crate) fn check_recording(
                     "warning: `{}`: the scenario does not explain this recording at its estimate: \
                      {} leaves {:.1} times its noise level (residual lag-1 correlation {:.2}); the \
                      estimate and its interval assume a model that does not fit (calibrate the \
-                     scenario: vibrissa calibrate)",
+                     scenario: vibrissa calibrate; for recordings made by another simulator, \
+                     state its chain's `segments` and `discretisation`)",
                     file.display(),
                     w.channel,
                     w.ratio,

@@ -115,7 +115,9 @@ impl Estimate {
                 "`{name}`: no particle explains the recording: its residuals are {:.1} times the \
                  variance the filter's noise model allows (at most {MISFIT_LIMIT} is expected); \
                  the whisker, the sensors or the prior do not describe it, and the intervals are \
-                 too narrow: check the scenario (--check), calibrate it, or widen the prior",
+                 too narrow: check the scenario (--check), calibrate it, or widen the prior; \
+                 recordings made by another simulator need its chain (`segments`, \
+                 `discretisation`) in the scenario or the recording's sidecar",
                 self.misfit
             ));
         }
