@@ -288,15 +288,9 @@ pub fn run(args: &Args) -> Result<()> {
             }
             checks.push(c);
         }
-        let named = family
-            .unknowns()
-            .iter()
-            .map(|n| n.to_string())
-            .zip(est)
-            .collect();
         rows.push(FileEstimate {
             file: file.clone(),
-            estimates: named,
+            estimates: family.named(est),
             seconds: secs,
             noise: named_noise(level, &needs),
             filter: Vec::new(),

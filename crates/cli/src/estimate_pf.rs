@@ -110,12 +110,6 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
             eprintln!("warning: {w}");
         }
         let post = &est.posterior;
-        let named = post
-            .unknowns
-            .iter()
-            .map(|n| n.to_string())
-            .zip(post.last().iter().copied())
-            .collect();
         if args.check {
             // The scenario at the posterior mean of its own unknowns; the filter's further
             // unknowns (a start delay, the box's size or friction) are not simulated.
@@ -140,7 +134,7 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
         }
         rows.push(FileEstimate {
             file: file.clone(),
-            estimates: named,
+            estimates: est.named(),
             seconds: est.seconds,
             noise: named_noise(&est.sensor, &channels),
             filter: est.counts(),

@@ -595,13 +595,16 @@ fn bench_pf_reports_the_real_time_factor_per_particle_count() {
     assert!(stderr(&bad).contains("at least 1"), "{}", stderr(&bad));
 }
 
+/// The example scenario of a row of three whiskers.
+const ARRAY_ROW: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../examples/scenarios/array_row.toml"
+);
+
 #[test]
 fn simulate_writes_an_array_s_columns_per_whisker() {
     let dir = Scratch::new("array");
-    let example = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../examples/scenarios/array_row.toml"
-    );
+    let example = ARRAY_ROW;
     let out = dir.path().join("row.csv");
     let run = vibrissa(&[
         "simulate",
@@ -674,10 +677,7 @@ fn simulate_writes_an_array_s_columns_per_whisker() {
 #[test]
 fn estimate_reads_one_whisker_of_an_array_recording() {
     let dir = Scratch::new("array-estimate");
-    let example = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../examples/scenarios/array_row.toml"
-    );
+    let example = ARRAY_ROW;
     let out = dir.path().join("row.csv");
     let out = out.to_str().unwrap();
     assert!(vibrissa(&["simulate", example, "--out", out])

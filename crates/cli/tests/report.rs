@@ -93,6 +93,26 @@ fn external_references(html: &str) -> Vec<String> {
     found
 }
 
+/// The page's recording of run `k` is the experiment's (theta12, to the digits the page keeps).
+fn assert_recording_is_the_experiment_s(
+    run: &serde_json::Value,
+    results: &serde_json::Value,
+    k: usize,
+) {
+    for (a, b) in run["theta12"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip(results["theta12"][k].as_array().unwrap())
+    {
+        let (a, b) = (a.as_f64().unwrap(), b.as_f64().unwrap());
+        assert!(
+            (a - b).abs() <= 1e-4 * b.abs() + 1e-12,
+            "run {k}: {a} vs {b}"
+        );
+    }
+}
+
 #[test]
 fn experiment_report_is_self_contained_and_animates_runs_with_the_filter_s_cloud() {
     let dir = experiment();
@@ -161,18 +181,7 @@ fn experiment_report_is_self_contained_and_animates_runs_with_the_filter_s_cloud
         assert_eq!(run["poses"].as_array().unwrap().len(), frames);
         assert_eq!(run["t"].as_array().unwrap().len(), 151);
         // The recording is the experiment's (theta12, to the digits the page keeps).
-        for (a, b) in run["theta12"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .zip(results["theta12"][k].as_array().unwrap())
-        {
-            let (a, b) = (a.as_f64().unwrap(), b.as_f64().unwrap());
-            assert!(
-                (a - b).abs() <= 1e-4 * b.abs() + 1e-12,
-                "run {k}: {a} vs {b}"
-            );
-        }
+        assert_recording_is_the_experiment_s(run, &results, k);
         let cloud = &run["pf"];
         assert_eq!(cloud["points"].as_array().unwrap().len(), frames);
         let j = evaluated
@@ -400,18 +409,7 @@ fn report_re_simulates_a_scenario_family_with_its_overrides_from_anywhere() {
     assert_eq!(runs.len(), 3);
     for run in runs {
         let k = run["index"].as_u64().unwrap() as usize;
-        for (a, b) in run["theta12"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .zip(results["theta12"][k].as_array().unwrap())
-        {
-            let (a, b) = (a.as_f64().unwrap(), b.as_f64().unwrap());
-            assert!(
-                (a - b).abs() <= 1e-4 * b.abs() + 1e-12,
-                "run {k}: {a} vs {b}"
-            );
-        }
+        assert_recording_is_the_experiment_s(run, &results, k);
         // One unknown: the cloud is over d alone.
         assert_eq!(run["pf"]["unknowns"], serde_json::json!(["d"]));
     }

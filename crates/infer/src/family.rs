@@ -316,6 +316,15 @@ impl Family {
         }
     }
 
+    /// `estimates`, one per unknown in order, named by the unknowns' keys.
+    pub fn named(&self, estimates: Vec<crate::Estimate>) -> Vec<(String, crate::Estimate)> {
+        self.unknowns()
+            .iter()
+            .map(|n| n.to_string())
+            .zip(estimates)
+            .collect()
+    }
+
     /// The segment count of the family's chain.
     pub fn segments(&self) -> usize {
         self.base.segments

@@ -11,6 +11,7 @@ use crate::experiment::CHANNELS;
 use crate::noise::{self, Source};
 use crate::trained::describe_noise;
 use crate::{Error, Result};
+use std::borrow::Cow;
 use vibrissa_core::chain::MAX_SEGMENTS;
 use vibrissa_io::series::Series;
 
@@ -62,7 +63,11 @@ pub fn whiskers_in(series: &Series) -> Vec<String> {
 /// recording of an array of whiskers, whose columns are `c1.theta01`, ...). `whisker` names it;
 /// `None` takes the recording's own unprefixed columns, and is refused, naming the whiskers, for
 /// a recording that has only prefixed ones.
-pub fn whisker_view(series: &Series, name: &str, whisker: Option<&str>) -> Result<Series> {
+pub fn whisker_view<'a>(
+    series: &'a Series,
+    name: &str,
+    whisker: Option<&str>,
+) -> Result<Cow<'a, Series>> {
     let names = whiskers_in(series);
     match whisker {
         None => {
@@ -73,7 +78,7 @@ pub fn whisker_view(series: &Series, name: &str, whisker: Option<&str>) -> Resul
                     names.join(", ")
                 )));
             }
-            Ok(series.clone())
+            Ok(Cow::Borrowed(series))
         }
         Some(w) => {
             if !names.iter().any(|n| n == w) {
@@ -103,7 +108,7 @@ pub fn whisker_view(series: &Series, name: &str, whisker: Option<&str>) -> Resul
                     view.data.push(data.clone());
                 }
             }
-            Ok(view)
+            Ok(Cow::Owned(view))
         }
     }
 }

@@ -12,7 +12,7 @@ use vibrissa_infer::contract::EstimateRow;
 use vibrissa_infer::experiment::CHANNELS;
 use vibrissa_infer::pf::{self, recording, Pf, TraceRow};
 use vibrissa_infer::recording::batch_noise;
-use vibrissa_infer::{Estimate, Family, Method, Reader, Recording, Trained, Training};
+use vibrissa_infer::{Family, Method, Reader, Recording, Trained, Training};
 use vibrissa_io::scenario::Document;
 use vibrissa_io::sweep;
 
@@ -345,40 +345,32 @@ fn estimate(
         messages.extend(noise.warnings.iter().map(|w| format!("warning: {w}")));
         messages.push(noise.summary.clone());
         let mut trained = Trained::default();
+        let options = recording::Options {
+            seed,
+            ..recording::Options::new(particles)
+        };
+        let mut filtered: Option<([f64; 5], Pf)> = None;
         let mut rows = Vec::new();
         for ((name, rec), level) in names.iter().zip(&recordings).zip(&noise.levels) {
             let (estimates, seconds, filter, sensor) = if pf {
-                let options = recording::Options {
-                    seed,
-                    ..recording::Options::new(particles)
-                };
-                let fitted = recording::fitted(&family, level, &options)?;
-                let est = recording::estimate(&fitted, &family, rec, &options)?;
+                // The filter is fitted once per noise level, as on the command line.
+                if filtered.as_ref().map(|f| f.0) != Some(*level) {
+                    filtered = Some((*level, recording::fitted(&family, level, &options)?));
+                }
+                let fitted = &filtered.as_ref().expect("fitted above").1;
+                let est = recording::estimate(fitted, &family, rec, &options)?;
                 messages.extend(
                     est.warnings(name)
                         .into_iter()
                         .map(|w| format!("warning: {w}")),
                 );
-                let post = &est.posterior;
-                let named: Vec<(String, Estimate)> = post
-                    .unknowns
-                    .iter()
-                    .map(|n| n.to_string())
-                    .zip(post.last().iter().copied())
-                    .collect();
-                (named, est.seconds, est.counts(), est.sensor)
+                (est.named(), est.seconds, est.counts(), est.sensor)
             } else {
                 let m =
                     trained.get(&family, rec, level, method, seed, &mut |m| messages.push(m))?;
                 let start = std::time::Instant::now();
-                let est = m.predict(&rec.values)?;
-                let named = family
-                    .unknowns()
-                    .iter()
-                    .map(|n| n.to_string())
-                    .zip(est)
-                    .collect();
-                (named, start.elapsed().as_secs_f64(), Vec::new(), *level)
+                let est = family.named(m.predict(&rec.values)?);
+                (est, start.elapsed().as_secs_f64(), Vec::new(), *level)
             };
             let check = if check {
                 let point: Vec<f64> = estimates.iter().map(|(_, e)| e.mean).collect();

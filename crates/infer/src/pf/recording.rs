@@ -90,6 +90,17 @@ impl Estimate {
         ]
     }
 
+    /// The posterior after the last sample, named by unknown (the object's `d`, `v`, and any
+    /// further unknown the filter carried).
+    pub fn named(&self) -> Vec<(String, crate::Estimate)> {
+        let post = &self.posterior;
+        post.unknowns
+            .iter()
+            .map(|n| n.to_string())
+            .zip(post.last().iter().copied())
+            .collect()
+    }
+
     /// What the user should be warned of, each naming the recording `name`.
     pub fn warnings(&self, name: &str) -> Vec<String> {
         let (post, config) = (&self.posterior, &self.config);
