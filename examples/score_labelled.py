@@ -3,7 +3,7 @@
 
     python3 examples/score_labelled.py --labelled DIR --scenario FILE.toml [--method knn ...]
         [--vibrissa target/release/vibrissa] [--noise auto|none|CHANNEL=SIGMA,...]
-        [--randomise] [--seed N]
+        [--randomise] [--seed N] [--arg=--particles --arg=2000 ...]
 
 Prints, per method and per labelled unknown, the mean absolute error and the share of files
 whose 90% interval holds the truth. Needs only the Python standard library.
@@ -27,6 +27,8 @@ def main():
     ap.add_argument("--randomise", action="store_true",
                     help="train on randomised whiskers (estimate --randomise)")
     ap.add_argument("--seed", help="seed of the training runs (estimate --seed)")
+    ap.add_argument("--arg", action="append", default=[],
+                    help="one more argument for estimate, e.g. --arg=--channels --arg=m0,fx,fy")
     a = ap.parse_args()
 
     with open(os.path.join(a.labelled, "truth.csv"), newline="") as f:
@@ -50,6 +52,7 @@ def main():
             cmd += ["--randomise"]
         if a.seed:
             cmd += ["--seed", a.seed]
+        cmd += a.arg
         for f in files:
             cmd += ["--obs", f]
         out = subprocess.run(cmd, capture_output=True, text=True)

@@ -52,7 +52,11 @@ pub struct Args {
     /// follicle, half tapered, gains within 5%, half with 0.5–3 times the segments, half with
     /// the seed paper's stiffness rule; three times the training runs): estimates that hold,
     /// with wider intervals, on a whisker known only roughly, recorded by another chain. Not for
-    /// `template` and `template-interp` (they keep the scenario's own templates) or `pf`.
+    /// `template` and `template-interp` (they keep the scenario's own templates). The filter
+    /// (`pf`) instead entertains 32 whiskers drawn alike (the scenario's and 31 others) and
+    /// carries the sensors' gains and offsets as unknowns, reported as `sensors.<channel>.gain`
+    /// and `.offset` (angle gains free within about a factor of two, the base wrench's common
+    /// scale ±30%, each sensor ±5%).
     #[arg(long)]
     pub(crate) randomise: bool,
     /// For recordings of an array of whiskers (columns `c1.theta01`, ...): the whisker whose
@@ -65,9 +69,12 @@ pub struct Args {
     /// List the methods and exit.
     #[arg(long)]
     list: bool,
-    /// pf: number of particles.
-    #[arg(long, default_value_t = 1000, value_name = "N")]
-    pub(crate) particles: usize,
+    /// pf: number of particles [default: 1000, or 4000 with --randomise].
+    #[arg(long, value_name = "N")]
+    pub(crate) particles: Option<usize>,
+    /// pf with --randomise: whiskers entertained besides the scenario's.
+    #[arg(long, default_value_t = vibrissa_infer::pf::ALTERNATIVES, value_name = "N")]
+    pub(crate) alternatives: usize,
     /// pf: write the posterior (mean, std, 90% interval of every unknown, and the effective sample
     /// size) at every sample to this CSV, and its plot beside it (same name, .png). One file only.
     #[arg(long, value_name = "FILE.csv")]
@@ -228,10 +235,12 @@ pub fn run(args: &Args) -> Result<()> {
         );
     }
     let stated = stated_noise(&family, &args.noise)?;
+    let family = if args.randomise {
+        family.randomised(vibrissa_infer::randomise::Randomisation::default())?
+    } else {
+        family
+    };
     if args.method.as_deref() == Some("pf") {
-        if args.randomise {
-            bail!("--randomise applies to the discriminative methods, not to the filter");
-        }
         check_arguments(args)?;
         return crate::estimate_pf::run(args, &family, &stated);
     }
@@ -245,11 +254,6 @@ pub fn run(args: &Args) -> Result<()> {
     }
     let name = args.method.as_deref().unwrap_or_default();
     let probe = methods::by_name(name)?;
-    let family = if args.randomise {
-        family.randomised(vibrissa_infer::randomise::Randomisation::default())?
-    } else {
-        family
-    };
 
     // Read and check every file before training.
     let needs = probe.channels();

@@ -22,7 +22,10 @@ const UNOBSERVABLE: [&str; 4] = ["contact", "cx", "cy", "s"];
 
 /// Runs the filter on every `--obs` file and prints the contract's estimates.
 pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()> {
-    if args.particles == 0 {
+    let particles = args
+        .particles
+        .unwrap_or_else(|| pf::default_particles(family));
+    if particles == 0 {
         bail!("--particles must be at least 1 (got 0)");
     }
     if !(args.max_delay.is_finite() && (0.0..=1.0).contains(&args.max_delay)) {
@@ -55,13 +58,14 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
 
     // The sensor noise of every recording (the filter is fitted to each level: no runs).
     let levels = noise_levels(&args.obs, &recordings, &channels, stated)?;
-    let mut options = pf::recording::Options::new(args.particles);
+    let mut options = pf::recording::Options::new(particles);
     options.seed = args.seed;
     options.max_delay = args.max_delay;
     options.model = TransitionModel::from_name(&args.pf_model)
         .map_err(|e| anyhow::anyhow!("--pf-model: {e}"))?;
     options.channels = channels.clone();
     options.priors = priors;
+    options.alternatives = args.alternatives;
     if let Some(name) = &args.inject {
         if name == "pf" {
             bail!("--inject takes a discriminative method, not pf");
@@ -81,7 +85,7 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
             let sigma = filter.sigma().context("the filter was not fitted")?;
             eprintln!(
                 "pf ({} particles): observation noise {}",
-                args.particles,
+                particles,
                 channels
                     .iter()
                     .map(|&c| format!("{} {:.3e}", CHANNELS[c], sigma[c]))

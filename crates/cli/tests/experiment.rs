@@ -943,15 +943,14 @@ fn estimate_randomise_trains_on_whiskers_around_the_scenario() {
         ],
     );
     let estimate = |extra: &[&str]| {
+        let method: &[&str] = if extra.contains(&"pf") {
+            &[]
+        } else {
+            &["--method", "knn"]
+        };
         let out = vibrissa()
-            .args([
-                "estimate",
-                "--experiment",
-                "e2",
-                "--method",
-                "knn",
-                "--json",
-            ])
+            .args(["estimate", "--experiment", "e2", "--json"])
+            .args(method)
             .args(extra)
             .arg("--obs")
             .arg(&csv)
@@ -977,7 +976,22 @@ fn estimate_randomise_trains_on_whiskers_around_the_scenario() {
     let [lo, hi] = [0, 1].map(|k| randomised["d"]["ci90"][k].as_f64().unwrap());
     assert!(lo <= 0.021 && 0.021 <= hi, "{randomised}");
 
-    // Not for the filter.
+    // The filter entertains whiskers drawn alike and carries the sensors' gains as unknowns.
+    let filtered = estimate(&["--method", "pf", "--randomise", "--particles", "2000"]);
+    let d = filtered["d"]["mean"].as_f64().unwrap();
+    assert!((d - 0.021).abs() < 2.5e-3, "{filtered}");
+    // The follicle's rotation, which the scenario's clamped whisker lacks, shows as a gain of
+    // the base angle above 1; the wrench's gains stay within their prior.
+    let gain = |ch: &str| {
+        filtered[format!("sensors.{ch}.gain")]["mean"]
+            .as_f64()
+            .unwrap()
+    };
+    assert!(gain("theta01") > 1.2, "{filtered}");
+    for ch in ["m0", "fx", "fy"] {
+        assert!((0.8..1.2).contains(&gain(ch)), "{filtered}");
+    }
+    // More alternative whiskers than particles are refused, by name.
     let out = vibrissa()
         .args([
             "estimate",
@@ -986,11 +1000,11 @@ fn estimate_randomise_trains_on_whiskers_around_the_scenario() {
             "--method",
             "pf",
             "--randomise",
-            "--obs",
         ])
+        .args(["--particles", "100", "--alternatives", "100", "--obs"])
         .arg(&csv)
         .output()
         .unwrap();
     assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("--randomise"));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("alternatives"));
 }

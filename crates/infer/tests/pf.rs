@@ -221,3 +221,69 @@ fn bad_input_is_refused_with_the_field_named() {
     short.values[4].truncate(10);
     assert!(err(&c, &short).contains("fy"));
 }
+
+/// A whisker the filter is not told: softer than the scenario says, its angles recorded by a
+/// chain of other joint spacing (`theta12` at 0.45 of the scenario's, `theta01` at 0.7), its
+/// wrench sensors a few percent off. Told the nominal scenario, the filter collapses onto wrong
+/// distances; on the randomised family it entertains other whiskers and carries the sensors'
+/// gains as unknowns, and its intervals hold the truth.
+#[test]
+fn on_a_randomised_family_the_filter_learns_the_sensors_and_stays_honest() {
+    let sets = [
+        "whisker.youngs_modulus=2.9e9",
+        "sensors.theta01.gain=0.7",
+        "sensors.theta12.gain=0.45",
+        "sensors.m0.gain=1.03",
+        "sensors.fx.gain=0.97",
+        "sensors.fy.gain=1.02",
+    ]
+    .map(String::from);
+    let truth = Family::open("e2", &sets).unwrap();
+    let nominal = Family::builtin("e2").unwrap();
+    let noise = Noise {
+        sensor: truth.noise(Variant::Noisy).unwrap().sensor.map(|s| 0.6 * s),
+        process: 0.0,
+    };
+    let fit = |family: &Family| {
+        let mut filter = Pf::new(4000);
+        filter
+            .fit(&Training {
+                family: family.clone(),
+                samples: Vec::new(),
+                calibration: Vec::new(),
+                noise,
+            })
+            .unwrap();
+        filter
+    };
+    let told = fit(&nominal);
+    let rough = fit(&nominal
+        .randomised(vibrissa_infer::randomise::Randomisation::default())
+        .unwrap());
+    let strikes = [(0.017, 0.5), (0.021, 1.1), (0.025, 0.8), (0.028, 1.3)];
+    let (mut told_inside, mut rough_inside) = (0, 0);
+    for (k, (d, v)) in strikes.into_iter().enumerate() {
+        let run = truth.simulate(&[d, v], &noise, 40 + k as u64).unwrap();
+        let e = told.predict(&run.series).unwrap();
+        told_inside += usize::from(e[0].ci90[0] <= d && d <= e[0].ci90[1]);
+        let post = rough.posterior(&run.series).unwrap();
+        let e = post.last();
+        let report = format!("d = {d}, v = {v}: {:?}", e);
+        assert!((e[0].mean - d).abs() < 2e-3, "{report}");
+        assert!((e[1].mean - v).abs() < 0.1, "{report}");
+        rough_inside += usize::from(e[0].ci90[0] <= d && d <= e[0].ci90[1]);
+        // The angle gains are learned (the wrench's stay near 1 within their prior).
+        let sensors = post.sensors.as_ref().expect("a sensor posterior");
+        let g12 = sensors.gain[1];
+        assert!((g12.mean - 0.45).abs() < 0.1, "theta12 gain {g12:?}");
+        assert!(g12.std > 0.0 && g12.std < 0.1, "theta12 gain {g12:?}");
+    }
+    assert!(
+        told_inside <= 1,
+        "told the nominal: {told_inside} of 4 intervals hold d"
+    );
+    assert!(
+        rough_inside >= 3,
+        "randomised: {rough_inside} of 4 intervals hold d"
+    );
+}

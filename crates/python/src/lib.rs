@@ -276,19 +276,14 @@ fn estimate(
     noise: &str,
     seed: u64,
     randomise: bool,
-    particles: usize,
+    particles: Option<usize>,
     check: bool,
     whisker: Option<&str>,
 ) -> PyResult<(Vec<String>, Vec<String>)> {
     let family = family(scenario, scenario_json, &sets)?;
     let probe = vibrissa_infer::methods::by_name(method).map_err(value_error)?;
     let pf = method == "pf";
-    if pf && randomise {
-        return Err(value_error(
-            "randomise applies to the discriminative methods, not to the filter",
-        ));
-    }
-    if pf && particles == 0 {
+    if pf && particles == Some(0) {
         return Err(value_error("particles: at least 1"));
     }
     let given = vibrissa_infer::noise::parse_statement(noise)
@@ -347,7 +342,9 @@ fn estimate(
         let mut trained = Trained::default();
         let options = recording::Options {
             seed,
-            ..recording::Options::new(particles)
+            ..recording::Options::new(
+                particles.unwrap_or_else(|| vibrissa_infer::pf::default_particles(&family)),
+            )
         };
         let mut filtered: Option<([f64; 5], Pf)> = None;
         let mut rows = Vec::new();

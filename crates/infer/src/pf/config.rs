@@ -3,6 +3,7 @@
 
 #[cfg(doc)]
 use super::map_joints;
+use super::sensors::SensorSpread;
 use crate::error::{Error, Result};
 use crate::experiment::CHANNELS;
 use serde::Serialize;
@@ -61,6 +62,11 @@ pub struct Config {
     pub seed: u64,
     /// The whisker.
     pub whisker: WhiskerParams,
+    /// Other whiskers the filter entertains besides `whisker` (none: the whisker is known).
+    /// Particle `i` carries whisker `i mod (1 + alternatives)`, `whisker` first, through its
+    /// resampled descendants, so the posterior weighs the whiskers by how well they explain the
+    /// recording.
+    pub alternatives: Vec<WhiskerParams>,
     /// Segments of the filter's chain. It may be coarser than the observed chain: its joint
     /// angles are mapped onto the observed chain's joints (see [`map_joints`]).
     pub segments: usize,
@@ -86,6 +92,9 @@ pub struct Config {
     pub sensor_gain: [f64; 5],
     /// Offset of the sensor of each channel of [`CHANNELS`], in the channel's unit.
     pub sensor_offset: [f64; 5],
+    /// How far the sensors' gains and offsets may lie from `sensor_gain` and `sensor_offset`:
+    /// the filter marginalises them within each particle (see [`SensorSpread`]).
+    pub sensor_spread: SensorSpread,
     /// Process-noise intensity on every segment, N·s^½·m^-½.
     pub process_noise: f64,
     /// Liu–West shrinkage `a` in (0, 1].
@@ -128,6 +137,7 @@ impl Config {
             particles,
             seed,
             whisker: WhiskerParams::w30(),
+            alternatives: Vec::new(),
             segments: 5,
             observed_segments: 20,
             discretisation: Discretisation::default(),
@@ -137,6 +147,7 @@ impl Config {
             sigma,
             sensor_gain: [1.0; 5],
             sensor_offset: [0.0; 5],
+            sensor_spread: SensorSpread::default(),
             process_noise: crate::experiment::PROCESS_NOISE,
             shrink: 0.98,
             ess_fraction: 0.5,
@@ -217,6 +228,12 @@ impl Config {
         if self.particles == 0 {
             return bad("particles", "at least 1 particle");
         }
+        if self.alternatives.len() >= self.particles.min(u16::MAX as usize) {
+            return bad(
+                "alternatives",
+                "fewer alternative whiskers than particles (and than 65535)",
+            );
+        }
         if !(self.dt > 0.0 && self.dt <= 1e-3) {
             return bad("dt", "a model time step in (0, 1 ms]");
         }
@@ -252,6 +269,12 @@ impl Config {
                     "a finite sensor gain other than 0 and a finite sensor offset",
                 );
             }
+        }
+        if !self.sensor_spread.is_valid() {
+            return bad(
+                "sensor_spread",
+                "finite spreads of the sensors' gains and offsets, 0 or more",
+            );
         }
         if !(self.shrink > 0.0 && self.shrink <= 1.0) {
             return bad("shrink", "a Liu–West shrinkage in (0, 1]");

@@ -6,14 +6,15 @@ use super::config::{Config, PARAMS};
 use super::draws::{draw_initial, redraw_waiting};
 use super::posterior::{summarise, Observations, Posterior, TraceRow};
 use super::sampling::{systematic, LiuWest};
-use super::transition::{advance, map_joints, param, Chain, FreeModel, ObjState};
+use super::sensors::SensorBelief;
+use super::transition::{advance, map_joints, param, Hypothesis, ObjState};
 use crate::error::{Error, Result};
 use crate::experiment::CHANNELS;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use vibrissa_core::batch;
 use vibrissa_core::chain::Model;
-use vibrissa_core::dynamics::{initialize, Inputs, Integrator, State, Stepper, Workspace};
+use vibrissa_core::dynamics::{Integrator, State, Stepper};
 use vibrissa_core::rng::Rng;
 use vibrissa_core::sensors::Sensors;
 
@@ -68,10 +69,9 @@ pub struct Particles {
 /// each sample as it arrives). [`run`] feeds it a whole recording.
 pub struct Filter {
     config: Config,
-    model: Model,
-    observed: Model,
+    /// The whiskers entertained: `config.whisker` first, then its alternatives.
+    hyps: Vec<Hypothesis>,
     stepper: Stepper,
-    ringing: FreeModel,
     /// Sample period, s.
     period: f64,
     /// The free unknowns' indices into [`PARAMS`].
@@ -81,6 +81,13 @@ pub struct Filter {
     states: Vec<State>,
     spare: Vec<State>,
     objs: Vec<ObjState>,
+    /// Each particle's whisker, an index into `hyps`.
+    hyp: Vec<u16>,
+    spare_hyp: Vec<u16>,
+    /// Each particle's belief over the sensors' gains and offsets (unchanging when they are
+    /// known).
+    sensors: Vec<SensorBelief>,
+    spare_sensors: Vec<SensorBelief>,
     logw: Vec<f64>,
     /// Whether each particle's box has left for good (its whisker then rings free).
     cleared: Vec<bool>,
@@ -111,14 +118,6 @@ impl Filter {
                 "the sample period must be a positive number of seconds, got {period}"
             )));
         }
-        let whisker = config
-            .whisker
-            .check()
-            .map_err(|e| Error::Observation(format!("filter whisker: {e}")))?;
-        let model = Model::new(&whisker, config.segments, config.model_discretisation())
-            .map_err(|e| Error::Observation(format!("filter model: {e}")))?;
-        let observed = Model::new(&whisker, config.observed_segments, config.discretisation)
-            .map_err(|e| Error::Observation(format!("observed chain: {e}")))?;
         let np = config.particles;
         let per_sample = ((period / config.dt) * (1.0 - 1e-9)).ceil().max(1.0) as usize;
         let stepper = Integrator {
@@ -129,25 +128,16 @@ impl Filter {
         .check()
         .map_err(|e| Error::Observation(format!("filter integrator: {e}")))?;
 
-        // Initial particles: the whisker at rest, the object drawn from the prior (or the
-        // mixture with the injected proposal).
-        let mut template = State::at_rest(&model, config.seed);
-        let mut ws = Workspace::new(&model);
-        initialize(
-            &model,
-            &mut template,
-            &Inputs {
-                base: Default::default(),
-                loads: &[],
-                noise: 0.0,
-                objects: &[],
-            },
-            &mut ws,
-        )
-        .map_err(|e| Error::Observation(format!("filter initial state: {e}")))?;
+        // The whiskers, each at rest; the objects drawn from the prior (or the mixture with the
+        // injected proposal).
+        let hyps = std::iter::once(&config.whisker)
+            .chain(&config.alternatives)
+            .map(|w| Hypothesis::new(config, w, period))
+            .collect::<Result<Vec<_>>>()?;
+        let hyp: Vec<u16> = (0..np).map(|i| (i % hyps.len()) as u16).collect();
         let states: Vec<State> = (0..np)
             .map(|i| {
-                let mut s = template.clone();
+                let mut s = hyps[hyp[i] as usize].at_rest.clone();
                 s.rng = Rng::stream(config.seed, STREAM_NOISE + i as u64);
                 s
             })
@@ -163,21 +153,24 @@ impl Filter {
         let free: Vec<usize> = (0..PARAMS.len())
             .filter(|&k| config.priors[k].is_free())
             .collect();
-        let ringing = FreeModel::new(config, &model, period)?;
-        let reach_zone = ringing.clearance + 1e-4;
+        let sensors = vec![SensorBelief::prior(config); np];
+        let clearance = hyps.iter().map(|h| h.ringing.clearance).fold(0.0, f64::max);
+        let reach_zone = clearance + 1e-4;
         Ok(Filter {
             config: config.clone(),
             post: Posterior::empty(config.unknowns()),
-            model,
-            observed,
+            hyps,
             stepper,
-            ringing,
+            spare_hyp: hyp.clone(),
+            hyp,
             period,
             free,
             reach_zone,
             spare: states.clone(),
             states,
             objs,
+            spare_sensors: sensors.clone(),
+            sensors,
             logw,
             cleared: vec![false; np],
             spare_cleared: vec![false; np],
@@ -269,30 +262,31 @@ impl Filter {
                 self.post.skipped += 1;
             }
         }
-        let chain = Chain {
-            model: &self.model,
-            stepper: &self.stepper,
-            ringing: &self.ringing,
-        };
-        let (model, observed) = (&self.model, &self.observed);
+        let chains: Vec<_> = self.hyps.iter().map(|h| h.chain(&self.stepper)).collect();
+        let hyps = &self.hyps;
+        let fixed_sensors = config.sensor_spread.is_fixed();
         // Weight mass the particles carry into this sample (for the evidence).
         let prior_mass: f64 = self.logw.iter().map(|l| l.exp()).sum();
         let ringing_before = self.cleared.iter().filter(|c| **c).count();
         let undone = AtomicUsize::new(0);
         // Predict (after the first sample) and weight every particle, in parallel.
         let diverged = batch::sum_with_workspace(
-            model,
+            &hyps[0].model,
             self.states
                 .par_iter_mut()
                 .zip(self.objs.par_iter_mut())
                 .zip(self.logw.par_iter_mut())
                 .zip(self.cleared.par_iter_mut())
                 .zip(self.unmoved.par_iter())
-                .zip(self.spare.par_iter_mut()),
-            |ws, (((((s, o), lw), gone), before), kept)| {
+                .zip(self.spare.par_iter_mut())
+                .zip(self.sensors.par_iter_mut())
+                .zip(self.hyp.par_iter()),
+            |ws, (((((((s, o), lw), gone), before), kept), belief), h)| {
                 if *lw == f64::NEG_INFINITY {
                     return 0;
                 }
+                let (chain, hyp) = (&chains[*h as usize], &hyps[*h as usize]);
+                let (model, observed) = (&hyp.model, &hyp.observed);
                 let noise = config.process_noise;
                 // A box just moved may sit where its whisker state cannot follow (around the
                 // tip, say): keep the state (in the spare slot, free until the next
@@ -301,13 +295,13 @@ impl Filter {
                 if before.is_some() {
                     kept.clone_from(s);
                 }
-                let mut ok = advance(&chain, s, o, gone, steps, periods, noise, t, ws).is_ok()
+                let mut ok = advance(chain, s, o, gone, steps, periods, noise, t, ws).is_ok()
                     && (before.is_none() || !whipped(model, s));
                 if let (false, Some(b)) = (ok, before) {
                     undone.fetch_add(1, Ordering::Relaxed);
                     s.clone_from(kept);
                     (*gone, *o) = (was_gone, *b);
-                    ok = advance(&chain, s, o, gone, steps, periods, noise, t, ws).is_ok();
+                    ok = advance(chain, s, o, gone, steps, periods, noise, t, ws).is_ok();
                 }
                 if !ok {
                     *lw = f64::NEG_INFINITY;
@@ -315,15 +309,21 @@ impl Filter {
                 }
                 let mut pred = Sensors::read(s).to_array();
                 [pred[0], pred[1]] = map_joints(model, observed, s.q());
-                let mut ll = 0.0;
-                for c in 0..5 {
-                    if seen[c] {
-                        // What the channel's sensor records of the model's value.
-                        let recorded = config.sensor_gain[c] * pred[c] + config.sensor_offset[c];
-                        let z = (y[c] - recorded) / config.sigma[c];
-                        ll -= 0.5 * z * z;
+                let ll = if fixed_sensors {
+                    let mut ll = 0.0;
+                    for c in 0..5 {
+                        if seen[c] {
+                            // What the channel's sensor records of the model's value.
+                            let recorded =
+                                config.sensor_gain[c] * pred[c] + config.sensor_offset[c];
+                            let z = (y[c] - recorded) / config.sigma[c];
+                            ll -= 0.5 * z * z;
+                        }
                     }
-                }
+                    ll
+                } else {
+                    belief.take(&pred, y, &seen, &config.sigma)
+                };
                 *lw += ll;
                 0
             },
@@ -361,6 +361,9 @@ impl Filter {
             })
             .collect();
         post.trace.push(TraceRow { t, ess, estimates });
+        if !config.sensor_spread.is_fixed() {
+            post.sensors = Some(SensorBelief::mixture(&self.sensors, &w));
+        }
         self.logw
             .iter_mut()
             .zip(&w)
@@ -389,12 +392,16 @@ impl Filter {
                 self.spare[i].clone_from(&self.states[p]);
                 self.spare_cleared[i] = self.cleared[p];
                 self.spare_arrived[i] = self.arrived[p];
+                self.spare_sensors[i] = self.sensors[p];
+                self.spare_hyp[i] = self.hyp[p];
                 self.spare[i].rng =
                     Rng::stream(config.seed, STREAM_NOISE + (generation << 20) + i as u64);
             }
             std::mem::swap(&mut self.states, &mut self.spare);
             std::mem::swap(&mut self.cleared, &mut self.spare_cleared);
             std::mem::swap(&mut self.arrived, &mut self.spare_arrived);
+            std::mem::swap(&mut self.sensors, &mut self.spare_sensors);
+            std::mem::swap(&mut self.hyp, &mut self.spare_hyp);
             self.objs = parents.iter().map(|&p| self.objs[p]).collect();
             self.logw.iter_mut().for_each(|l| *l = 0.0);
             if let Some(kernel) = &kernel {

@@ -59,6 +59,20 @@ pub struct Posterior {
     /// that depends only on the noise levels: the sum over samples of the log mean weight
     /// update. Compares priors or models on the same series.
     pub log_evidence: f64,
+    /// The sensors' gains and offsets after the last sample, per channel of
+    /// [`crate::experiment::CHANNELS`], when the filter was not told them exactly
+    /// ([`super::Config::sensor_spread`]).
+    pub sensors: Option<SensorPosterior>,
+}
+
+/// The posterior of the sensors' gains and offsets (their mean and standard deviation over the
+/// particles and their beliefs).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SensorPosterior {
+    /// Gain of each channel's sensor.
+    pub gain: [Estimate; 5],
+    /// Offset of each channel's sensor, in the channel's unit.
+    pub offset: [Estimate; 5],
 }
 
 impl Posterior {
@@ -74,6 +88,7 @@ impl Posterior {
             steps: 0,
             ringing_share: 0.0,
             log_evidence: 0.0,
+            sensors: None,
         }
     }
 

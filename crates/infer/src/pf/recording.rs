@@ -42,6 +42,9 @@ pub struct Options {
     /// A discriminative method's estimates of d (and v) for this recording, whose proposals are
     /// mixed into the initial particles (hypothesis injection, [`INJECT_FRACTION`] of them).
     pub inject: Option<Vec<crate::Estimate>>,
+    /// Whiskers entertained besides the scenario's on a randomised family
+    /// ([`Pf::alternatives`]).
+    pub alternatives: usize,
 }
 
 impl Options {
@@ -55,6 +58,7 @@ impl Options {
             channels: (0..crate::CHANNELS.len()).collect(),
             priors: Vec::new(),
             inject: None,
+            alternatives: super::ALTERNATIVES,
         }
     }
 }
@@ -91,14 +95,24 @@ impl Estimate {
     }
 
     /// The posterior after the last sample, named by unknown (the object's `d`, `v`, and any
-    /// further unknown the filter carried).
+    /// further unknown the filter carried; the sensors' gains and offsets by their scenario keys,
+    /// `sensors.<channel>.gain` and `.offset`, when the filter was not told them exactly).
     pub fn named(&self) -> Vec<(String, crate::Estimate)> {
         let post = &self.posterior;
-        post.unknowns
+        let mut named: Vec<(String, crate::Estimate)> = post
+            .unknowns
             .iter()
             .map(|n| n.to_string())
             .zip(post.last().iter().copied())
-            .collect()
+            .collect();
+        if let Some(s) = &post.sensors {
+            for &c in &self.config.channels {
+                let ch = crate::CHANNELS[c];
+                named.push((format!("sensors.{ch}.gain"), s.gain[c]));
+                named.push((format!("sensors.{ch}.offset"), s.offset[c]));
+            }
+        }
+        named
     }
 
     /// What the user should be warned of, each naming the recording `name`.
@@ -185,6 +199,7 @@ pub fn fitted(family: &Family, level: &[f64; 5], options: &Options) -> Result<Pf
     filter.set_model(options.model);
     filter.seed = options.seed;
     filter.max_delay = options.max_delay;
+    filter.alternatives = options.alternatives;
     let training = training_for(
         family,
         &family.training_noise(*level),

@@ -7,7 +7,7 @@ use crate::error::{Error, Result};
 use vibrissa_core::chain::Model;
 use vibrissa_core::dynamics::{initialize, step, Inputs, Integrator, State, Workspace};
 use vibrissa_core::objects::{Motion, Object, Shape};
-use vibrissa_core::whisker::Follicle;
+use vibrissa_core::whisker::{Follicle, WhiskerParams};
 
 /// The object's state of one particle: `[d, v, y0, size, mu]` with `y0` the height of the top
 /// face at t = 0 (its trajectory is `y0 + v·t`).
@@ -63,7 +63,12 @@ pub(super) struct FreeModel {
 }
 
 impl FreeModel {
-    pub(super) fn new(config: &Config, model: &Model, period: f64) -> Result<FreeModel> {
+    pub(super) fn new(
+        config: &Config,
+        whisker: &WhiskerParams,
+        model: &Model,
+        period: f64,
+    ) -> Result<FreeModel> {
         let f1 = model
             .modes()
             .map_err(|e| Error::Observation(format!("filter free model: {e}")))?
@@ -72,7 +77,7 @@ impl FreeModel {
         let warp = ((0.5 * omega_h).tan() / (0.5 * omega_h)).powi(2);
         // Every stiffness scaled by one factor scales every frequency by its square root: the
         // whisker's and the follicle's spring alike.
-        let mut params = config.whisker.clone();
+        let mut params = whisker.clone();
         params.youngs_modulus *= warp;
         if let Follicle::Spring { stiffness, damping } = params.follicle {
             params.follicle = Follicle::Spring {
@@ -92,7 +97,7 @@ impl FreeModel {
         }
         .check()
         .map_err(|e| Error::Observation(format!("filter integrator: {e}")))?;
-        let p = &config.whisker;
+        let p = whisker;
         let r_min = p.base_radius.min(p.tip_radius);
         let ei_min = p.youngs_modulus * std::f64::consts::PI * r_min.powi(4) / 4.0;
         // Tip deflection per tip force: the cantilever's least stiffness, and the follicle's
@@ -151,6 +156,54 @@ pub fn map_joints(model: &Model, observed: &Model, q: &[f64]) -> [f64; 2] {
         let m = (1.0 - u) * moment(i) + u * moment(i + 1);
         observed.rest[j] + m / observed.stiffness[j]
     })
+}
+
+/// One whisker the filter entertains: its transition chain, the observed chain its joint angles
+/// map onto, its free-ringing model, and the state its particles start from (at rest).
+pub(super) struct Hypothesis {
+    pub(super) model: Model,
+    pub(super) observed: Model,
+    pub(super) ringing: FreeModel,
+    pub(super) at_rest: State,
+}
+
+impl Hypothesis {
+    /// The whisker `whisker` under `config`'s chains, observed every `period` seconds.
+    pub(super) fn new(config: &Config, whisker: &WhiskerParams, period: f64) -> Result<Hypothesis> {
+        let checked = whisker
+            .check()
+            .map_err(|e| Error::Observation(format!("filter whisker: {e}")))?;
+        let model = Model::new(&checked, config.segments, config.model_discretisation())
+            .map_err(|e| Error::Observation(format!("filter model: {e}")))?;
+        let observed = Model::new(&checked, config.observed_segments, config.discretisation)
+            .map_err(|e| Error::Observation(format!("observed chain: {e}")))?;
+        let mut at_rest = State::at_rest(&model, config.seed);
+        let mut ws = Workspace::new(&model);
+        let none = Inputs {
+            base: Default::default(),
+            loads: &[],
+            noise: 0.0,
+            objects: &[],
+        };
+        initialize(&model, &mut at_rest, &none, &mut ws)
+            .map_err(|e| Error::Observation(format!("filter initial state: {e}")))?;
+        let ringing = FreeModel::new(config, whisker, &model, period)?;
+        Ok(Hypothesis {
+            model,
+            observed,
+            ringing,
+            at_rest,
+        })
+    }
+
+    /// The transition model of this whisker with `stepper`.
+    pub(super) fn chain<'a>(&'a self, stepper: &'a vibrissa_core::dynamics::Stepper) -> Chain<'a> {
+        Chain {
+            model: &self.model,
+            stepper,
+            ringing: &self.ringing,
+        }
+    }
 }
 
 /// The filter's transition model: the chain, its stepper, and the free-ringing model.
@@ -220,7 +273,6 @@ pub(super) fn advance(
 mod tests {
     use super::*;
     use vibrissa_core::chain::Discretisation;
-    use vibrissa_core::whisker::WhiskerParams;
 
     #[test]
     fn joint_angles_map_exactly_under_a_linear_bending_moment() {
@@ -261,7 +313,7 @@ mod tests {
         let model = Model::new(&w, 8, Discretisation::default()).unwrap();
         config.segments = 8;
         let period = 1e-3;
-        let free = FreeModel::new(&config, &model, period).unwrap();
+        let free = FreeModel::new(&config, &config.whisker, &model, period).unwrap();
         let f1 = model.modes().unwrap().frequencies[0];
         let raised = free.model.modes().unwrap().frequencies[0];
         // The implicit step at `period` elongates the raised mode's period back to the true one.

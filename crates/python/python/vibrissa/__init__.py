@@ -243,7 +243,7 @@ def estimate(
     noise="auto",
     seed=1,
     randomise=False,
-    particles=1000,
+    particles=None,
     check=False,
     whisker=None,
     overrides=None,
@@ -275,9 +275,11 @@ def estimate(
     seed : int
         Seed of the training runs (and of the filter).
     randomise : bool
-        Train on whiskers drawn around the scenario's (a whisker known only roughly).
-    particles : int
-        Particles of ``method="pf"``.
+        The whisker is known only roughly: the discriminative methods train on whiskers drawn
+        around the scenario's; the filter (``"pf"``) entertains such whiskers and carries the
+        sensors' gains and offsets as unknowns (reported as ``"sensors.<channel>.gain"``...).
+    particles : int, optional
+        Particles of ``method="pf"`` (default 1000, or 4000 with ``randomise=True``).
     check : bool
         Add the model check (``"check"``): does the scenario explain the recording at its estimate?
     whisker : str, optional
@@ -305,7 +307,8 @@ def estimate(
     if not isinstance(method, str):
         raise TypeError(f"method: expected a name (str), not {type(method).__name__}")
     seed = _count("seed", seed, 0)
-    particles = _count("particles", particles, 1)
+    if particles is not None:
+        particles = _count("particles", particles, 1)
     name, text = _scenario_args(scenario)
     rows, messages = _vibrissa.estimate(
         name,

@@ -52,7 +52,7 @@ def estimate(
     noise: Union[str, Mapping[str, float], None] = "auto",
     seed: int = 1,
     randomise: bool = False,
-    particles: int = 1000,
+    particles: int | None = None,
     check: bool = False,
     whisker: str | None = None,
     overrides: Mapping[str, Value] | None = None,
