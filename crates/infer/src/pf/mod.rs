@@ -10,6 +10,11 @@
 //! `FreeModel`). Observation: any set of the contract's channels `theta01`, `theta12`, `m0`,
 //! `fx`, `fy` with independent Gaussian noise of a stated standard deviation per channel.
 //!
+//! A whisker known only roughly (`Config::alternatives`, `Config::sensor_spread`): each particle
+//! also carries one of several whiskers (static, inherited through resampling) and a Gaussian
+//! belief over the sensors' gains and offsets, updated exactly by every sample (see `sensors`),
+//! by which its weight is the sample's density with the gains integrated out.
+//!
 //! Static unknowns get a Liu–West kernel move at every resampling: each resampled particle's
 //! object parameters are shrunk toward the weighted mean by `a` and jittered with covariance
 //! `(1 − a²)` times the weighted covariance, so the cloud's mean and spread are kept while its
