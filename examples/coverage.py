@@ -103,7 +103,7 @@ def main():
         for m, r in per.items():
             cells = []
             for k in keys:
-                unit, scale = ("mm", 1e3) if k == "d" else ("", 1.0)
+                unit, scale = (" mm", 1e3) if k == "d" else ((" m/s", 1.0) if k == "v" else ("", 1.0))
                 e = r.get(k)
                 cells.append(f"{scale * e['mae']:.3g}{unit} ({100 * e['cover90']:.0f}%)" if e else "")
             lines.append(f"| {name} | `{m}` | " + " | ".join(cells) + " |")
