@@ -66,25 +66,53 @@ fn row_dict<'py>(
     Ok(d)
 }
 
+/// Adds the posterior of the sensors' gains and offsets, when the filter carries them, under
+/// the scenario keys `sensors.<channel>.gain` and `.offset`.
+fn add_sensors(py: Python<'_>, d: &Bound<'_, PyDict>, post: &pf::Posterior) -> PyResult<()> {
+    let Some(s) = &post.sensors else {
+        return Ok(());
+    };
+    for (c, ch) in CHANNELS.iter().enumerate() {
+        for (what, e) in [("gain", &s.gain[c]), ("offset", &s.offset[c])] {
+            let u = PyDict::new(py);
+            u.set_item("mean", e.mean)?;
+            u.set_item("std", e.std)?;
+            u.set_item("ci90", (e.ci90[0], e.ci90[1]))?;
+            d.set_item(format!("sensors.{ch}.{what}"), u)?;
+        }
+    }
+    Ok(())
+}
+
 #[pymethods]
 impl Filter {
     /// `noise` holds each channel's sensor noise (NaN where not given: the scenario's
     /// `[sensor_noise]` must state it then).
     #[new]
-    #[pyo3(signature = (scenario, scenario_json, sets, noise, particles, seed, rate))]
+    #[pyo3(signature = (scenario, scenario_json, sets, noise, particles, seed, rate, randomise=false))]
+    #[allow(clippy::too_many_arguments)]
     fn new(
         scenario: Option<&str>,
         scenario_json: Option<&str>,
         sets: Vec<String>,
         noise: [f64; 5],
-        particles: usize,
+        particles: Option<usize>,
         seed: u64,
         rate: Option<f64>,
+        randomise: bool,
     ) -> PyResult<Self> {
-        if particles == 0 {
+        if particles == Some(0) {
             return Err(PyValueError::new_err("particles: at least 1"));
         }
         let family = family(scenario, scenario_json, &sets)?;
+        let family = if randomise {
+            family
+                .randomised(vibrissa_infer::randomise::Randomisation::default())
+                .map_err(value_error)?
+        } else {
+            family
+        };
+        let particles = particles.unwrap_or_else(|| pf::default_particles(&family));
         let stated = family.stated_noise();
         let mut sensor = [0.0; 5];
         for c in 0..5 {
@@ -143,15 +171,23 @@ impl Filter {
         let inner = &mut self.inner;
         py.detach(|| inner.update(t, &values).map(|_| ()))
             .map_err(value_error)?;
-        let row = self.inner.posterior().trace.last().expect("a row");
-        row_dict(py, &self.unknowns, row)
+        let post = self.inner.posterior();
+        let row = post.trace.last().expect("a row");
+        let d = row_dict(py, &self.unknowns, row)?;
+        add_sensors(py, &d, post)?;
+        Ok(d)
     }
 
     /// The posterior after the last sample (None before the first).
     #[getter]
     fn posterior<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
-        match self.inner.posterior().trace.last() {
-            Some(row) => row_dict(py, &self.unknowns, row).map(Some),
+        let post = self.inner.posterior();
+        match post.trace.last() {
+            Some(row) => {
+                let d = row_dict(py, &self.unknowns, row)?;
+                add_sensors(py, &d, post)?;
+                Ok(Some(d))
+            }
             None => Ok(None),
         }
     }

@@ -102,3 +102,24 @@ def test_a_scenario_dict_gives_the_named_scenario_s_filter():
         assert a.update(run["t"][k], sample) == b.update(run["t"][k], sample)
     with pytest.raises(ValueError, match="scenario dict"):
         vibrissa.Filter({"experiment": "e2", "nonsense": 1}, noise=NOISE)
+
+
+def test_a_whisker_known_roughly_sample_by_sample_equals_the_command_line(tmp_path):
+    run = vibrissa.simulate("e2", d=0.021, v=0.7, **{"sensors.theta12.gain": 0.5})
+    f = vibrissa.Filter("e2", particles=300, noise=NOISE, seed=2, randomise=True)
+    for k, t in enumerate(run["t"]):
+        post = f.update(t, {c: run[c][k] for c in vibrissa.CHANNELS})
+    path = tmp_path / "run.csv"
+    write_csv(path, run)
+    noise = ",".join(f"{c}={x!r}" for c, x in NOISE.items())
+    out = subprocess.run(
+        [cli(), "estimate", "--experiment", "e2", "--method", "pf", "--particles", "300",
+         "--seed", "2", "--noise", noise, "--randomise", "--json", "--obs", path],
+        check=True, capture_output=True, text=True,
+    )
+    theirs = json.loads(out.stdout)
+    for name in ("d", "v", "sensors.theta12.gain", "sensors.m0.offset"):
+        assert post[name]["mean"] == theirs[name]["mean"], name
+        assert list(post[name]["ci90"]) == theirs[name]["ci90"], name
+    # The recorded theta12 is half the scenario's: the filter learned it.
+    assert abs(post["sensors.theta12.gain"]["mean"] - 0.5) < 0.15

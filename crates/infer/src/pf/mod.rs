@@ -47,7 +47,9 @@ pub use likelihood::{
     noise_from_series, observation_sigma, temper_for, TransitionModel, FINE_TEMPER, MODEL_ERROR,
     TRANSITION_MODELS, UNKNOWN_START_TEMPER,
 };
-pub use method::{alternative_whiskers, default_particles, Pf, ALTERNATIVES, RANDOMISED_SEGMENTS, SENSOR_FLOOR};
+pub use method::{
+    alternative_whiskers, default_particles, Pf, ALTERNATIVES, RANDOMISED_SEGMENTS, SENSOR_FLOOR,
+};
 pub use posterior::{Observations, Posterior, TraceRow};
 pub use sensors::SensorSpread;
 pub use transition::map_joints;

@@ -72,10 +72,11 @@ class Filter:
         self,
         scenario: Scenario = "e2",
         *,
-        particles: int = 1000,
+        particles: int | None = None,
         noise: Mapping[str, float] | None = None,
         seed: int = 1,
         rate: float | None = None,
+        randomise: bool = False,
         overrides: Mapping[str, Value] | None = None,
         **keys: Value,
     ) -> None: ...
