@@ -38,6 +38,8 @@ pub struct Family {
     stated_noise: [Option<f64>; 5],
     /// Whether every run gets its own whisker and sensor gains ([`crate::randomise`]).
     randomised: Option<Around>,
+    /// Whether the file was written by calibration (it has a `[calibration]` record).
+    calibrated: bool,
 }
 
 /// A small cache of values computed once per family (by digest): the noisy variant's levels.
@@ -84,6 +86,7 @@ impl Family {
             samples,
             stated_noise: loaded.stated_sensor_noise,
             randomised: None,
+            calibrated: loaded.calibration.is_some(),
         })
     }
 
@@ -344,6 +347,12 @@ impl Family {
             randomised: None,
             ..self.clone()
         }
+    }
+
+    /// Whether the scenario was fitted to labelled recordings by calibration (its file has a
+    /// `[calibration]` record).
+    pub fn is_calibrated(&self) -> bool {
+        self.calibrated
     }
 
     /// The prior of randomised runs, if the family's runs are randomised.

@@ -48,7 +48,8 @@ pub use likelihood::{
     TRANSITION_MODELS, UNKNOWN_START_TEMPER,
 };
 pub use method::{
-    alternative_whiskers, default_particles, Pf, ALTERNATIVES, RANDOMISED_SEGMENTS, SENSOR_FLOOR,
+    alternative_whiskers, default_particles, Pf, ALTERNATIVES, CALIBRATED_TEMPER,
+    RANDOMISED_SEGMENTS, RANDOMISED_TEMPER, SENSOR_FLOOR,
 };
 pub use posterior::{Observations, Posterior, TraceRow};
 pub use sensors::SensorSpread;
