@@ -421,6 +421,41 @@ mod tests {
     }
 
     #[test]
+    fn calibrated_and_randomised_families_temper_the_likelihood() {
+        use crate::Method;
+        let fit = |family: &crate::Family| {
+            let mut pf = Pf::new(1000);
+            pf.fit(&crate::Training {
+                family: family.clone(),
+                samples: Vec::new(),
+                calibration: Vec::new(),
+                noise: crate::experiment::Noise::NONE,
+            })
+            .unwrap();
+            pf.effective_temper()
+        };
+        let e2 = crate::Family::builtin("e2").unwrap();
+        assert!(!e2.is_calibrated());
+        assert_eq!(fit(&e2), temper_for(1000));
+        let fitted = "experiment = \"e2\"\n[calibration]\nlabelled = \"calib\"\nrecordings = 9\n";
+        let calibrated = crate::Family::open_str(fitted, "fitted.toml", &[]).unwrap();
+        assert!(calibrated.is_calibrated());
+        assert_eq!(fit(&calibrated), temper_for(1000) * CALIBRATED_TEMPER);
+        let rough = e2
+            .randomised(crate::randomise::Randomisation::default())
+            .unwrap();
+        assert_eq!(fit(&rough), temper_for(1000) * RANDOMISED_TEMPER);
+        let c = Pf::new(1000).config(&rough, [1.0; 5]).unwrap();
+        assert_eq!(c.alternatives.len(), ALTERNATIVES);
+        assert_eq!(c.segments, RANDOMISED_SEGMENTS);
+        assert_eq!(c.sensor_spread, SensorSpread::rough());
+        assert!(c.alternatives.iter().all(|w| w.check().is_ok()));
+        assert_ne!(c.alternatives[0], c.alternatives[1]);
+        assert_eq!(default_particles(&rough), 4000);
+        assert_eq!(default_particles(&e2), 1000);
+    }
+
+    #[test]
     fn the_family_s_sensors_and_whisker_set_the_filter() {
         let pf = Pf::new(100);
         let e2 = crate::Family::builtin("e2").unwrap();
