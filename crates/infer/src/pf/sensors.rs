@@ -240,6 +240,51 @@ mod tests {
     }
 
     #[test]
+    fn the_sequential_updates_give_the_exact_marginal_likelihood() {
+        // With the gains and offsets Gaussian, a channel's samples are jointly Gaussian:
+        // y ~ N(H·m0, H·P0·Hᵀ + σ²·I) with H's rows (x_t, 1). The sum of the sequential log
+        // predictive densities must be that density (less the constant n/2·ln 2πσ² that the
+        // filter leaves out of every sample).
+        let spread = SensorSpread {
+            wrench_scale: 0.3,
+            ..SensorSpread::rough()
+        };
+        let c = config(spread);
+        let mut b = SensorBelief::prior(&c);
+        let n = 12;
+        let x: Vec<f64> = (0..n).map(|k| 2e-5 * (0.4 * k as f64).sin()).collect();
+        let y: Vec<f64> = x
+            .iter()
+            .enumerate()
+            .map(|(k, x)| 0.8 * x + 3e-7 + 1e-6 * (1.7 * k as f64).cos())
+            .collect();
+        let mut ours = 0.0;
+        for k in 0..n {
+            let mut xs = [0.0; 5];
+            let mut ys = [0.0; 5];
+            (xs[2], ys[2]) = (x[k], y[k]);
+            ours += b.take(&xs, &ys, &[false, false, true, false, false], &c.sigma);
+        }
+        let prior = SensorBelief::prior(&c).wrench;
+        let (var_g, var_o, sigma) = (prior.cov[0][0], prior.cov[3][3], c.sigma[2]);
+        let h = nalgebra::DMatrix::from_fn(n, 2, |i, j| if j == 0 { x[i] } else { 1.0 });
+        let p0 = nalgebra::DMatrix::from_diagonal(&nalgebra::DVector::from_vec(vec![var_g, var_o]));
+        let cov = &h * p0 * h.transpose() + nalgebra::DMatrix::identity(n, n) * (sigma * sigma);
+        let mean = &h * nalgebra::DVector::from_vec(vec![prior.mean[0], prior.mean[3]]);
+        let r = nalgebra::DVector::from_vec(y.clone()) - mean;
+        let chol = cov.cholesky().expect("positive definite");
+        let log_det = 2.0 * chol.l().diagonal().iter().map(|d| d.ln()).sum::<f64>();
+        let quad = r.dot(&chol.solve(&r));
+        let two_pi = 2.0 * std::f64::consts::PI;
+        let exact = -0.5 * (quad + log_det + n as f64 * two_pi.ln());
+        let shifted = ours - 0.5 * n as f64 * (two_pi * sigma * sigma).ln();
+        assert!(
+            (shifted - exact).abs() < 1e-8 * exact.abs().max(1.0),
+            "{shifted} vs {exact}"
+        );
+    }
+
+    #[test]
     fn a_scaled_channel_is_learned_and_explained() {
         // A recording whose theta12 is 0.4 of the model's: the belief's gain goes there, and the
         // log-likelihood of later samples approaches that of a model that knew it.
