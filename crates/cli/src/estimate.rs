@@ -235,11 +235,7 @@ pub fn run(args: &Args) -> Result<()> {
         );
     }
     let stated = stated_noise(&family, &args.noise)?;
-    let family = if args.randomise {
-        family.randomised(vibrissa_infer::randomise::Randomisation::default())?
-    } else {
-        family
-    };
+    let family = family.randomised_if(args.randomise)?;
     if args.method.as_deref() == Some("pf") {
         check_arguments(args)?;
         return crate::estimate_pf::run(args, &family, &stated);

@@ -341,6 +341,16 @@ impl Family {
         Ok(f)
     }
 
+    /// The family with the default randomisation ([`Randomisation::default`]) when `randomise`
+    /// is set (a whisker known only roughly), else the family itself.
+    pub fn randomised_if(self, randomise: bool) -> Result<Family> {
+        if randomise {
+            self.randomised(Randomisation::default())
+        } else {
+            Ok(self)
+        }
+    }
+
     /// The same family with the scenario's own whisker in every run.
     pub fn nominal(&self) -> Family {
         Family {

@@ -14,6 +14,20 @@ const SIGMA: [f64; 5] = [
     2.5 * 1.20e-4,
 ];
 
+/// A filter of `particles` particles fitted to `family` with sensor noise `noise`.
+fn fitted(family: &Family, noise: Noise, particles: usize) -> Pf {
+    let mut filter = Pf::new(particles);
+    filter
+        .fit(&Training {
+            family: family.clone(),
+            samples: Vec::new(),
+            calibration: Vec::new(),
+            noise,
+        })
+        .unwrap();
+    filter
+}
+
 fn run_of(d: f64, v: f64) -> Observations {
     let e2 = Family::builtin("e2").unwrap();
     let s = e2.simulate(&[d, v], &Noise::NONE, 3).unwrap();
@@ -69,15 +83,7 @@ fn recovers_distance_on_a_scenario_with_sensor_gains_offsets_and_a_follicle_spri
             .map(|s| 0.6 * s),
         process: 0.0,
     };
-    let mut filter = Pf::new(400);
-    filter
-        .fit(&Training {
-            family: family.clone(),
-            samples: Vec::new(),
-            calibration: Vec::new(),
-            noise,
-        })
-        .unwrap();
+    let filter = fitted(&family, noise, 400);
     let strikes = [(0.017, 0.5), (0.021, 1.1), (0.025, 0.8), (0.028, 1.3)];
     let mut inside = 0;
     for (k, (d, v)) in strikes.into_iter().enumerate() {
@@ -244,22 +250,8 @@ fn on_a_randomised_family_the_filter_learns_the_sensors_and_stays_honest() {
         sensor: truth.noise(Variant::Noisy).unwrap().sensor.map(|s| 0.6 * s),
         process: 0.0,
     };
-    let fit = |family: &Family| {
-        let mut filter = Pf::new(4000);
-        filter
-            .fit(&Training {
-                family: family.clone(),
-                samples: Vec::new(),
-                calibration: Vec::new(),
-                noise,
-            })
-            .unwrap();
-        filter
-    };
-    let told = fit(&nominal);
-    let rough = fit(&nominal
-        .randomised(vibrissa_infer::randomise::Randomisation::default())
-        .unwrap());
+    let told = fitted(&nominal, noise, 4000);
+    let rough = fitted(&nominal.clone().randomised_if(true).unwrap(), noise, 4000);
     let strikes = [(0.017, 0.5), (0.021, 1.1), (0.025, 0.8), (0.028, 1.3)];
     let (mut told_inside, mut rough_inside) = (0, 0);
     for (k, (d, v)) in strikes.into_iter().enumerate() {

@@ -104,14 +104,9 @@ impl Filter {
         if particles == Some(0) {
             return Err(PyValueError::new_err("particles: at least 1"));
         }
-        let family = family(scenario, scenario_json, &sets)?;
-        let family = if randomise {
-            family
-                .randomised(vibrissa_infer::randomise::Randomisation::default())
-                .map_err(value_error)?
-        } else {
-            family
-        };
+        let family = family(scenario, scenario_json, &sets)?
+            .randomised_if(randomise)
+            .map_err(value_error)?;
         let particles = particles.unwrap_or_else(|| pf::default_particles(&family));
         let stated = family.stated_noise();
         let mut sensor = [0.0; 5];
@@ -363,13 +358,7 @@ fn estimate(
         names.push(name);
         recordings.push(rec.map_err(value_error)?);
     }
-    let family = if randomise {
-        family
-            .randomised(vibrissa_infer::randomise::Randomisation::default())
-            .map_err(value_error)?
-    } else {
-        family
-    };
+    let family = family.randomised_if(randomise).map_err(value_error)?;
     let several = names.len() > 1;
     let rows = py.detach(|| -> vibrissa_infer::Result<Vec<String>> {
         let noise = batch_noise(&names, &recordings, &needs, &stated, "noise={...}")?;

@@ -20,10 +20,9 @@ def write_csv(path, run):
             f.write(",".join(repr(float(run[c][k])) for c in vibrissa.COLUMNS) + "\n")
 
 
-def test_sample_by_sample_it_gives_the_command_line_s_posterior_to_the_last_bit(tmp_path):
-    run = vibrissa.simulate("e2", d=0.023, v=0.9)
-    f = vibrissa.Filter("e2", particles=300, noise=NOISE, seed=2)
-    assert f.unknowns == ["d", "v"] and f.posterior is None
+def filter_and_command_line(f, run, tmp_path, *args):
+    """Feeds `run` to the filter `f` sample by sample; returns its last posterior and the command
+    line's estimate of the same run (300 particles, seed 2, noise NOISE, and `args`)."""
     for k, t in enumerate(run["t"]):
         post = f.update(t, {c: run[c][k] for c in vibrissa.CHANNELS})
     path = tmp_path / "run.csv"
@@ -31,10 +30,17 @@ def test_sample_by_sample_it_gives_the_command_line_s_posterior_to_the_last_bit(
     noise = ",".join(f"{c}={x!r}" for c, x in NOISE.items())
     out = subprocess.run(
         [cli(), "estimate", "--experiment", "e2", "--method", "pf", "--particles", "300",
-         "--seed", "2", "--noise", noise, "--json", "--obs", path],
+         "--seed", "2", "--noise", noise, *args, "--json", "--obs", path],
         check=True, capture_output=True, text=True,
     )
-    theirs = json.loads(out.stdout)
+    return post, json.loads(out.stdout)
+
+
+def test_sample_by_sample_it_gives_the_command_line_s_posterior_to_the_last_bit(tmp_path):
+    run = vibrissa.simulate("e2", d=0.023, v=0.9)
+    f = vibrissa.Filter("e2", particles=300, noise=NOISE, seed=2)
+    assert f.unknowns == ["d", "v"] and f.posterior is None
+    post, theirs = filter_and_command_line(f, run, tmp_path)
     for name in ("d", "v"):
         assert post[name]["mean"] == theirs[name]["mean"]
         assert post[name]["std"] == theirs[name]["std"]
@@ -107,17 +113,7 @@ def test_a_scenario_dict_gives_the_named_scenario_s_filter():
 def test_a_whisker_known_roughly_sample_by_sample_equals_the_command_line(tmp_path):
     run = vibrissa.simulate("e2", d=0.021, v=0.7, **{"sensors.theta12.gain": 0.5})
     f = vibrissa.Filter("e2", particles=300, noise=NOISE, seed=2, randomise=True)
-    for k, t in enumerate(run["t"]):
-        post = f.update(t, {c: run[c][k] for c in vibrissa.CHANNELS})
-    path = tmp_path / "run.csv"
-    write_csv(path, run)
-    noise = ",".join(f"{c}={x!r}" for c, x in NOISE.items())
-    out = subprocess.run(
-        [cli(), "estimate", "--experiment", "e2", "--method", "pf", "--particles", "300",
-         "--seed", "2", "--noise", noise, "--randomise", "--json", "--obs", path],
-        check=True, capture_output=True, text=True,
-    )
-    theirs = json.loads(out.stdout)
+    post, theirs = filter_and_command_line(f, run, tmp_path, "--randomise")
     for name in ("d", "v", "sensors.theta12.gain", "sensors.m0.offset"):
         assert post[name]["mean"] == theirs[name]["mean"], name
         assert list(post[name]["ci90"]) == theirs[name]["ci90"], name

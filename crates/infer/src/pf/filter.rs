@@ -262,8 +262,7 @@ impl Filter {
                 self.post.skipped += 1;
             }
         }
-        let chains: Vec<_> = self.hyps.iter().map(|h| h.chain(&self.stepper)).collect();
-        let hyps = &self.hyps;
+        let (hyps, stepper) = (&self.hyps, &self.stepper);
         let fixed_sensors = config.sensor_spread.is_fixed();
         // Weight mass the particles carry into this sample (for the evidence).
         let prior_mass: f64 = self.logw.iter().map(|l| l.exp()).sum();
@@ -285,7 +284,8 @@ impl Filter {
                 if *lw == f64::NEG_INFINITY {
                     return 0;
                 }
-                let (chain, hyp) = (&chains[*h as usize], &hyps[*h as usize]);
+                let hyp = &hyps[*h as usize];
+                let chain = &hyp.chain(stepper);
                 let (model, observed) = (&hyp.model, &hyp.observed);
                 let noise = config.process_noise;
                 // A box just moved may sit where its whisker state cannot follow (around the
