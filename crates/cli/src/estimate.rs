@@ -52,11 +52,12 @@ pub struct Args {
     /// follicle, half tapered, gains within 5%, half with 0.5–3 times the segments, half with
     /// the seed paper's stiffness rule; three times the training runs): estimates that hold,
     /// with wider intervals, on a whisker known only roughly, recorded by another chain. Not for
-    /// `template` and `template-interp` (they keep the scenario's own templates). The filter
-    /// (`pf`) instead entertains 32 whiskers drawn alike (the scenario's and 31 others) and
-    /// carries the sensors' gains and offsets as unknowns, reported as `sensors.<channel>.gain`
-    /// and `.offset` (angle gains free within about a factor of two, the base wrench's common
-    /// scale ±30%, each sensor ±5%).
+    /// `template` and `template-interp` (they keep the scenario's own templates); best with
+    /// `krr-invariant`, which reads only what the prior leaves unchanged. The filter (`pf`)
+    /// instead entertains 64 whiskers drawn alike (the scenario's and `--alternatives` others)
+    /// and carries the sensors' gains and offsets as unknowns, reported as
+    /// `sensors.<channel>.gain` and `.offset` (angle gains sd 0.5, the base wrench's common
+    /// scale and each wrench sensor sd 5%, offsets sd 5 noise levels).
     #[arg(long)]
     pub(crate) randomise: bool,
     /// For recordings of an array of whiskers (columns `c1.theta01`, ...): the whisker whose

@@ -51,6 +51,7 @@ fn list_names_every_method() {
         "knn",
         "krr",
         "shift",
+        "krr-invariant",
     ] {
         assert!(text.contains(m), "{m} missing from {text}");
     }

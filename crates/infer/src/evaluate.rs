@@ -326,7 +326,7 @@ pub fn evaluate_with(
         let (training, sim_s) = match (m.budget(), m.name()) {
             (Budget::Paper, _) => (&paper, 0.0),
             (Budget::Free, "emulator") => (&free_dense, dense_seconds),
-            (Budget::Free, "krr" | "krr-local") => {
+            (Budget::Free, "krr" | "krr-local" | "krr-invariant") => {
                 (&free_pooled, random_seconds + dense_seconds + edge_seconds)
             }
             (Budget::Free, _) => (&free_random, random_seconds),
@@ -522,7 +522,7 @@ pub fn estimated_noise(family: &Family, recordings: &[&[Vec<f64>]]) -> Result<No
 /// The training data that `method` may use in `family`, simulated afresh with `noise` (the
 /// recordings' noise as estimated or stated: see [`Family::training_noise`]): the templates
 /// under the paper's budget, the emulator's grid (calibrated on random runs), random runs
-/// followed by the emulator's grid and the edge runs (`krr`, `krr-local`) or random runs under
+/// followed by the emulator's grid and the edge runs (`krr`, `krr-local`, `krr-invariant`) or random runs under
 /// a free budget. The particle filter (`pf`) needs no runs: it takes the noise alone. With a
 /// randomised family ([`Family::randomised`]) every run of a free budget has its own whisker and
 /// sensor gains; the paper's templates are the scenario's own.
@@ -567,7 +567,7 @@ pub fn training_for(
             let random_p = family.random_params(random_runs(family), seed ^ 0x5eed);
             let mut random =
                 family.simulate_all(&random_p, &simulated, seed.wrapping_add(1), &none)?;
-            if name == "krr" || name == "krr-local" {
+            if matches!(name, "krr" | "krr-local" | "krr-invariant") {
                 let design = Interp::design(family);
                 random.extend(family.simulate_all(
                     &design,

@@ -21,6 +21,27 @@ const QUANTILE: f64 = 0.92;
 /// Every `HOLD`-th training run is held out while the hyper-parameters are chosen.
 const HOLD: usize = 5;
 
+/// Weights of the amplitude ratios tried with [`Features::Invariant`], per unit of a channel's
+/// RMS (0: the shapes alone).
+const WEIGHTS: [f64; 3] = [0.0, 1.0, 3.0];
+
+/// What the regression sees of a recording.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Features {
+    /// Every channel divided by its scale over the training runs: amplitudes as recorded.
+    #[default]
+    Raw,
+    /// Every channel divided by its own RMS over the recording (the shape and timing of each
+    /// signal, blind to its sensor's gain and the whisker's stiffness), followed by the log
+    /// ratios of the base wrench's RMS amplitudes (`m0/fy`, `fx/fy`: the moment arm, blind to
+    /// the stiffness and to a common scale of the wrench sensor), weighted by a factor chosen on
+    /// held-out training runs.
+    Invariant,
+}
+
+/// Per unknown: the held-out runs' mean absolute error (scaled to the range), ℓ and the ridge.
+type Settings = Vec<(f64, f64, f64)>;
+
 /// One unknown's regression: `f(z) = lo + (hi − lo)·Σ α_i exp(−|z − z_i|²/(2ℓ²))`.
 #[derive(Debug, Clone, Default)]
 struct Head {
@@ -54,6 +75,10 @@ pub struct Krr {
     ranges: Vec<[f64; 2]>,
     /// Per unknown.
     heads: Vec<Head>,
+    /// What the regression sees.
+    features: Features,
+    /// Invariant features: the weight of the amplitude ratios, per unit of a channel's RMS.
+    weight: f64,
 }
 
 /// The latest fit and the runs it learnt from. Fitting is deterministic, so a second fit on the
@@ -109,6 +134,14 @@ impl Krr {
         Krr::default()
     }
 
+    /// An unfitted kernel ridge regression on [`Features::Invariant`].
+    pub fn invariant() -> Krr {
+        Krr {
+            features: Features::Invariant,
+            ..Krr::default()
+        }
+    }
+
     fn project(&self, x: &[f64]) -> Vec<f64> {
         self.axes
             .iter()
@@ -120,6 +153,192 @@ impl Krr {
                     .sum()
             })
             .collect()
+    }
+
+    /// Chooses ℓ and the ridge per unknown for the training runs' points `z` with targets `y`
+    /// (`[unknowns][runs]`, scaled to [0, 1]): per unknown, the held-out runs' mean absolute
+    /// error, ℓ and the ridge.
+    fn choose(
+        z: &[Vec<f64>],
+        y: &[Vec<f64>],
+        fail: &(dyn Fn(&str) -> Error + Sync),
+    ) -> Result<Settings> {
+        let med = median_distance(z);
+        let unknowns = y.len();
+        // Runs outside the range (beyond its edges, to keep estimates there unbiased) are fitted
+        // on but neither score the settings nor calibrate the std: their clipped estimates miss
+        // by their distance to the range.
+        let inside: Vec<bool> = (0..z.len())
+            .map(|i| y.iter().all(|t| (0.0..=1.0).contains(&t[i])))
+            .collect();
+
+        // Choose ℓ and the ridge per unknown on every HOLD-th run, fitted on the rest.
+        let (fit_i, held_i): (Vec<usize>, Vec<usize>) = (0..z.len()).partition(|i| i % HOLD != 0);
+        let held_i: Vec<usize> = held_i.into_iter().filter(|&i| inside[i]).collect();
+        if held_i.is_empty() {
+            return Err(fail("no held-out run inside the range"));
+        }
+        let zf: Vec<Vec<f64>> = fit_i.iter().map(|&i| z[i].clone()).collect();
+        let yf: Vec<Vec<f64>> = y
+            .iter()
+            .map(|t| fit_i.iter().map(|&i| t[i]).collect())
+            .collect();
+        // Held-out errors `[lengths][ridges]` → per unknown (None where not positive definite),
+        // the length scales in parallel.
+        let errors: Vec<Vec<Option<Vec<f64>>>> = LENGTHS
+            .par_iter()
+            .map(|l| {
+                let length = l * med;
+                let k = kernel(&zf, length);
+                let g = 1.0 / (2.0 * length * length);
+                let kx: Vec<Vec<f64>> = held_i
+                    .iter()
+                    .map(|&h| zf.iter().map(|t| (-dist2(t, &z[h]) * g).exp()).collect())
+                    .collect();
+                RIDGES
+                    .iter()
+                    .map(|&r| {
+                        let alpha = solve(&k, r, &yf)?;
+                        Some(
+                            (0..unknowns)
+                                .map(|u| {
+                                    held_i
+                                        .iter()
+                                        .zip(&kx)
+                                        .map(|(&h, kh)| {
+                                            let p: f64 =
+                                                kh.iter().zip(&alpha[u]).map(|(a, b)| a * b).sum();
+                                            (p.clamp(0.0, 1.0) - y[u][h]).abs()
+                                        })
+                                        .sum()
+                                })
+                                .collect(),
+                        )
+                    })
+                    .collect()
+            })
+            .collect();
+        let mut best = vec![(f64::INFINITY, med, RIDGES[0]); unknowns];
+        for (l, per_ridge) in LENGTHS.iter().zip(&errors) {
+            for (r, err) in RIDGES.iter().zip(per_ridge) {
+                let Some(err) = err else {
+                    continue;
+                };
+                for u in 0..unknowns {
+                    if err[u] < best[u].0 {
+                        best[u] = (err[u], l * med, *r);
+                    }
+                }
+            }
+        }
+        for b in &mut best {
+            b.0 /= held_i.len() as f64;
+        }
+        Ok(best)
+    }
+
+    /// Fits the heads on every training run's point `z` with the settings `best` (from
+    /// [`Krr::choose`]).
+    fn finish(
+        &mut self,
+        z: Vec<Vec<f64>>,
+        y: &[Vec<f64>],
+        best: &Settings,
+        fail: &(dyn Fn(&str) -> Error + Sync),
+    ) -> Result<()> {
+        let inside: Vec<bool> = (0..z.len())
+            .map(|i| y.iter().all(|t| (0.0..=1.0).contains(&t[i])))
+            .collect();
+
+        // Final weights on every run (the unknowns in parallel); leave-one-out errors calibrate
+        // the std.
+        let heads: Vec<Result<Head>> = best
+            .par_iter()
+            .enumerate()
+            .map(|(u, &(_, length, ridge))| {
+                let mut a = kernel(&z, length);
+                for i in 0..z.len() {
+                    a[(i, i)] += ridge;
+                }
+                let chol = a
+                    .cholesky()
+                    .ok_or_else(|| fail("kernel matrix not positive definite"))?;
+                let alpha: Vec<f64> = chol
+                    .solve(&DVector::from_column_slice(&y[u]))
+                    .iter()
+                    .copied()
+                    .collect();
+                // (A⁻¹)_ii = Σ_k (L⁻¹)_ki², from the inverse of the Cholesky factor alone.
+                let n = z.len();
+                let linv = chol
+                    .l()
+                    .solve_lower_triangular(&DMatrix::<f64>::identity(n, n))
+                    .ok_or_else(|| fail("kernel matrix not positive definite"))?;
+                let inv_diag: Vec<f64> = (0..n)
+                    .map(|i| linv.column(i).iter().map(|v| v * v).sum())
+                    .collect();
+                let [lo, hi] = self.ranges[u];
+                let pairs: Vec<(f64, f64)> = (0..n)
+                    .filter(|&i| inside[i])
+                    .map(|i| {
+                        // f_{−i}(z_i) = y_i − α_i / (A⁻¹)_ii.
+                        let loo = (y[u][i] - alpha[i] / inv_diag[i]).clamp(0.0, 1.0);
+                        ((loo - y[u][i]) * (hi - lo), 1.0 / Z90)
+                    })
+                    .collect();
+                Ok(Head {
+                    length,
+                    ridge,
+                    alpha,
+                    std: coverage_factor_at(&pairs, QUANTILE) / Z90,
+                })
+            })
+            .collect();
+        self.heads = heads.into_iter().collect::<Result<_>>()?;
+        self.z = z;
+        Ok(())
+    }
+
+    /// What the regression reads of `obs` (channel-major, every channel present and as long as
+    /// the first): the series, each channel scaled, and the amplitude ratios (none for
+    /// [`Features::Raw`]).
+    fn features_of(&self, obs: &[Vec<f64>]) -> Result<(Vec<f64>, Vec<f64>)> {
+        let channels: Vec<usize> = (0..CHANNELS.len()).collect();
+        match self.features {
+            Features::Raw => Ok((flatten(obs, &channels, &self.scales)?, Vec::new())),
+            Features::Invariant => {
+                let rms: Vec<f64> = channels
+                    .iter()
+                    .map(|&c| {
+                        let ch = obs.get(c).map_or(&[][..], |v| &v[..]);
+                        (ch.iter().map(|x| x * x).sum::<f64>() / ch.len().max(1) as f64).sqrt()
+                    })
+                    .collect();
+                let mut x = flatten(obs, &channels, &vec![1.0; channels.len()])?;
+                let n = x.len() / channels.len();
+                for (c, r) in rms.iter().enumerate() {
+                    if !(*r > 0.0 && r.is_finite()) {
+                        return Err(Error::Observation(format!(
+                            "channel {} is zero throughout (or not finite): its shape is undefined",
+                            CHANNELS[c]
+                        )));
+                    }
+                    x[c * n..(c + 1) * n].iter_mut().for_each(|v| *v /= r);
+                }
+                // The moment arm and the wrench's direction.
+                let [m0, fx, fy] = [rms[2], rms[3], rms[4]];
+                Ok((x, vec![(m0 / fy).ln(), (fx / fy).ln()]))
+            }
+        }
+    }
+
+    /// The point of `obs` in the regression's space: the principal components of its series,
+    /// followed by its amplitude ratios, each worth `weight` RMS units per sample.
+    fn point_of(&self, series: &[f64], ratios: &[f64]) -> Vec<f64> {
+        let w = self.weight * ((series.len() / CHANNELS.len()) as f64).sqrt();
+        let mut z = self.project(series);
+        z.extend(ratios.iter().map(|r| w * r));
+        z
     }
 
     /// Estimate of every unknown at `z`, clipped to its range.
@@ -189,7 +408,10 @@ fn median_distance(z: &[Vec<f64>]) -> f64 {
 
 impl Method for Krr {
     fn name(&self) -> &'static str {
-        "krr"
+        match self.features {
+            Features::Raw => "krr",
+            Features::Invariant => "krr-invariant",
+        }
     }
 
     fn budget(&self) -> Budget {
@@ -201,31 +423,22 @@ impl Method for Krr {
     }
 
     fn fit(&mut self, training: &Training) -> Result<()> {
+        let name = self.name();
         let fail = |detail: &str| Error::Fit {
-            method: "krr".into(),
+            method: name.into(),
             detail: detail.into(),
         };
         let s: &[Sample] = &training.samples;
         if s.len() < 10 {
             return Err(fail("needs at least 10 training runs"));
         }
-        if let Some(k) = latest(training) {
+        if let Some(k) = latest(training).filter(|k| k.features == self.features) {
             *self = k;
             return Ok(());
         }
         let channels: Vec<usize> = (0..CHANNELS.len()).collect();
         self.scales = channel_scales(s, &channels);
         self.ranges = training.family.ranges();
-        let x: Vec<Vec<f64>> = s
-            .iter()
-            .map(|r| flatten(&r.series, &channels, &self.scales))
-            .collect::<Result<_>>()?;
-        let dim = x[0].len();
-        self.mean = (0..dim)
-            .map(|k| x.iter().map(|r| r[k]).sum::<f64>() / x.len() as f64)
-            .collect();
-        self.axes = principal_axes(&x, &self.mean, COMPONENTS);
-        let z: Vec<Vec<f64>> = x.iter().map(|r| self.project(r)).collect();
         // Targets scaled to [0, 1], `[unknowns][runs]`.
         let y: Vec<Vec<f64>> = self
             .ranges
@@ -233,121 +446,39 @@ impl Method for Krr {
             .enumerate()
             .map(|(u, [lo, hi])| s.iter().map(|r| (r.params[u] - lo) / (hi - lo)).collect())
             .collect();
-        let med = median_distance(&z);
-        let unknowns = self.ranges.len();
-        // Runs outside the range (beyond its edges, to keep estimates there unbiased) are fitted
-        // on but neither score the settings nor calibrate the std: their clipped estimates miss
-        // by their distance to the range.
-        let inside: Vec<bool> = (0..s.len())
-            .map(|i| y.iter().all(|t| (0.0..=1.0).contains(&t[i])))
-            .collect();
-
-        // Choose ℓ and the ridge per unknown on every HOLD-th run, fitted on the rest.
-        let (fit_i, held_i): (Vec<usize>, Vec<usize>) = (0..s.len()).partition(|i| i % HOLD != 0);
-        let held_i: Vec<usize> = held_i.into_iter().filter(|&i| inside[i]).collect();
-        if held_i.is_empty() {
-            return Err(fail("no held-out run inside the range"));
-        }
-        let zf: Vec<Vec<f64>> = fit_i.iter().map(|&i| z[i].clone()).collect();
-        let yf: Vec<Vec<f64>> = y
+        let weights: &[f64] = match self.features {
+            Features::Raw => &[0.0],
+            Features::Invariant => &WEIGHTS,
+        };
+        let (x, ratios): (Vec<Vec<f64>>, Vec<Vec<f64>>) = s
             .iter()
-            .map(|t| fit_i.iter().map(|&i| t[i]).collect())
+            .map(|r| self.features_of(&r.series))
+            .collect::<Result<Vec<_>>>()?
+            .into_iter()
+            .unzip();
+        let dim = x[0].len();
+        self.mean = (0..dim)
+            .map(|k| x.iter().map(|r| r[k]).sum::<f64>() / x.len() as f64)
             .collect();
-        // Held-out errors `[lengths][ridges]` → per unknown (None where not positive definite),
-        // the length scales in parallel.
-        let errors: Vec<Vec<Option<Vec<f64>>>> = LENGTHS
-            .par_iter()
-            .map(|l| {
-                let length = l * med;
-                let k = kernel(&zf, length);
-                let g = 1.0 / (2.0 * length * length);
-                let kx: Vec<Vec<f64>> = held_i
-                    .iter()
-                    .map(|&h| zf.iter().map(|t| (-dist2(t, &z[h]) * g).exp()).collect())
-                    .collect();
-                RIDGES
-                    .iter()
-                    .map(|&r| {
-                        let alpha = solve(&k, r, &yf)?;
-                        Some(
-                            (0..unknowns)
-                                .map(|u| {
-                                    held_i
-                                        .iter()
-                                        .zip(&kx)
-                                        .map(|(&h, kh)| {
-                                            let p: f64 =
-                                                kh.iter().zip(&alpha[u]).map(|(a, b)| a * b).sum();
-                                            (p.clamp(0.0, 1.0) - y[u][h]).abs()
-                                        })
-                                        .sum()
-                                })
-                                .collect(),
-                        )
-                    })
-                    .collect()
-            })
-            .collect();
-        let mut best = vec![(f64::INFINITY, med, RIDGES[0]); unknowns];
-        for (l, per_ridge) in LENGTHS.iter().zip(&errors) {
-            for (r, err) in RIDGES.iter().zip(per_ridge) {
-                let Some(err) = err else {
-                    continue;
-                };
-                for u in 0..unknowns {
-                    if err[u] < best[u].0 {
-                        best[u] = (err[u], l * med, *r);
-                    }
-                }
+        self.axes = principal_axes(&x, &self.mean, COMPONENTS);
+        // The weight of the amplitude ratios whose settings predict the held-out runs best.
+        let mut best: Option<(f64, f64, Vec<Vec<f64>>, Settings)> = None;
+        for &w in weights {
+            self.weight = w;
+            let z: Vec<Vec<f64>> = x
+                .iter()
+                .zip(&ratios)
+                .map(|(x, r)| self.point_of(x, r))
+                .collect();
+            let settings = Krr::choose(&z, &y, &fail)?;
+            let held: f64 = settings.iter().map(|b| b.0).sum();
+            if best.as_ref().map_or(true, |b| held < b.0) {
+                best = Some((held, w, z, settings));
             }
         }
-
-        // Final weights on every run (the unknowns in parallel); leave-one-out errors calibrate
-        // the std.
-        let heads: Vec<Result<Head>> = best
-            .par_iter()
-            .enumerate()
-            .map(|(u, &(_, length, ridge))| {
-                let mut a = kernel(&z, length);
-                for i in 0..z.len() {
-                    a[(i, i)] += ridge;
-                }
-                let chol = a
-                    .cholesky()
-                    .ok_or_else(|| fail("kernel matrix not positive definite"))?;
-                let alpha: Vec<f64> = chol
-                    .solve(&DVector::from_column_slice(&y[u]))
-                    .iter()
-                    .copied()
-                    .collect();
-                // (A⁻¹)_ii = Σ_k (L⁻¹)_ki², from the inverse of the Cholesky factor alone.
-                let n = z.len();
-                let linv = chol
-                    .l()
-                    .solve_lower_triangular(&DMatrix::<f64>::identity(n, n))
-                    .ok_or_else(|| fail("kernel matrix not positive definite"))?;
-                let inv_diag: Vec<f64> = (0..n)
-                    .map(|i| linv.column(i).iter().map(|v| v * v).sum())
-                    .collect();
-                let [lo, hi] = self.ranges[u];
-                let pairs: Vec<(f64, f64)> = (0..z.len())
-                    .filter(|&i| inside[i])
-                    .map(|i| {
-                        // f_{−i}(z_i) = y_i − α_i / (A⁻¹)_ii.
-                        let loo = (y[u][i] - alpha[i] / inv_diag[i]).clamp(0.0, 1.0);
-                        ((loo - y[u][i]) * (hi - lo), 1.0 / Z90)
-                    })
-                    .collect();
-                Ok(Head {
-                    length,
-                    ridge,
-                    alpha,
-                    std: coverage_factor_at(&pairs, QUANTILE) / Z90,
-                })
-            })
-            .collect();
-        self.heads = heads.into_iter().collect::<Result<_>>()?;
-        self.z = z;
+        let (_, w, z, settings) = best.expect("at least one weight");
+        self.weight = w;
+        self.finish(z, &y, &settings, &fail)?;
         if let Ok(mut l) = LATEST.lock() {
             *l = Some((
                 training.family.digest(),
@@ -361,13 +492,12 @@ impl Method for Krr {
     fn predict(&self, obs: &[Vec<f64>]) -> Result<Vec<Estimate>> {
         if self.heads.is_empty() {
             return Err(Error::Fit {
-                method: "krr".into(),
+                method: self.name().into(),
                 detail: "not fitted".into(),
             });
         }
-        let channels: Vec<usize> = (0..CHANNELS.len()).collect();
-        let x = flatten(obs, &channels, &self.scales)?;
-        let p = self.point(&self.project(&x));
+        let (x, ratios) = self.features_of(obs)?;
+        let p = self.point(&self.point_of(&x, &ratios));
         Ok(p.iter()
             .zip(&self.heads)
             .map(|(m, h)| Estimate::normal(*m, h.std))
@@ -376,6 +506,9 @@ impl Method for Krr {
 
     fn settings(&self) -> Vec<(String, f64)> {
         let mut s = vec![("components".into(), self.axes.len() as f64)];
+        if self.features == Features::Invariant {
+            s.push(("ratio_weight".into(), self.weight));
+        }
         for (h, name) in self.heads.iter().zip(["d", "v"]) {
             s.push((format!("length_{name}"), h.length));
             s.push((format!("ridge_{name}"), h.ridge));
@@ -415,6 +548,36 @@ mod tests {
             calibration: Vec::new(),
             noise: crate::experiment::Noise::NONE,
         }
+    }
+
+    #[test]
+    fn invariant_features_ignore_each_angle_gain_and_a_common_wrench_scale() {
+        let training = runs(0.0);
+        let mut m = Krr::invariant();
+        m.fit(&training).unwrap();
+        assert_eq!(m.name(), "krr-invariant");
+        let probe = &training.samples[17].series;
+        let before = m.predict(probe).unwrap();
+        let gains = [0.6, 1.7, 1.25, 1.25, 1.25];
+        let scaled: Vec<Vec<f64>> = probe
+            .iter()
+            .zip(gains)
+            .map(|(ch, g)| ch.iter().map(|x| x * g).collect())
+            .collect();
+        let after = m.predict(&scaled).unwrap();
+        for (a, b) in before.iter().zip(&after) {
+            assert!((a.mean - b.mean).abs() < 1e-9 * a.mean.abs(), "{a:?} {b:?}");
+            assert_eq!(a.std, b.std);
+        }
+        // The raw regression reads the amplitudes.
+        let mut raw = Krr::new();
+        raw.fit(&training).unwrap();
+        assert_ne!(raw.predict(probe).unwrap(), raw.predict(&scaled).unwrap());
+        // A channel that is zero throughout has no shape.
+        let mut flat = probe.clone();
+        flat[3].iter_mut().for_each(|x| *x = 0.0);
+        let err = m.predict(&flat).unwrap_err().to_string();
+        assert!(err.contains("fx") && err.contains("zero"), "{err}");
     }
 
     #[test]

@@ -8,6 +8,7 @@
 //! | `emulator` | free | the same fit between runs on a dense grid off the evaluated points |
 //! | `knn` | free | nearest neighbours among random training runs |
 //! | `krr` | free | kernel ridge regression on principal components |
+//! | `krr-invariant` | free | `krr` on each channel's shape and the wrench's amplitude ratios, blind to sensor gains and stiffness |
 //! | `krr-local` | free | `krr` refined by a ridge regression among the runs nearest its estimate |
 //! | `shift` | free | nearest neighbours on series aligned at the contact's onset |
 //! | `pf` | free | particle filter with the whisker physics as its transition model ([`crate::pf`]) |
@@ -34,7 +35,7 @@ use crate::method::Method;
 pub const TABLE_PARTICLES: usize = 1000;
 
 /// Names of all methods, in the order of [`all`].
-pub const NAMES: [&str; 9] = [
+pub const NAMES: [&str; 10] = [
     "template",
     "template-interp",
     "emulator",
@@ -43,6 +44,7 @@ pub const NAMES: [&str; 9] = [
     "shift",
     "template-warp",
     "krr-local",
+    "krr-invariant",
     "pf",
 ];
 
@@ -57,6 +59,7 @@ pub fn by_name(name: &str) -> Result<Box<dyn Method>> {
         "shift" => Box::new(Knn::shifted()),
         "template-warp" => Box::new(Warp::new()),
         "krr-local" => Box::new(LocalKrr::new()),
+        "krr-invariant" => Box::new(Krr::invariant()),
         "pf" => Box::new(crate::pf::Pf::new(TABLE_PARTICLES)),
         _ => {
             return Err(Error::Unknown {
@@ -84,6 +87,7 @@ pub fn describe(name: &str) -> &'static str {
         "shift" => "all channels aligned at the contact's onset (first |theta12| above a threshold): nearest neighbours, invariant to when contact starts",
         "template-warp" => "all channels: least-squares fit of an interpolation between the templates registered at the contact's rise and first zero crossing (travel v·t interpolated), weights linear in sqrt(L - d) and quadratic in v, channels weighted by how well the interpolation predicts the templates",
         "krr-local" => "all channels: krr's estimate refined by ridge regression on principal components of the nearest runs in parameter space (speed optionally weighted down, series optionally registered to the estimated travel, repeated about the refined estimate), settings chosen on held-out training runs",
+        "krr-invariant" => "all channels: kernel ridge regression on each channel divided by its own RMS (shape and timing, blind to the sensors' gains and the whisker's stiffness) and the log ratios of the wrench's amplitudes (the moment arm m0/fy), weighted as held-out training runs choose; meant for --randomise",
         "pf" => "all channels: particle filter whose transitions are the whisker physics; posterior over the object's state at the last sample",
         _ => "",
     }
