@@ -22,7 +22,7 @@ from statistics import NormalDist
 
 LEVELS = [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95]
 DEFAULT_METHODS = ["template", "template-interp", "template-warp", "shift", "emulator", "knn",
-                   "krr", "krr-local", "pf"]
+                   "krr", "krr-local", "krr-invariant", "pf"]
 
 
 def parse_set(text):
