@@ -307,15 +307,13 @@ impl Krr {
         match self.features {
             Features::Raw => Ok((flatten(obs, &channels, &self.scales)?, Vec::new())),
             Features::Invariant => {
-                let rms: Vec<f64> = channels
-                    .iter()
-                    .map(|&c| {
-                        let ch = obs.get(c).map_or(&[][..], |v| &v[..]);
-                        (ch.iter().map(|x| x * x).sum::<f64>() / ch.len().max(1) as f64).sqrt()
-                    })
-                    .collect();
+                // Every channel present and as long as the first, or a clear error.
                 let mut x = flatten(obs, &channels, &vec![1.0; channels.len()])?;
                 let n = x.len() / channels.len();
+                let rms: Vec<f64> = x
+                    .chunks(n)
+                    .map(|ch| (ch.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt())
+                    .collect();
                 for (c, r) in rms.iter().enumerate() {
                     if !(*r > 0.0 && r.is_finite()) {
                         return Err(Error::Observation(format!(
@@ -497,6 +495,14 @@ impl Method for Krr {
             });
         }
         let (x, ratios) = self.features_of(obs)?;
+        if x.len() != self.mean.len() {
+            return Err(Error::Observation(format!(
+                "{} samples per channel where {} was trained on {}",
+                x.len() / CHANNELS.len(),
+                self.name(),
+                self.mean.len() / CHANNELS.len()
+            )));
+        }
         let p = self.point(&self.point_of(&x, &ratios));
         Ok(p.iter()
             .zip(&self.heads)
@@ -578,6 +584,10 @@ mod tests {
         flat[3].iter_mut().for_each(|x| *x = 0.0);
         let err = m.predict(&flat).unwrap_err().to_string();
         assert!(err.contains("fx") && err.contains("zero"), "{err}");
+        // A recording of another length than the training runs is refused, not truncated.
+        let short: Vec<Vec<f64>> = probe.iter().map(|ch| ch[..100].to_vec()).collect();
+        let err = m.predict(&short).unwrap_err().to_string();
+        assert!(err.contains("100 samples"), "{err}");
     }
 
     #[test]
