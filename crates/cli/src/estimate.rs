@@ -51,7 +51,10 @@ pub struct Args {
     /// (modulus, density and damping within a factor 0.74–1.35, half of them with a compliant
     /// follicle, half tapered, gains within 5%, half with 0.5–3 times the segments, half with
     /// the seed paper's stiffness rule; three times the training runs): estimates that hold,
-    /// with wider intervals, on a whisker known only roughly, recorded by another chain. Not for
+    /// with wider intervals, on a whisker known only roughly, recorded by another chain. On a
+    /// calibrated scenario (the output of `calibrate`) the draws are narrow instead: modulus,
+    /// density, damping and follicle within a factor e^±0.1, gains within 2%, the chain as fitted
+    /// (what calibration leaves uncertain: intervals that hold after calibration). Not for
     /// `template` and `template-interp` (they keep the scenario's own templates); best with
     /// `krr-invariant`, which reads only what the prior leaves unchanged. The filter (`pf`)
     /// instead entertains 64 whiskers drawn alike (the scenario's and `--alternatives` others)

@@ -341,10 +341,14 @@ impl Family {
         Ok(f)
     }
 
-    /// The family with the default randomisation ([`Randomisation::default`]) when `randomise`
-    /// is set (a whisker known only roughly), else the family itself.
+    /// The family with its runs randomised when `randomise` is set, else the family itself: a
+    /// calibrated scenario ([`Family::is_calibrated`]) with the narrow prior of what calibration
+    /// leaves uncertain ([`Randomisation::calibrated`]), any other with the default prior of a
+    /// whisker known only roughly ([`Randomisation::default`]).
     pub fn randomised_if(self, randomise: bool) -> Result<Family> {
-        if randomise {
+        if randomise && self.is_calibrated() {
+            self.randomised(Randomisation::calibrated())
+        } else if randomise {
             self.randomised(Randomisation::default())
         } else {
             Ok(self)
