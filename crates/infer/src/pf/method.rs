@@ -233,10 +233,10 @@ impl Pf {
         } else {
             1.0
         };
-        let whisker = if self.randomised {
-            RANDOMISED_TEMPER
-        } else if self.calibrated {
+        let whisker = if self.calibrated {
             CALIBRATED_TEMPER
+        } else if self.randomised {
+            RANDOMISED_TEMPER
         } else {
             1.0
         };
@@ -269,9 +269,12 @@ impl Pf {
         c.sensor_spread = self.sensor_spread.unwrap_or_default();
         if let Some(prior) = family.randomisation() {
             c.alternatives = alternative_whiskers(family, prior, self.alternatives)?;
-            c.sensor_spread = self.sensor_spread.unwrap_or_else(SensorSpread::rough);
-            if self.model == TransitionModel::Coarse && self.segments.is_none() {
-                c.segments = RANDOMISED_SEGMENTS;
+            // A calibrated scenario's sensors and chain are fitted: only its whisker varies.
+            if !family.is_calibrated() {
+                c.sensor_spread = self.sensor_spread.unwrap_or_else(SensorSpread::rough);
+                if self.model == TransitionModel::Coarse && self.segments.is_none() {
+                    c.segments = RANDOMISED_SEGMENTS;
+                }
             }
         }
         c.ess_fraction = self.ess_fraction;
@@ -453,6 +456,23 @@ mod tests {
         assert_ne!(c.alternatives[0], c.alternatives[1]);
         assert_eq!(default_particles(&rough), 4000);
         assert_eq!(default_particles(&e2), 1000);
+        // A calibrated file randomised: whiskers from the narrow prior, its fitted sensors and
+        // chain kept, the calibrated tempering.
+        let narrow = calibrated.clone().randomised_if(true).unwrap();
+        assert_eq!(fit(&narrow), temper_for(1000) * CALIBRATED_TEMPER);
+        let c = Pf::new(1000).config(&narrow, [1.0; 5]).unwrap();
+        let plain = Pf::new(1000).config(&calibrated, [1.0; 5]).unwrap();
+        assert_eq!(c.alternatives.len(), ALTERNATIVES);
+        assert_eq!(
+            (c.segments, c.sensor_spread),
+            (plain.segments, SensorSpread::default())
+        );
+        let e = calibrated.base().whisker.youngs_modulus;
+        assert!(c
+            .alternatives
+            .iter()
+            .all(|w| (w.youngs_modulus / e - 1.0).abs() < 0.11
+                && w.follicle == vibrissa_core::whisker::Follicle::Clamped));
     }
 
     #[test]
