@@ -54,7 +54,8 @@ pub struct Args {
     /// with wider intervals, on a whisker known only roughly, recorded by another chain. On a
     /// calibrated scenario (the output of `calibrate`) the draws are narrow instead: modulus,
     /// density, damping and follicle within a factor e^±0.1, gains within 2%, the chain as fitted
-    /// (what calibration leaves uncertain: intervals that hold after calibration). Not for
+    /// (what calibration leaves uncertain: intervals that hold after calibration; the filter
+    /// then keeps the fitted sensors and chain and varies the whisker alone). Not for
     /// `template` and `template-interp` (they keep the scenario's own templates); best with
     /// `krr-invariant`, which reads only what the prior leaves unchanged. The filter (`pf`)
     /// instead entertains 64 whiskers drawn alike (the scenario's and `--alternatives` others)
