@@ -39,7 +39,7 @@ def main():
     files = [os.path.join(a.labelled, r["file"]) for r in rows]
     methods = a.method or [
         "template", "template-interp", "template-warp", "shift", "emulator", "knn", "krr",
-        "krr-local",
+        "krr-local", "krr-invariant",
     ]
 
     print(f"{len(files)} recordings in {a.labelled}, scenario {a.scenario}")
