@@ -165,16 +165,11 @@ impl Krr {
     fn choose(
         z: &[Vec<f64>],
         y: &[Vec<f64>],
+        inside: &[bool],
         fail: &(dyn Fn(&str) -> Error + Sync),
     ) -> Result<Settings> {
         let med = median_distance(z);
         let unknowns = y.len();
-        // Runs outside the range (beyond its edges, to keep estimates there unbiased) are fitted
-        // on but neither score the settings nor calibrate the std: their clipped estimates miss
-        // by their distance to the range.
-        let inside: Vec<bool> = (0..z.len())
-            .map(|i| y.iter().all(|t| (0.0..=1.0).contains(&t[i])))
-            .collect();
 
         // Choose ℓ and the ridge per unknown on every HOLD-th run, fitted on the rest.
         let (fit_i, held_i): (Vec<usize>, Vec<usize>) = (0..z.len()).partition(|i| i % HOLD != 0);
@@ -247,13 +242,10 @@ impl Krr {
         &mut self,
         z: Vec<Vec<f64>>,
         y: &[Vec<f64>],
+        inside: &[bool],
         best: &Settings,
         fail: &(dyn Fn(&str) -> Error + Sync),
     ) -> Result<()> {
-        let inside: Vec<bool> = (0..z.len())
-            .map(|i| y.iter().all(|t| (0.0..=1.0).contains(&t[i])))
-            .collect();
-
         // Final weights on every run (the unknowns in parallel); leave-one-out errors calibrate
         // the std.
         let heads: Vec<Result<Head>> = best
@@ -448,6 +440,12 @@ impl Method for Krr {
             .enumerate()
             .map(|(u, [lo, hi])| s.iter().map(|r| (r.params[u] - lo) / (hi - lo)).collect())
             .collect();
+        // Runs outside the range (beyond its edges, to keep estimates there unbiased) are fitted
+        // on but neither score the settings nor calibrate the std: their clipped estimates miss
+        // by their distance to the range.
+        let inside: Vec<bool> = (0..s.len())
+            .map(|i| y.iter().all(|t| (0.0..=1.0).contains(&t[i])))
+            .collect();
         let weights: &[f64] = match self.features {
             Features::Raw => &[0.0],
             Features::Invariant => &WEIGHTS,
@@ -476,7 +474,7 @@ impl Method for Krr {
                 .zip(&ratios)
                 .map(|(x, r)| self.point_of(x, r))
                 .collect();
-            let settings = Krr::choose(&z, &y, &fail)?;
+            let settings = Krr::choose(&z, &y, &inside, &fail)?;
             let held: f64 = settings.iter().map(|b| b.0).sum();
             if best.as_ref().map_or(true, |b| held < b.0) {
                 best = Some((held, w, z, settings));
@@ -484,7 +482,7 @@ impl Method for Krr {
         }
         let (_, w, z, settings) = best.expect("at least one weight");
         self.weight = w;
-        self.finish(z, &y, &settings, &fail)?;
+        self.finish(z, &y, &inside, &settings, &fail)?;
         if let Ok(mut l) = LATEST.lock() {
             *l = Some((
                 training.family.digest(),
