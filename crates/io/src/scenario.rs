@@ -76,11 +76,14 @@
 //! #             strictly increasing t; the path is relative to the scenario file's folder
 //!
 //! [[objects]]                # any number of rigid objects
-//! shape = "box"              # required: "box" | "circle" | "wall" | "polygon"
+//! shape = "box"              # required: "box" | "circle" | "wall" | "polygon" | "square" | "triangle"
 //! width = 0.01               # box (required), m, along the object's x
 //! height = 0.01              # box (required), m, along the object's y
 //! # circle: radius (required); wall: no keys (the half-plane y <= 0 of the object's frame);
 //! # polygon: vertices = [[x, y], ...] (required; convex, counter-clockwise)
+//! # square: side (required, m): a box with width = height = side
+//! # triangle: side (required, m): equilateral, centred on its centroid, one vertex on the
+//! #           object's +y axis (turn it with angle)
 //! position = [0.025, -0.006] # m, the object's frame at t = 0 (required without waypoints)
 //! angle = 0.0                # rad
 //! friction = 0.0             # Coulomb coefficient against the whisker
@@ -95,12 +98,17 @@
 //! d = [0.015, 0.030]                                   # range [lo, hi], SI
 //! v = { range = [0.3, 1.5], margin = [0.1, 0.1] }      # and how far training may reach beyond it
 //!                                                      # ([below, above]; default 1/12 of the width)
-//! [templates]                # values per unknown; the runs under the paper's budget are every
-//! d = [0.015, 0.023, 0.030]  # combination (default: each range's ends and middle)
+//! "objects.0.position.0" = { range = [0.018, 0.030], name = "x" }
+//!                            # name: what it is reported by (default: its key); 1 to 32 ASCII
+//!                            # letters, digits, _ . -, distinct, and no other unknown's key
+//! [templates]                # values per unknown, by key or name; the runs under the paper's
+//! d = [0.015, 0.023, 0.030]  # budget are every combination (default: each range's ends and middle)
 //! v = [0.3, 0.9, 1.5]
+//! x = [0.018, 0.024, 0.030]  # the unknown named x (or "objects.0.position.0" = [...], not both)
 //! [grid]                     # values per unknown that `vibrissa experiment` scores, every
 //! d = [0.015, 0.020, 0.025]  # combination (default: 6 evenly spaced values per range)
 //! v = [0.3, 0.9, 1.5]
+//! x = [0.020, 0.025, 0.030]
 //! ```
 //!
 //! With `experiment`, the box ([`experiment_box`]) is appended after the file's own objects, so

@@ -144,7 +144,7 @@ fn malformed_families_are_refused_by_name() {
         ("[templates]\nd = [0.02]\n", "needs an [unknowns] table"),
         (
             "[unknowns]\nd = { range = [0.015, 0.03], step = 1 }\n",
-            "takes range and margin",
+            "takes range, margin and name",
         ),
     ];
     for (body, expected) in cases {
@@ -165,6 +165,152 @@ fn malformed_families_are_refused_by_name() {
         .unwrap_err()
         .to_string();
     assert!(err.contains("modulus"), "{err}");
+}
+
+/// The family of a file that must load.
+fn family_of(text: &str) -> scenario::FamilySpec {
+    let (_, loaded) = scenario::open_str(text, "test.toml", &[]).unwrap();
+    loaded.family.unwrap()
+}
+
+/// A peg whose position is an unknown: the file for `unknowns` (and more tables after them).
+fn peg_family(unknowns: &str) -> String {
+    format!(
+        "[[objects]]\nshape = \"circle\"\nradius = 0.001\nposition = [0.02, 0.01]\n[unknowns]\n{unknowns}"
+    )
+}
+
+#[test]
+fn an_unknown_may_be_named() {
+    let family = family_of(&peg_family(
+        "\"objects.0.position.0\" = { range = [0.018, 0.030], name = \"x\" }\n\
+         \"objects.0.position.1\" = [0.005, 0.015]\n",
+    ));
+    assert_eq!(
+        family.keys(),
+        ["objects.0.position.0", "objects.0.position.1"]
+    );
+    // An unnamed unknown is named by its key.
+    assert_eq!(family.names(), ["x", "objects.0.position.1"]);
+    assert_eq!(family.unknowns[0].name, "x");
+    assert_eq!(family.unknowns[0].range, [0.018, 0.030]);
+    assert_eq!(family.unknowns[1].name, family.unknowns[1].key);
+
+    // The longest name and every allowed character.
+    let long = "a".repeat(32);
+    let family = family_of(&peg_family(&format!(
+        "\"objects.0.position.0\" = {{ range = [0.018, 0.030], name = \"{long}\" }}\n\
+         \"objects.0.position.1\" = {{ range = [0.005, 0.015], name = \"Y_1.b-2\" }}\n"
+    )));
+    assert_eq!(family.names(), [long.as_str(), "Y_1.b-2"]);
+}
+
+#[test]
+fn templates_and_grids_take_an_unknown_by_key_or_name() {
+    let unknowns = "\"objects.0.position.0\" = { range = [0.018, 0.030], name = \"x\" }\n\
+                    \"objects.0.position.1\" = { range = [0.005, 0.015], name = \"y\" }\n";
+    let family = family_of(&format!(
+        "{}[templates]\nx = [0.018, 0.030]\n\"objects.0.position.1\" = [0.01]\n\
+         [grid]\nobjects.0.position.0 = [0.02]\ny = [0.005, 0.015]\n",
+        peg_family(unknowns)
+    ));
+    assert_eq!(family.templates, [vec![0.018, 0.030], vec![0.01]]);
+    assert_eq!(family.grid, [vec![0.02], vec![0.005, 0.015]]);
+
+    // Both spellings for one unknown are refused, naming it.
+    let e = load_err(
+        &format!(
+            "{}[grid]\nx = [0.02]\n\"objects.0.position.0\" = [0.02]\ny = [0.01]\n",
+            peg_family(unknowns)
+        ),
+        &[],
+    );
+    assert!(e.contains("`grid.x`") && e.contains("given twice"), "{e}");
+    // A name that is no unknown's lists the keys with their names.
+    let e = load_err(
+        &format!("{}[templates]\nz = [0.02]\n", peg_family(unknowns)),
+        &[],
+    );
+    assert!(
+        e.contains("`templates.z` names no unknown")
+            && e.contains("objects.0.position.0 (named x)"),
+        "{e}"
+    );
+    // A missing one says it may be given by its name.
+    let e = load_err(
+        &format!("{}[templates]\nx = [0.02]\n", peg_family(unknowns)),
+        &[],
+    );
+    assert!(
+        e.contains("`templates.objects.0.position.1` is missing") && e.contains("`y`"),
+        "{e}"
+    );
+    // Errors in values name the spelling the file used.
+    let e = load_err(
+        &format!("{}[grid]\nx = [0.5]\ny = [0.01]\n", peg_family(unknowns)),
+        &[],
+    );
+    assert!(e.contains("`grid.x` holds 0.5"), "{e}");
+}
+
+#[test]
+fn bad_or_clashing_names_are_refused_by_field() {
+    let x = "\"objects.0.position.0\"";
+    let y = "\"objects.0.position.1\"";
+    let cases = [
+        // The same name twice.
+        (
+            format!("{x} = {{ range = [0.018, 0.030], name = \"p\" }}\n{y} = {{ range = [0.005, 0.015], name = \"p\" }}\n"),
+            "`unknowns.objects.0.position.1.name`",
+            "distinct",
+        ),
+        // A name that is another unknown's key.
+        (
+            format!("{x} = {{ range = [0.018, 0.030], name = \"objects.0.position.1\" }}\n{y} = [0.005, 0.015]\n"),
+            "`unknowns.objects.0.position.0.name`",
+            "the key of another unknown",
+        ),
+        // Characters outside the allowed set.
+        (
+            format!("{x} = {{ range = [0.018, 0.030], name = \"x pos\" }}\n"),
+            "`unknowns.objects.0.position.0.name`",
+            "ASCII letters, digits",
+        ),
+        (
+            format!("{x} = {{ range = [0.018, 0.030], name = \"x\u{e9}\" }}\n"),
+            "`unknowns.objects.0.position.0.name`",
+            "ASCII letters, digits",
+        ),
+        // Empty, too long, not a string.
+        (
+            format!("{x} = {{ range = [0.018, 0.030], name = \"\" }}\n"),
+            "`unknowns.objects.0.position.0.name`",
+            "1 to 32",
+        ),
+        (
+            format!("{x} = {{ range = [0.018, 0.030], name = \"{}\" }}\n", "a".repeat(33)),
+            "`unknowns.objects.0.position.0.name`",
+            "33 characters",
+        ),
+        (
+            format!("{x} = {{ range = [0.018, 0.030], name = 7 }}\n"),
+            "`unknowns.objects.0.position.0.name`",
+            "as a string",
+        ),
+    ];
+    for (unknowns, field, message) in cases {
+        let e = load_err(&peg_family(&unknowns), &[]);
+        assert!(e.contains(field) && e.contains(message), "{unknowns}: {e}");
+    }
+    // One key given twice, quoted and nested, is refused rather than named twice.
+    let e = load_err(
+        &peg_family("\"objects.0.friction\" = [0, 0.5]\nobjects.0.friction = [0, 0.4]\n"),
+        &[],
+    );
+    assert!(
+        e.contains("`unknowns.objects.0.friction` is given twice"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -549,6 +695,124 @@ fn out_of_range_values_are_cores_verdict_with_the_file() {
 
     let e = load_err("experiment = \"e2\"\nd = nan\n", &[]);
     assert!(e.contains("invalid d"), "{e}");
+}
+
+/// The shape of the one object of a file that must load.
+fn shape_of(object: &str) -> Shape {
+    let s = load_str(
+        &format!("[[objects]]\n{object}\nposition = [0.02, 0.0]\n"),
+        "test.toml",
+        &[],
+    )
+    .unwrap();
+    s.objects[0].shape.clone()
+}
+
+#[test]
+fn a_square_is_a_box_of_equal_sides() {
+    assert_eq!(
+        shape_of("shape = \"square\"\nside = 0.004"),
+        Shape::Box {
+            width: 0.004,
+            height: 0.004
+        }
+    );
+}
+
+#[test]
+fn a_triangle_is_equilateral_about_its_centroid() {
+    let side = 0.006;
+    let Shape::Polygon { vertices: v } = shape_of("shape = \"triangle\"\nside = 0.006") else {
+        panic!("a triangle is a polygon");
+    };
+    assert_eq!(v.len(), 3);
+    let tol = 1e-15;
+    // Centroid at the origin, the first vertex on +y.
+    let centroid = [0, 1].map(|c| v.iter().map(|p| p[c]).sum::<f64>() / 3.0);
+    assert!(
+        centroid[0].abs() < tol && centroid[1].abs() < tol,
+        "{centroid:?}"
+    );
+    assert_eq!(v[0][0], 0.0);
+    assert!(v[0][1] > 0.0);
+    // Every side as given.
+    for k in 0..3 {
+        let (a, b) = (v[k], v[(k + 1) % 3]);
+        let length = (b[0] - a[0]).hypot(b[1] - a[1]);
+        assert!((length - side).abs() < tol, "side {k}: {length}");
+    }
+    // Counter-clockwise: positive signed area, that of an equilateral triangle.
+    let area = 0.5
+        * (0..3)
+            .map(|k| {
+                let (a, b) = (v[k], v[(k + 1) % 3]);
+                a[0] * b[1] - b[0] * a[1]
+            })
+            .sum::<f64>();
+    assert!(
+        (area - 3f64.sqrt() / 4.0 * side * side).abs() < tol,
+        "{area}"
+    );
+}
+
+#[test]
+fn a_side_must_be_positive_and_belongs_to_squares_and_triangles() {
+    for shape in ["square", "triangle"] {
+        for side in ["-0.004", "0", "nan", "inf"] {
+            let e = load_err(
+                &format!("[[objects]]\nshape = \"{shape}\"\nside = {side}\nposition = [0, 0]\n"),
+                &[],
+            );
+            assert!(
+                e.contains("objects[0].side") && e.contains("> 0"),
+                "{shape}, {side}: {e}"
+            );
+        }
+        let e = load_err(
+            &format!("[[objects]]\nshape = \"{shape}\"\nposition = [0, 0]\n"),
+            &[],
+        );
+        assert!(e.contains("`objects[0].side` is required"), "{e}");
+        let e = load_err(
+            &format!(
+                "[[objects]]\nshape = \"{shape}\"\nside = 0.01\nwidth = 0.01\nposition = [0, 0]\n"
+            ),
+            &[],
+        );
+        assert!(
+            e.contains("`objects[0].width` does not apply") && e.contains("takes side"),
+            "{e}"
+        );
+    }
+    for other in [
+        "shape = \"circle\"\nradius = 0.001",
+        "shape = \"box\"\nwidth = 0.01\nheight = 0.01",
+        "shape = \"polygon\"\nvertices = [[0, 0], [0.002, 0], [0, 0.002]]",
+        "shape = \"wall\"",
+    ] {
+        let e = load_err(
+            &format!("[[objects]]\n{other}\nside = 0.01\nposition = [0, 0]\n"),
+            &[],
+        );
+        assert!(
+            e.contains("`objects[0].side` does not apply"),
+            "{other}: {e}"
+        );
+    }
+    // A side may be set like any key.
+    let s = load_str(
+        "[[objects]]\nshape = \"square\"\nside = 0.004\nposition = [0.02, 0]\n",
+        "test.toml",
+        &sets(&["objects.0.side=0.008"]),
+    )
+    .unwrap();
+    assert_eq!(
+        s.objects[0].shape,
+        Shape::Box {
+            width: 0.008,
+            height: 0.008
+        }
+    );
 }
 
 #[test]

@@ -169,6 +169,7 @@ struct ObjectTable {
     height: Option<f64>,
     radius: Option<f64>,
     vertices: Option<Vec<[f64; 2]>>,
+    side: Option<f64>,
     position: Option<[f64; 2]>,
     angle: Option<f64>,
     friction: Option<f64>,
@@ -185,6 +186,10 @@ enum ShapeKind {
     Circle,
     Wall,
     Polygon,
+    /// A box with equal sides (`side`).
+    Square,
+    /// An equilateral triangle (`side`), see [`equilateral_triangle`].
+    Triangle,
 }
 
 /// Where the file came from: its name for errors, its folder for relative paths.
@@ -545,7 +550,23 @@ impl ObjectTable {
             ("height", self.height.is_some()),
             ("radius", self.radius.is_some()),
             ("vertices", self.vertices.is_some()),
+            ("side", self.side.is_some()),
         ];
+        // A square's or triangle's side, checked here so that an error names the key the file
+        // gave (core would name a box's width, and a triangle's vertices need a usable side).
+        let side = |kind: &str| -> Result<f64> {
+            ctx.kind_keys(&table, kind, &given, &["side"], &["side"])?;
+            let side = self.side.unwrap_or_default();
+            if side.is_finite() && side > 0.0 {
+                Ok(side)
+            } else {
+                Err(ctx.invalid(vibrissa_core::Error::invalid(
+                    format!("{table}.side"),
+                    side,
+                    "a finite number > 0 (m)",
+                )))
+            }
+        };
         let shape = match self.shape {
             ShapeKind::Box => {
                 let keys = ["width", "height"];
@@ -573,6 +594,16 @@ impl ObjectTable {
                     vertices: self.vertices.unwrap_or_default(),
                 }
             }
+            ShapeKind::Square => {
+                let side = side("shape = \"square\"")?;
+                Shape::Box {
+                    width: side,
+                    height: side,
+                }
+            }
+            ShapeKind::Triangle => Shape::Polygon {
+                vertices: equilateral_triangle(side("shape = \"triangle\"")?).to_vec(),
+            },
         };
 
         // The motion: waypoints carry the pose; otherwise an initial pose and constant velocity.
@@ -617,4 +648,13 @@ impl ObjectTable {
             vertical: self.vertical,
         })
     }
+}
+
+/// The vertices of an equilateral triangle of side `side`, centred on its centroid, with one
+/// vertex on the local +y axis, in counter-clockwise order (top, lower left, lower right).
+fn equilateral_triangle(side: f64) -> [[f64; 2]; 3] {
+    // The circumradius is side/√3; the other two vertices lie 120° on either side of +y, at
+    // height −r/2 and half a side out.
+    let r = side / 3f64.sqrt();
+    [[0.0, r], [-0.5 * side, -0.5 * r], [0.5 * side, -0.5 * r]]
 }
