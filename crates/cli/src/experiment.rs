@@ -14,6 +14,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::Instant;
 use vibrissa_infer::pf::TransitionModel;
+use vibrissa_infer::shapes::ShapeFamily;
 use vibrissa_infer::{
     calibration, evaluate_unknown_start, evaluate_with, Budget, Evaluation, Family,
     StartEvaluation, Variant,
@@ -22,9 +23,32 @@ use vibrissa_infer::{
 /// Arguments of `vibrissa experiment`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The built-in experiment: e1 (distance only) or e2 (distance and speed).
-    #[arg(value_name = "EXPERIMENT", required_unless_present = "scenario")]
+    /// The built-in experiment: e1 (distance only), e2 (distance and speed) or e3 (shape
+    /// recognition: the object's class and pose, with 1, 3 and 5 whiskers).
+    #[arg(value_name = "EXPERIMENT", required_unless_present_any = ["scenario", "shapes"])]
     experiment: Option<String>,
+    /// Run a shape experiment on a shape family instead: a TOML file whose [classes] table names
+    /// each class's scenario file (box = "box.toml"), every class with the same whiskers.
+    #[arg(long, value_name = "FILE.toml", conflicts_with_all = ["experiment", "scenario"])]
+    shapes: Option<String>,
+    /// Shape experiments: training runs per class (default 300).
+    #[arg(long, value_name = "N")]
+    training: Option<usize>,
+    /// Shape experiments: evaluated runs per class (default 50).
+    #[arg(long, value_name = "N")]
+    runs: Option<usize>,
+    /// Shape experiments: the whisker sets to score, as counts of the array's middle whiskers
+    /// (`1,3,5`, the default for a fan of five) or names joined by `+` (`c1+c5`).
+    #[arg(long, value_name = "SETS")]
+    whiskers: Option<String>,
+    /// Shape experiments: train on whiskers and sensors drawn around the scenario's (for
+    /// recordings of a whisker known only roughly).
+    #[arg(long)]
+    randomise: bool,
+    /// Shape experiments: also write every evaluated run as a scenario file with `truth.csv`
+    /// into DIR, so that another simulator can reproduce each run.
+    #[arg(long, value_name = "DIR")]
+    export: Option<PathBuf>,
     /// Run the experiment on a scenario family instead: a TOML file with an [unknowns] table
     /// (its [templates] and [grid] set the runs), e.g. "the e2 box on my whisker".
     #[arg(long, value_name = "FILE.toml", conflicts_with = "experiment")]
@@ -90,13 +114,50 @@ struct Saved<'a> {
 
 /// Runs the experiment, writes its files and prints the table.
 pub fn run(args: &Args) -> Result<()> {
+    let shapes = match (&args.shapes, &args.experiment) {
+        (Some(file), _) => Some(ShapeFamily::open(file)?),
+        (None, Some(name)) => ShapeFamily::builtin(name).transpose()?,
+        _ => None,
+    };
+    if let Some(family) = shapes {
+        if !args.sets.is_empty() {
+            anyhow::bail!(
+                "--set applies to e1, e2 and --scenario; edit a shape family's class files instead"
+            );
+        }
+        if args.particles.is_some() || args.max_delay.is_some() || args.report {
+            anyhow::bail!("--particles, --max-delay and --report apply to e1, e2 and --scenario, not to shape experiments");
+        }
+        return crate::experiment_shapes::run(crate::experiment_shapes::ShapeArgs {
+            family,
+            variant: Variant::parse(&args.variant)?,
+            seed: args.seed,
+            out: args.out.clone(),
+            training: args.training,
+            runs: args.runs,
+            whiskers: args.whiskers.as_deref(),
+            randomise: args.randomise,
+            export: args.export.as_deref(),
+            format: args.format.format(),
+        });
+    }
+    if args.training.is_some()
+        || args.runs.is_some()
+        || args.whiskers.is_some()
+        || args.randomise
+        || args.export.is_some()
+    {
+        anyhow::bail!("--training, --runs, --whiskers, --randomise and --export apply to shape experiments (e3, --shapes)");
+    }
     let family = match (&args.scenario, &args.experiment) {
         (Some(file), _) => Family::open(file, &args.sets)?,
         (None, Some(name)) => {
             Family::builtin(name)?;
             Family::open(name, &args.sets)?
         }
-        (None, None) => anyhow::bail!("name an experiment (e1, e2) or give --scenario FILE.toml"),
+        (None, None) => {
+            anyhow::bail!("name an experiment (e1, e2, e3) or give --scenario FILE.toml")
+        }
     };
     let scenario_file = match &args.scenario {
         Some(file) => Some(

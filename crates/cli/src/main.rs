@@ -10,6 +10,7 @@ mod calibrate;
 mod estimate;
 mod estimate_pf;
 mod experiment;
+mod experiment_shapes;
 mod files;
 mod frames;
 mod inverse;

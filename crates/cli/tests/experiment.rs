@@ -1009,3 +1009,75 @@ fn estimate_randomise_trains_on_whiskers_around_the_scenario() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("alternatives"));
 }
+
+#[test]
+fn experiment_e3_scores_shapes_and_exports_every_evaluated_run() {
+    let dir = temp("e3");
+    let export = dir.join("runs");
+    let out = vibrissa()
+        .args([
+            "experiment",
+            "e3",
+            "--training",
+            "20",
+            "--runs",
+            "2",
+            "--whiskers",
+            "1,3",
+        ])
+        .args(["--json", "--out"])
+        .arg(dir.join("out"))
+        .arg("--export")
+        .arg(&export)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["classes"].as_array().unwrap().len(), 4);
+    let subsets = v["subsets"].as_array().unwrap();
+    assert_eq!(subsets.len(), 2);
+    assert_eq!(
+        subsets[1]["whiskers"],
+        serde_json::json!(["c2", "c3", "c4"])
+    );
+    assert!(dir.join("out/results.json").exists());
+    // truth.csv names every exported file, which simulates as a scenario of its own.
+    let truth = std::fs::read_to_string(export.join("truth.csv")).unwrap();
+    let lines: Vec<&str> = truth.lines().collect();
+    assert_eq!(lines[0], "file,class,x,angle,v,side,radius");
+    assert_eq!(lines.len(), 9);
+    let first = lines[1].split(',').next().unwrap();
+    let sim = vibrissa()
+        .args(["simulate"])
+        .arg(export.join(first))
+        .arg("--out")
+        .arg(dir.join("run.csv"))
+        .output()
+        .unwrap();
+    assert!(
+        sim.status.success(),
+        "{}",
+        String::from_utf8_lossy(&sim.stderr)
+    );
+    let csv = std::fs::read_to_string(dir.join("run.csv")).unwrap();
+    assert!(csv.lines().any(|l| l.contains("c5.theta12")));
+    // Options of the shape experiments are refused elsewhere, and bad whisker sets by name.
+    let bad = vibrissa()
+        .args(["experiment", "e2", "--training", "20"])
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("shape experiments"));
+    let bad = vibrissa()
+        .args(["experiment", "e3", "--whiskers", "c9", "--out"])
+        .arg(dir.join("bad"))
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("c9"));
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -13,6 +13,7 @@ use crate::randomise::{Around, Randomisation};
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::sync::{Mutex, OnceLock};
+use vibrissa_core::array::Mount;
 use vibrissa_core::objects::Motion;
 use vibrissa_core::rng::Rng;
 use vibrissa_core::sim::{self, Scenario, SensorNoise};
@@ -40,6 +41,9 @@ pub struct Family {
     randomised: Option<Around>,
     /// Whether the file was written by calibration (it has a `[calibration]` record).
     calibrated: bool,
+    /// The file's `[[whiskers]]` kept (empty: the one whisker of `base`, at the origin), each
+    /// with its place in the file's array (which seeds its random streams).
+    mounts: Vec<(usize, Mount)>,
 }
 
 /// A small cache of values computed once per family (by digest): the noisy variant's levels.
@@ -87,6 +91,7 @@ impl Family {
             stated_noise: loaded.stated_sensor_noise,
             randomised: None,
             calibrated: loaded.calibration.is_some(),
+            mounts: loaded.whiskers.into_iter().enumerate().collect(),
         })
     }
 
@@ -107,8 +112,14 @@ impl Family {
         &self.name
     }
 
-    /// The unknowns' scenario keys, in order.
+    /// The unknowns' names, in order: what estimates and labels call them (each its scenario
+    /// key unless the file names it, as `name = "x"`).
     pub fn unknowns(&self) -> Vec<&str> {
+        self.spec.names()
+    }
+
+    /// The unknowns' scenario keys, in order.
+    pub fn keys(&self) -> Vec<&str> {
         self.spec.keys()
     }
 
@@ -383,6 +394,9 @@ impl Family {
         for x in [self.base.sample_rate, self.base.duration] {
             h = (h ^ x.to_bits()).wrapping_mul(0x0000_0100_0000_01b3);
         }
+        for (k, _) in &self.mounts {
+            h = (h ^ (*k as u64 + 1)).wrapping_mul(0x0000_0100_0000_01b3);
+        }
         (h ^ self.base.segments as u64).wrapping_mul(0x0000_0100_0000_01b3)
     }
 
@@ -396,12 +410,23 @@ impl Family {
                 self.unknowns().join(", ")
             )));
         }
-        let values: Vec<(&str, f64)> = self.unknowns().into_iter().zip(p.iter().copied()).collect();
+        let values: Vec<(&str, f64)> = self.keys().into_iter().zip(p.iter().copied()).collect();
         let mut s = self.doc.with_values(&values)?.scenario;
         s.sample_rate = self.base.sample_rate;
         s.duration = self.base.duration;
         s.segments = self.base.segments;
         Ok(s)
+    }
+
+    /// The scenario file of the run at `p` (the file with its unknowns' keys set to `p`), which
+    /// loads and simulates as that run: what another engine needs to reproduce it.
+    pub fn document_at(&self, p: &[f64]) -> Result<vibrissa_io::scenario::Document> {
+        self.scenario(p)?;
+        let mut doc = self.doc.clone();
+        for (key, x) in self.keys().iter().zip(p) {
+            doc.set(&format!("{key}={x:?}"))?;
+        }
+        Ok(doc)
     }
 
     /// Simulates the run at `p` with `noise`, seeded by `seed`.
@@ -428,6 +453,68 @@ impl Family {
             series,
             params: p.to_vec(),
         })
+    }
+
+    /// The whiskers of the scenario's array kept, in order (empty for a single whisker).
+    pub fn mounts(&self) -> Vec<&Mount> {
+        self.mounts.iter().map(|(_, m)| m).collect()
+    }
+
+    /// The names of the array's whiskers kept, in order (empty for a single whisker).
+    pub fn whisker_names(&self) -> Vec<String> {
+        self.mounts.iter().map(|(_, m)| m.name.clone()).collect()
+    }
+
+    /// The same family with only the array's whiskers named in `names` (in the array's order),
+    /// or an error naming the whiskers it has.
+    pub fn with_whiskers(&self, names: &[&str]) -> Result<Family> {
+        let have: Vec<&str> = self.mounts.iter().map(|(_, m)| m.name.as_str()).collect();
+        if let Some(n) = names.iter().find(|n| !have.contains(n)) {
+            return Err(Error::Setting(format!(
+                "{}: no whisker named `{n}` (its whiskers: {})",
+                self.name,
+                if have.is_empty() {
+                    "one, without a name".to_string()
+                } else {
+                    have.join(", ")
+                }
+            )));
+        }
+        if names.is_empty() {
+            return Err(Error::Setting(format!(
+                "{}: at least one whisker must be kept",
+                self.name
+            )));
+        }
+        let mut f = self.clone();
+        f.mounts.retain(|(_, m)| names.contains(&m.name.as_str()));
+        Ok(f)
+    }
+
+    /// Simulates the run at `p` on every whisker of the array (one whisker if the scenario has
+    /// no `[[whiskers]]`) with `noise`, seeded by `seed`: the observed channels of each whisker
+    /// in the array's order, whisker `k`'s random forces and sensor noise drawn from streams of
+    /// `seed` and `k` as `vibrissa simulate` draws them. The whiskers of a randomised family
+    /// share the run's drawn whisker and sensors.
+    pub fn simulate_array(&self, p: &[f64], noise: &Noise, seed: u64) -> Result<Vec<Sample>> {
+        if self.mounts.is_empty() {
+            return Ok(vec![self.simulate(p, noise, seed)?]);
+        }
+        let s = self.recording_scenario(p, 0.0, noise, seed)?;
+        // Whisker k's streams follow its place in the file's array, whichever are kept.
+        self.mounts
+            .iter()
+            .map(|(k, m)| {
+                let out = sim::run(&m.scenario(&s, *k), &mut |_| {})
+                    .map_err(|source| self.run_error(p, source))?;
+                Ok(Sample {
+                    series: (0..CHANNELS.len())
+                        .map(|c| out.rows.iter().map(|r| r[c + 1]).collect())
+                        .collect(),
+                    params: p.to_vec(),
+                })
+            })
+            .collect()
     }
 
     /// The error of a failed run at `p`, naming its parameters.

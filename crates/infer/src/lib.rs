@@ -27,6 +27,7 @@ pub mod pf;
 pub mod randomise;
 pub mod recording;
 mod reference;
+pub mod shapes;
 pub mod standin;
 pub mod trained;
 pub mod unknown_start;

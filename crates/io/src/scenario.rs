@@ -127,12 +127,14 @@
 //! value out of range is core's [`Scenario::check`] verdict, prefixed with the file's name.
 
 mod calibration;
+mod classes;
 mod document;
 mod family;
 mod overrides;
 mod schema;
 
 pub use calibration::{CalibratedParameter, Calibration, ChannelValues};
+pub use classes::read_classes;
 pub use document::Document;
 pub use family::{FamilySpec, UnknownSpec, DEFAULT_GRID_COUNT, DEFAULT_MARGIN_FRACTION};
 

@@ -14,7 +14,7 @@
 //! | `pf` | free | particle filter with the whisker physics as its transition model ([`crate::pf`]) |
 
 mod interp;
-mod kernel_ridge;
+pub(crate) mod kernel_ridge;
 mod knn;
 mod krr;
 mod local;

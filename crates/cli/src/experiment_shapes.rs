@@ -1,0 +1,314 @@
+//! `vibrissa experiment e3`: shape recognition scored with one, three and five whiskers.
+//!
+//! Simulates held-out runs of every class (each whisker of the array once) and training runs
+//! drawn from the classes' priors, fits the shape estimator on each whisker set, and prints the
+//! class accuracy, the calibration of the class probabilities and each class's pose errors and
+//! coverage. Writes `results.json` into the output folder, and with `--export` every evaluated
+//! run as a scenario file with its truth.
+
+use crate::output::{Align, Render, Table};
+use anyhow::{Context, Result};
+use serde::Serialize;
+use std::io::{self, Write};
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::time::Instant;
+use vibrissa_infer::shapes::{evaluate_shapes, ShapeEvaluation, ShapeFamily, ShapeSettings};
+use vibrissa_infer::Variant;
+
+/// Training runs per class by default.
+pub const DEFAULT_TRAINING: usize = 300;
+/// Evaluated runs per class by default.
+pub const DEFAULT_RUNS: usize = 50;
+
+/// What the shape experiment takes from the command line.
+pub struct ShapeArgs<'a> {
+    pub family: ShapeFamily,
+    pub variant: Variant,
+    pub seed: u64,
+    pub out: Option<PathBuf>,
+    pub training: Option<usize>,
+    pub runs: Option<usize>,
+    pub whiskers: Option<&'a str>,
+    pub randomise: bool,
+    pub export: Option<&'a Path>,
+    pub format: crate::output::Format,
+}
+
+/// The printed result.
+#[derive(Debug, Serialize)]
+struct Report {
+    #[serde(flatten)]
+    evaluation: ShapeEvaluation,
+    /// Files written.
+    files: Vec<PathBuf>,
+    /// Wall time of the whole command, s.
+    seconds: f64,
+}
+
+/// The whisker sets of `--whiskers` (counts such as `1,3,5`, or names joined by `+` such as
+/// `c2+c3`), from the array's whiskers.
+fn subsets(spec: Option<&str>, all: &[String]) -> Result<Vec<Vec<String>>> {
+    let default = if all.len() == 5 { "1,3,5" } else { "" };
+    let spec = spec.unwrap_or(default);
+    if spec.is_empty() {
+        return Ok(vec![all.to_vec()]);
+    }
+    spec.split(',')
+        .map(|part| {
+            let part = part.trim();
+            if let Ok(n) = part.parse::<usize>() {
+                if n == 0 || n > all.len() || n % 2 == 0 && n != all.len() {
+                    anyhow::bail!(
+                        "--whiskers: {n} is not a set of the array's {} whiskers (an odd \
+                         count, the middle ones, up to {}; or names joined by +)",
+                        all.len(),
+                        all.len()
+                    );
+                }
+                // The middle n whiskers.
+                let first = (all.len() - n) / 2;
+                Ok(all[first..first + n].to_vec())
+            } else {
+                let names: Vec<String> = part.split('+').map(|s| s.trim().to_string()).collect();
+                if let Some(n) = names.iter().find(|n| !all.contains(n)) {
+                    anyhow::bail!(
+                        "--whiskers: no whisker `{n}` (the array's whiskers: {})",
+                        all.join(", ")
+                    );
+                }
+                Ok(names)
+            }
+        })
+        .collect()
+}
+
+/// Runs the shape experiment, writes its files and prints the table.
+pub fn run(args: ShapeArgs) -> Result<()> {
+    let start = Instant::now();
+    let family = args.family;
+    let subsets = subsets(args.whiskers, &family.whiskers())?;
+    let settings = ShapeSettings {
+        train_per_class: args.training.unwrap_or(DEFAULT_TRAINING),
+        eval_per_class: args.runs.unwrap_or(DEFAULT_RUNS),
+        variant: args.variant,
+        seed: args.seed,
+        randomise: args.randomise,
+        subsets,
+    };
+    if settings.train_per_class < 20 {
+        anyhow::bail!(
+            "--training must be at least 20 runs per class (got {})",
+            settings.train_per_class
+        );
+    }
+    if settings.eval_per_class == 0 {
+        anyhow::bail!("--runs must be at least 1 run per class (got 0)");
+    }
+    let label = Path::new(family.name())
+        .file_stem()
+        .map_or("shapes".into(), |s| s.to_string_lossy().to_string());
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(format!("experiment-{label}-{}", args.variant.name())));
+    std::fs::create_dir_all(&out)
+        .with_context(|| format!("cannot create the output folder `{}`", out.display()))?;
+    let last = Mutex::new(0usize);
+    let progress = |done: usize, total: usize| {
+        let mut l = last.lock().expect("progress lock");
+        let tenth = done * 10 / total.max(1);
+        if tenth > *l || done == total {
+            *l = tenth;
+            eprintln!(
+                "[{:6.2} s] simulate {done}/{total}",
+                start.elapsed().as_secs_f64()
+            );
+        }
+    };
+    let evaluation = evaluate_shapes(&family, &settings, &progress)?;
+    eprintln!("[{:6.2} s] scored", start.elapsed().as_secs_f64());
+
+    let mut files = Vec::new();
+    let json = out.join("results.json");
+    crate::files::write_atomic(&json, serde_json::to_string_pretty(&evaluation)?.as_bytes())?;
+    files.push(json);
+    if let Some(dir) = args.export {
+        files.push(export(&family, &settings, dir)?);
+    }
+    args.format.print(&Report {
+        evaluation,
+        files,
+        seconds: start.elapsed().as_secs_f64(),
+    })?;
+    Ok(())
+}
+
+/// Writes every evaluated run of the experiment as a scenario file (its class's file with the
+/// run's values set) into `dir`, with `truth.csv` naming each file's class and values.
+fn export(family: &ShapeFamily, settings: &ShapeSettings, dir: &Path) -> Result<PathBuf> {
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("cannot create the export folder `{}`", dir.display()))?;
+    let draws = vibrissa_infer::shapes::evaluated_draws(family, settings);
+    let mut names: Vec<String> = Vec::new();
+    for c in family.classes() {
+        for u in c.family.unknowns() {
+            if !names.iter().any(|n| n == u) {
+                names.push(u.to_string());
+            }
+        }
+    }
+    let mut truth = format!("file,class,{}\n", names.join(","));
+    for (k, (class, p)) in draws.iter().enumerate() {
+        let c = &family.classes()[*class];
+        let file = format!("run{k:04}-{}.toml", c.name);
+        let doc = c.family.document_at(p)?;
+        doc.write(&dir.join(&file))?;
+        let values: Vec<String> = names
+            .iter()
+            .map(|n| {
+                c.family
+                    .unknowns()
+                    .iter()
+                    .position(|u| u == n)
+                    .map_or(String::new(), |i| format!("{}", p[i]))
+            })
+            .collect();
+        truth.push_str(&format!("{file},{},{}\n", c.name, values.join(",")));
+    }
+    let path = dir.join("truth.csv");
+    crate::files::write_atomic(&path, truth.as_bytes())?;
+    Ok(path)
+}
+
+/// Percent with no decimals.
+fn pct(x: f64) -> String {
+    format!("{:.0}%", 100.0 * x)
+}
+
+/// An unknown's error in display units: mm for lengths, degrees for angles, m/s for speeds.
+fn shown(name: &str, x: f64) -> (String, &'static str) {
+    match name {
+        "angle" => (format!("{:.1}", x.to_degrees()), "deg"),
+        "v" => (format!("{:.3}", x), "m/s"),
+        _ => (format!("{:.2}", x * 1e3), "mm"),
+    }
+}
+
+impl Render for Report {
+    fn render(&self, out: &mut dyn Write) -> io::Result<()> {
+        let ev = &self.evaluation;
+        writeln!(
+            out,
+            "shape experiment {} ({}): classes {}; {} training and {} evaluated runs per class{}",
+            ev.family,
+            ev.variant.name(),
+            ev.classes.join(", "),
+            ev.train_per_class,
+            ev.eval_per_class,
+            if ev.randomise {
+                "; training whiskers randomised"
+            } else {
+                ""
+            }
+        )?;
+        let mut t = Table::new(&[
+            ("whiskers", Align::Left),
+            ("accuracy", Align::Right),
+            ("log loss", Align::Right),
+            ("ECE", Align::Right),
+            ("fit (s)", Align::Right),
+            ("estimate (ms)", Align::Right),
+        ]);
+        for s in &ev.subsets {
+            t.row(vec![
+                format!("{} ({})", s.whiskers.len(), s.whiskers.join("+")),
+                pct(s.accuracy),
+                format!("{:.3}", s.log_loss),
+                format!("{:.3}", s.ece),
+                format!("{:.1}", s.fit_seconds),
+                format!("{:.2}", s.estimate_ms),
+            ]);
+        }
+        t.write(out, "  ")?;
+        writeln!(
+            out,
+            "pose of the runs classified right: mean absolute error (90% coverage)"
+        )?;
+        let mut t = Table::new(&[
+            ("whiskers", Align::Left),
+            ("class", Align::Left),
+            ("right", Align::Right),
+            ("pose", Align::Left),
+        ]);
+        for s in &ev.subsets {
+            for p in &s.poses {
+                let pose: Vec<String> = p
+                    .unknowns
+                    .iter()
+                    .map(|u| {
+                        let (e, unit) = shown(&u.name, u.mae);
+                        format!("{} {e} {unit} ({})", u.name, pct(u.coverage))
+                    })
+                    .collect();
+                t.row(vec![
+                    s.whiskers.len().to_string(),
+                    p.class.clone(),
+                    format!("{}/{}", p.right, p.runs),
+                    if p.right == 0 {
+                        "(no run classified right)".into()
+                    } else {
+                        pose.join(", ")
+                    },
+                ]);
+            }
+        }
+        t.write(out, "  ")?;
+        for s in &ev.subsets {
+            writeln!(
+                out,
+                "confusion with {} whiskers (rows: truth; columns: estimate {}):",
+                s.whiskers.len(),
+                ev.classes.join(", ")
+            )?;
+            for (c, row) in s.confusion.iter().enumerate() {
+                let cells: Vec<String> = row.iter().map(|n| format!("{n:4}")).collect();
+                writeln!(out, "  {:>9} {}", ev.classes[c], cells.join(""))?;
+            }
+        }
+        writeln!(
+            out,
+            "simulated in {:.1} s; wall time {:.1} s; files:",
+            ev.simulate_seconds, self.seconds
+        )?;
+        for f in &self.files {
+            writeln!(out, "  {}", f.display())?;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn whisker_sets_are_counts_of_the_middle_ones_or_names() {
+        let all: Vec<String> = ["c1", "c2", "c3", "c4", "c5"]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
+        let s = subsets(None, &all).unwrap();
+        assert_eq!(s.len(), 3);
+        assert_eq!((s[0][0].as_str(), s[1].len()), ("c3", 3));
+        assert_eq!(s[1][0], "c2");
+        assert_eq!(s[2], all);
+        assert_eq!(
+            subsets(Some("c1+c5"), &all).unwrap(),
+            vec![vec!["c1", "c5"]]
+        );
+        for bad in ["0", "2", "7", "c9", "c1+x"] {
+            assert!(subsets(Some(bad), &all).is_err(), "{bad}");
+        }
+    }
+}

@@ -1,0 +1,145 @@
+//! The built-in shape experiment `e3`: one scenario file per object class, sharing the whisker
+//! array, the timing and the motion (docs/shapes.md restates it).
+//!
+//! Five `w30` whiskers (`c1` … `c5`) fan out from points on an arc of radius 5 mm centred 5 mm
+//! behind the middle whisker's base, at −12°, −6°, 0°, 6° and 12° from +x; the middle one (`c3`)
+//! is the seed's whisker at the origin. One, three or five of them are read (`c3`; `c2`–`c4`;
+//! all). An object of one of four classes starts with its reference point (centre) at
+//! (x, −18 mm) and moves along +y at v, past every whisker it reaches; 150 ms at 1 kHz.
+
+/// The array, timing and whisker common to every class (TOML).
+macro_rules! e3_common {
+    () => {
+        r#"duration = 0.15
+sample_rate = 1000
+dt = 1e-4
+segments = 20
+
+[whisker]
+preset = "w30"
+
+# A fan of five whiskers, bases on an arc of radius 5 mm about (-5 mm, 0).
+[[whiskers]]
+name = "c1"
+position = [-1.0926e-4, -1.03956e-3]
+angle = -0.2094395102393195
+
+[[whiskers]]
+name = "c2"
+position = [-2.7390e-5, -5.22642e-4]
+angle = -0.10471975511965977
+
+[[whiskers]]
+name = "c3"
+position = [0.0, 0.0]
+angle = 0.0
+
+[[whiskers]]
+name = "c4"
+position = [-2.7390e-5, 5.22642e-4]
+angle = 0.10471975511965977
+
+[[whiskers]]
+name = "c5"
+position = [-1.0926e-4, 1.03956e-3]
+angle = 0.2094395102393195
+"#
+    };
+}
+
+/// The class `box`: a square of side 6–12 mm, turned 0–60° (a quarter turn is a symmetry; the
+/// range stops short of it so that every pose is one angle).
+pub const BOX: &str = concat!(
+    "# e3, class `box`: a square moving along +y past a fan of five w30 whiskers.\n",
+    e3_common!(),
+    r#"
+[[objects]]
+shape = "square"
+side = 0.009
+position = [0.024, -0.018]
+angle = 0.5
+velocity = [0.0, 0.9]
+
+[unknowns]
+"objects.0.position.0" = { range = [0.018, 0.030], name = "x" }
+"objects.0.angle" = { range = [0.0, 1.0471975511965976], name = "angle" }
+"objects.0.side" = { range = [0.006, 0.012], name = "side" }
+"objects.0.velocity.1" = { range = [0.3, 1.5], name = "v" }
+"#
+);
+
+/// The class `circle`: a peg of radius 3–6 mm (no rotation).
+pub const CIRCLE: &str = concat!(
+    "# e3, class `circle`: a peg moving along +y past a fan of five w30 whiskers.\n",
+    e3_common!(),
+    r#"
+[[objects]]
+shape = "circle"
+radius = 0.0045
+position = [0.024, -0.018]
+velocity = [0.0, 0.9]
+
+[unknowns]
+"objects.0.position.0" = { range = [0.018, 0.030], name = "x" }
+"objects.0.radius" = { range = [0.003, 0.006], name = "radius" }
+"objects.0.velocity.1" = { range = [0.3, 1.5], name = "v" }
+"#
+);
+
+/// The class `triangle`: an equilateral triangle of side 8–14 mm, turned 0–90° from a vertex
+/// pointing along +y (a third of a turn is a symmetry).
+pub const TRIANGLE: &str = concat!(
+    "# e3, class `triangle`: an equilateral triangle moving along +y past a fan of five w30 whiskers.\n",
+    e3_common!(),
+    r#"
+[[objects]]
+shape = "triangle"
+side = 0.011
+position = [0.024, -0.018]
+angle = 0.8
+velocity = [0.0, 0.9]
+
+[unknowns]
+"objects.0.position.0" = { range = [0.018, 0.030], name = "x" }
+"objects.0.angle" = { range = [0.0, 1.5707963267948966], name = "angle" }
+"objects.0.side" = { range = [0.008, 0.014], name = "side" }
+"objects.0.velocity.1" = { range = [0.3, 1.5], name = "v" }
+"#
+);
+
+/// The class `wall`: the edge of a plane, a straight plate 40 mm long and 2 mm thick whose
+/// near end lies 18–30 mm from the middle whisker's base, turned ±15° (its centre, the
+/// reference point, 20 mm beyond its near end).
+pub const WALL: &str = concat!(
+    "# e3, class `wall`: a 40 mm plate (a plane's edge) moving along +y past a fan of five w30 whiskers.\n",
+    e3_common!(),
+    r#"
+[[objects]]
+shape = "box"
+width = 0.04
+height = 0.002
+position = [0.044, -0.018]
+angle = 0.0
+velocity = [0.0, 0.9]
+
+[unknowns]
+"objects.0.position.0" = { range = [0.038, 0.050], name = "x" }
+"objects.0.angle" = { range = [-0.2617993877991494, 0.2617993877991494], name = "angle" }
+"objects.0.velocity.1" = { range = [0.3, 1.5], name = "v" }
+"#
+);
+
+/// The classes of `e3`, by name, in the order of its class posteriors.
+pub const CLASSES: [(&str, &str); 4] = [
+    ("wall", WALL),
+    ("box", BOX),
+    ("circle", CIRCLE),
+    ("triangle", TRIANGLE),
+];
+
+/// Whiskers read with 1, 3 and 5 whiskers.
+pub const SUBSETS: [&[&str]; 3] = [
+    &["c3"],
+    &["c2", "c3", "c4"],
+    &["c1", "c2", "c3", "c4", "c5"],
+];

@@ -1,0 +1,473 @@
+//! `shape-krr`: a class posterior and a pose from several whiskers, by kernel ridge regression
+//! on what the recordings show of each whisker's signals.
+//!
+//! What it reads of a recording (all whiskers jointly): each channel of each whisker divided by
+//! its own RMS (the shape and timing of the signal, blind to the sensor's gain and the whisker's
+//! stiffness), and log amplitudes that are blind to the same: per whisker the wrench's ratios
+//! `m0/fy` and `fx/fy` (the moment arm), and with several whiskers each channel's amplitude
+//! relative to the array's mean (which whiskers the object pressed hardest). A channel quieter
+//! than a floor (a small share of its typical level over the training runs) counts as silent: a
+//! whisker the object missed. The series go through their leading principal components; the
+//! amplitudes are appended with a weight chosen on held-out training runs.
+//!
+//! The class posterior is a kernel ridge regression of each class's indicator whose scores go
+//! through a softmax with a temperature fitted to the leave-one-out scores (so that the
+//! probabilities are calibrated on runs the fit did not see). Each class has its own pose
+//! regression, fitted on that class's runs, with leave-one-out intervals.
+
+use super::family::{ShapeFamily, ShapeSample};
+use crate::error::{Error, Result};
+use crate::experiment::CHANNELS;
+use crate::features::dist2;
+use crate::method::Estimate;
+use crate::methods::kernel_ridge::{kernel, median_distance, Pca, Regression, HOLD, RIDGES};
+use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
+
+/// Principal components of the series kept.
+const COMPONENTS: usize = 40;
+/// Weights of the amplitude features tried, per unit of a channel's RMS per sample.
+const WEIGHTS: [f64; 3] = [0.0, 1.0, 3.0];
+/// A channel whose RMS is below this share of its median RMS over the training runs is silent.
+const FLOOR: f64 = 0.02;
+/// Length scales tried for the classifier, as multiples of the median distance between runs.
+const LENGTHS: [f64; 5] = [0.25, 0.5, 1.0, 2.0, 4.0];
+
+/// A class posterior and the most probable class's pose.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ShapeEstimate {
+    /// Each class's posterior probability, in the family's order (summing to 1).
+    pub class: Vec<(String, f64)>,
+    /// Index of the most probable class.
+    pub best: usize,
+    /// That class's unknowns, by name.
+    pub pose: Vec<(String, Estimate)>,
+}
+
+/// Kernel ridge scores of each class's indicator, through a softmax.
+#[derive(Debug, Clone, Default)]
+struct Classifier {
+    /// Training points.
+    z: Vec<Vec<f64>>,
+    /// Dual weights `[classes][runs]`.
+    alpha: Vec<Vec<f64>>,
+    /// Kernel length scale.
+    length: f64,
+    /// Softmax temperature (scores are multiplied by it).
+    temperature: f64,
+}
+
+/// Probabilities of `scores` multiplied by `t`, through a softmax.
+fn softmax(scores: &[f64], t: f64) -> Vec<f64> {
+    let m = scores.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+    let e: Vec<f64> = scores.iter().map(|s| ((s - m) * t).exp()).collect();
+    let sum: f64 = e.iter().sum();
+    e.iter().map(|x| x / sum).collect()
+}
+
+/// Mean negative log probability of the true labels of `scores` (`[runs][classes]`) at
+/// temperature `t`.
+fn log_loss(scores: &[Vec<f64>], labels: &[usize], t: f64) -> f64 {
+    scores
+        .iter()
+        .zip(labels)
+        .map(|(s, &l)| -softmax(s, t)[l].max(1e-300).ln())
+        .sum::<f64>()
+        / scores.len().max(1) as f64
+}
+
+/// The temperature in [0.1, 1000] that minimises [`log_loss`] (golden-section search on its
+/// logarithm; the loss is unimodal in it for scores that rank the true class first on average).
+fn fit_temperature(scores: &[Vec<f64>], labels: &[usize]) -> (f64, f64) {
+    let f = |u: f64| log_loss(scores, labels, u.exp());
+    let (mut a, mut b) = (0.1f64.ln(), 1000f64.ln());
+    let g = (5f64.sqrt() - 1.0) / 2.0;
+    let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
+    let (mut fc, mut fd) = (f(c), f(d));
+    for _ in 0..60 {
+        if fc < fd {
+            b = d;
+            d = c;
+            fd = fc;
+            c = b - g * (b - a);
+            fc = f(c);
+        } else {
+            a = c;
+            c = d;
+            fc = fd;
+            d = a + g * (b - a);
+            fd = f(d);
+        }
+    }
+    let u = 0.5 * (a + b);
+    (u.exp(), f(u))
+}
+
+impl Classifier {
+    /// Fits on points `z` with class `labels` of `classes` classes: the length scale and ridge
+    /// by the held-out log loss (every [`HOLD`]-th run held out, each setting at its best
+    /// temperature), then the weights on every run and the temperature on the leave-one-out
+    /// scores. Returns it and the held-out log loss of its settings.
+    fn fit(z: &[Vec<f64>], labels: &[usize], classes: usize) -> Result<(Classifier, f64)> {
+        let fail = |d: &str| Error::Fit {
+            method: "shape-krr".into(),
+            detail: d.into(),
+        };
+        let onehot = |idx: &[usize]| -> Vec<Vec<f64>> {
+            (0..classes)
+                .map(|c| {
+                    idx.iter()
+                        .map(|&i| if labels[i] == c { 1.0 } else { 0.0 })
+                        .collect()
+                })
+                .collect()
+        };
+        let med = median_distance(z);
+        let (fit_i, held_i): (Vec<usize>, Vec<usize>) = (0..z.len()).partition(|i| i % HOLD != 0);
+        let zf: Vec<Vec<f64>> = fit_i.iter().map(|&i| z[i].clone()).collect();
+        let yf = onehot(&fit_i);
+        let held_labels: Vec<usize> = held_i.iter().map(|&i| labels[i]).collect();
+        let tried: Vec<(f64, f64, f64)> = LENGTHS
+            .par_iter()
+            .flat_map_iter(|l| {
+                let length = l * med;
+                let k = kernel(&zf, length);
+                let g = 1.0 / (2.0 * length * length);
+                let kx: Vec<Vec<f64>> = held_i
+                    .iter()
+                    .map(|&h| zf.iter().map(|t| (-dist2(t, &z[h]) * g).exp()).collect())
+                    .collect();
+                RIDGES
+                    .iter()
+                    .filter_map(|&r| {
+                        let alpha = solve_all(&k, r, &yf)?;
+                        let scores: Vec<Vec<f64>> = kx
+                            .iter()
+                            .map(|kh| alpha.iter().map(|a| dot(kh, a)).collect())
+                            .collect();
+                        let (_, loss) = fit_temperature(&scores, &held_labels);
+                        Some((loss, length, r))
+                    })
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        let &(held_loss, length, ridge) = tried
+            .iter()
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .ok_or_else(|| fail("no kernel setting gave a positive definite system"))?;
+        // Every run, and leave-one-out scores for the temperature.
+        let n = z.len();
+        let mut a = kernel(z, length);
+        for i in 0..n {
+            a[(i, i)] += ridge;
+        }
+        let chol = a
+            .cholesky()
+            .ok_or_else(|| fail("kernel matrix not positive definite"))?;
+        let all: Vec<usize> = (0..n).collect();
+        let y = onehot(&all);
+        let alpha: Vec<Vec<f64>> = y
+            .iter()
+            .map(|t| {
+                chol.solve(&DVector::from_column_slice(t))
+                    .iter()
+                    .copied()
+                    .collect()
+            })
+            .collect();
+        let linv = chol
+            .l()
+            .solve_lower_triangular(&DMatrix::<f64>::identity(n, n))
+            .ok_or_else(|| fail("kernel matrix not positive definite"))?;
+        let inv_diag: Vec<f64> = (0..n)
+            .map(|i| linv.column(i).iter().map(|v| v * v).sum())
+            .collect();
+        let loo: Vec<Vec<f64>> = (0..n)
+            .map(|i| {
+                (0..classes)
+                    .map(|c| y[c][i] - alpha[c][i] / inv_diag[i])
+                    .collect()
+            })
+            .collect();
+        let (temperature, _) = fit_temperature(&loo, labels);
+        Ok((
+            Classifier {
+                z: z.to_vec(),
+                alpha,
+                length,
+                temperature,
+            },
+            held_loss,
+        ))
+    }
+
+    /// Class probabilities at `z`.
+    fn probabilities(&self, z: &[f64]) -> Vec<f64> {
+        let g = 1.0 / (2.0 * self.length * self.length);
+        let k: Vec<f64> = self.z.iter().map(|t| (-dist2(t, z) * g).exp()).collect();
+        let scores: Vec<f64> = self.alpha.iter().map(|a| dot(&k, a)).collect();
+        softmax(&scores, self.temperature)
+    }
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// `(K + ridge·I)⁻¹ y` for each column of `y`, or `None` if not positive definite.
+fn solve_all(k: &DMatrix<f64>, ridge: f64, y: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
+    crate::methods::kernel_ridge::solve(k, ridge, y)
+}
+
+/// The shape estimator `shape-krr` (see the module's documentation).
+#[derive(Debug, Clone, Default)]
+pub struct ShapeKrr {
+    /// Class names, in order.
+    classes: Vec<String>,
+    /// Each class's unknowns' names.
+    names: Vec<Vec<String>>,
+    /// Whiskers and samples per whisker read.
+    whiskers: usize,
+    samples: usize,
+    /// Per channel: the floor below which it is silent, and its median RMS over training runs.
+    floors: [f64; 5],
+    medians: [f64; 5],
+    /// Principal axes of the normalised series.
+    pca: Pca,
+    /// Weight of the amplitude features.
+    weight: f64,
+    classifier: Classifier,
+    /// Each class's pose regression.
+    poses: Vec<Regression>,
+}
+
+/// A whisker's per-channel RMS, `[CHANNELS]`.
+fn rms_of(series: &[Vec<f64>]) -> [f64; 5] {
+    std::array::from_fn(|c| {
+        let ch = &series[c];
+        (ch.iter().map(|v| v * v).sum::<f64>() / ch.len().max(1) as f64).sqrt()
+    })
+}
+
+impl ShapeKrr {
+    /// The method's name.
+    pub const NAME: &'static str = "shape-krr";
+
+    /// Normalised series and amplitude features of one recording (`[whiskers][CHANNELS]
+    /// [samples]`).
+    fn features(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<(Vec<f64>, Vec<f64>)> {
+        if whiskers.len() != self.whiskers {
+            return Err(Error::Observation(format!(
+                "{} whiskers where {} was trained on {}",
+                whiskers.len(),
+                Self::NAME,
+                self.whiskers
+            )));
+        }
+        let mut x = Vec::with_capacity(self.whiskers * CHANNELS.len() * self.samples);
+        let mut logs = Vec::with_capacity(self.whiskers);
+        for (w, series) in whiskers.iter().enumerate() {
+            if series.len() < CHANNELS.len()
+                || series.iter().any(|ch| ch.len() != self.samples)
+                || series.iter().flatten().any(|v| !v.is_finite())
+            {
+                return Err(Error::Observation(format!(
+                    "whisker {} needs the channels {} of {} finite samples each",
+                    w + 1,
+                    CHANNELS.join(", "),
+                    self.samples
+                )));
+            }
+            let rms = rms_of(series);
+            let level: [f64; 5] = std::array::from_fn(|c| rms[c].max(self.floors[c]));
+            for c in 0..CHANNELS.len() {
+                x.extend(series[c].iter().map(|v| v / level[c]));
+            }
+            logs.push(std::array::from_fn::<f64, 5, _>(|c| {
+                (level[c] / self.medians[c]).ln()
+            }));
+        }
+        // Per whisker the moment arm and the wrench's direction; with several whiskers each
+        // channel's level relative to the array's mean.
+        let mut amps = Vec::new();
+        for l in &logs {
+            amps.push(l[2] - l[4]);
+            amps.push(l[3] - l[4]);
+        }
+        if self.whiskers > 1 {
+            for c in 0..CHANNELS.len() {
+                let mean = logs.iter().map(|l| l[c]).sum::<f64>() / logs.len() as f64;
+                amps.extend(logs.iter().map(|l| l[c] - mean));
+            }
+        }
+        Ok((x, amps))
+    }
+
+    /// The point of a recording in the regressions' space.
+    fn point_of(&self, series: &[f64], amps: &[f64]) -> Vec<f64> {
+        let w = self.weight * (self.samples as f64).sqrt();
+        let mut z = self.pca.project(series);
+        z.extend(amps.iter().map(|a| w * a));
+        z
+    }
+
+    /// Fits on the runs `training` of `family` (every class represented).
+    pub fn fit(family: &ShapeFamily, training: &[ShapeSample]) -> Result<ShapeKrr> {
+        let fail = |d: &str| Error::Fit {
+            method: Self::NAME.into(),
+            detail: d.into(),
+        };
+        let classes = family.classes().len();
+        for c in 0..classes {
+            if training.iter().filter(|s| s.class == c).count() < 10 {
+                return Err(fail(&format!(
+                    "needs at least 10 training runs of every class (`{}` has fewer)",
+                    family.classes()[c].name
+                )));
+            }
+        }
+        let first = &training[0];
+        let mut m = ShapeKrr {
+            classes: family.class_names().iter().map(|s| s.to_string()).collect(),
+            names: family
+                .classes()
+                .iter()
+                .map(|c| c.family.unknowns().iter().map(|s| s.to_string()).collect())
+                .collect(),
+            whiskers: first.whiskers.len(),
+            samples: first.whiskers[0][0].len(),
+            ..ShapeKrr::default()
+        };
+        // Each channel's median RMS over the training runs' whiskers, and its floor.
+        for (c, channel) in CHANNELS.iter().enumerate() {
+            let mut levels: Vec<f64> = training
+                .iter()
+                .flat_map(|s| s.whiskers.iter().map(move |w| rms_of(w)[c]))
+                .collect();
+            levels.sort_by(|a, b| a.total_cmp(b));
+            let median = levels[levels.len() / 2];
+            if !(median > 0.0 && median.is_finite()) {
+                return Err(fail(&format!(
+                    "channel {channel} is silent in most training runs"
+                )));
+            }
+            m.medians[c] = median;
+            m.floors[c] = FLOOR * median;
+        }
+        let (x, amps): (Vec<Vec<f64>>, Vec<Vec<f64>>) = training
+            .iter()
+            .map(|s| m.features(&s.whiskers))
+            .collect::<Result<Vec<_>>>()?
+            .into_iter()
+            .unzip();
+        m.pca = Pca::fit(&x, COMPONENTS);
+        let labels: Vec<usize> = training.iter().map(|s| s.class).collect();
+        // The amplitudes' weight whose classifier predicts held-out runs best.
+        let mut best: Option<(f64, f64, Vec<Vec<f64>>, Classifier)> = None;
+        for &w in &WEIGHTS {
+            m.weight = w;
+            let z: Vec<Vec<f64>> = x.iter().zip(&amps).map(|(x, a)| m.point_of(x, a)).collect();
+            let (classifier, loss) = Classifier::fit(&z, &labels, classes)?;
+            if best.as_ref().map_or(true, |b| loss < b.0) {
+                best = Some((loss, w, z, classifier));
+            }
+        }
+        let (_, w, z, classifier) = best.expect("at least one weight");
+        m.weight = w;
+        m.classifier = classifier;
+        // Each class's pose, on its own runs.
+        m.poses = family
+            .classes()
+            .iter()
+            .enumerate()
+            .map(|(c, class)| {
+                let idx: Vec<usize> = (0..training.len())
+                    .filter(|&i| training[i].class == c)
+                    .collect();
+                let ranges = class.family.ranges();
+                let zc: Vec<Vec<f64>> = idx.iter().map(|&i| z[i].clone()).collect();
+                let y: Vec<Vec<f64>> = ranges
+                    .iter()
+                    .enumerate()
+                    .map(|(u, [lo, hi])| {
+                        idx.iter()
+                            .map(|&i| (training[i].params[u] - lo) / (hi - lo))
+                            .collect()
+                    })
+                    .collect();
+                let inside: Vec<bool> = (0..idx.len())
+                    .map(|i| y.iter().all(|t| (0.0..=1.0).contains(&t[i])))
+                    .collect();
+                let settings = Regression::choose(&zc, &y, &inside, &fail)?;
+                Regression::finish(zc, &y, &inside, &settings, ranges, &fail)
+            })
+            .collect::<Result<Vec<_>>>()?;
+        Ok(m)
+    }
+
+    /// The class posterior and the most probable class's pose from one recording
+    /// (`[whiskers][CHANNELS][samples]`, the whiskers it was trained on, in order).
+    pub fn predict(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<ShapeEstimate> {
+        if self.poses.is_empty() {
+            return Err(Error::Fit {
+                method: Self::NAME.into(),
+                detail: "not fitted".into(),
+            });
+        }
+        let (x, amps) = self.features(whiskers)?;
+        let z = self.point_of(&x, &amps);
+        let p = self.classifier.probabilities(&z);
+        let best = (0..p.len()).fold(0, |b, c| if p[c] > p[b] { c } else { b });
+        let reg = &self.poses[best];
+        let pose = reg
+            .point(&z)
+            .into_iter()
+            .zip(&reg.heads)
+            .zip(&self.names[best])
+            .map(|((m, h), n)| (n.clone(), Estimate::normal(m, h.std)))
+            .collect();
+        Ok(ShapeEstimate {
+            class: self.classes.iter().cloned().zip(p).collect(),
+            best,
+            pose,
+        })
+    }
+
+    /// Fitted settings worth reporting.
+    pub fn settings(&self) -> Vec<(String, f64)> {
+        vec![
+            ("components".into(), self.pca.axes.len() as f64),
+            ("amplitude_weight".into(), self.weight),
+            ("class_length".into(), self.classifier.length),
+            ("class_temperature".into(), self.classifier.temperature),
+        ]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_temperature_fit_sharpens_confident_scores_and_softens_wrong_ones() {
+        // Scores that rank the truth first every time deserve a high temperature…
+        let right: Vec<Vec<f64>> = (0..20)
+            .map(|i| {
+                let mut s = vec![0.0; 3];
+                s[i % 3] = 1.0;
+                s
+            })
+            .collect();
+        let labels: Vec<usize> = (0..20).map(|i| i % 3).collect();
+        let (t, loss) = fit_temperature(&right, &labels);
+        assert!(t > 100.0 && loss < 0.01, "{t} {loss}");
+        // …scores that are right only half the time a low one.
+        let half: Vec<usize> = (0..20)
+            .map(|i| if i % 2 == 0 { i % 3 } else { (i + 1) % 3 })
+            .collect();
+        let (t, _) = fit_temperature(&right, &half);
+        assert!(t < 5.0, "{t}");
+        let p = softmax(&[1.0, 0.0, 0.0], 2.0);
+        assert!((p.iter().sum::<f64>() - 1.0).abs() < 1e-12 && p[0] > p[1]);
+    }
+}

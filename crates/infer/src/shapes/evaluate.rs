@@ -1,0 +1,333 @@
+//! Scoring shape estimation: held-out runs of every class, estimated with one, three or five
+//! whiskers; class accuracy, confusion, calibration of the class probabilities, and each class's
+//! pose errors and interval coverage.
+
+use super::estimator::ShapeKrr;
+use super::family::{ShapeFamily, ShapeSample};
+use crate::error::{Error, Result};
+use crate::experiment::{Noise, Variant, CHANNELS};
+use crate::family::Family;
+use serde::Serialize;
+use std::time::Instant;
+
+/// Bins of the reliability diagram (by the top class's probability).
+pub const RELIABILITY_BINS: usize = 10;
+
+/// What to run.
+#[derive(Debug, Clone)]
+pub struct ShapeSettings {
+    /// Training runs per class (drawn over each range and its margin).
+    pub train_per_class: usize,
+    /// Evaluated runs per class (drawn over each range, never the training runs).
+    pub eval_per_class: usize,
+    /// The recordings' noise (the estimator is not told it: it measures it).
+    pub variant: Variant,
+    /// Seed of everything.
+    pub seed: u64,
+    /// Train on randomised whiskers and sensors (see [`crate::randomise`]).
+    pub randomise: bool,
+    /// The whisker sets to score, each by names.
+    pub subsets: Vec<Vec<String>>,
+}
+
+/// One unknown's scores over the correctly classified runs of a class.
+#[derive(Debug, Clone, Serialize)]
+pub struct PoseScore {
+    /// The unknown's name.
+    pub name: String,
+    /// Mean absolute error, SI.
+    pub mae: f64,
+    /// Share of 90% intervals that hold the truth.
+    pub coverage: f64,
+}
+
+/// A class's pose scores.
+#[derive(Debug, Clone, Serialize)]
+pub struct ClassPose {
+    /// The class.
+    pub class: String,
+    /// Its evaluated runs.
+    pub runs: usize,
+    /// How many of them were classified right (the pose is scored on those).
+    pub right: usize,
+    /// Per unknown.
+    pub unknowns: Vec<PoseScore>,
+}
+
+/// One reliability bin: runs whose top probability fell in it, their mean top probability and
+/// the share of them classified right.
+#[derive(Debug, Clone, Serialize)]
+pub struct ReliabilityBin {
+    /// Runs in the bin.
+    pub runs: usize,
+    /// Their mean top probability.
+    pub confidence: f64,
+    /// The share of them classified right.
+    pub accuracy: f64,
+}
+
+/// The scores with one set of whiskers.
+#[derive(Debug, Clone, Serialize)]
+pub struct SubsetResult {
+    /// The whiskers read.
+    pub whiskers: Vec<String>,
+    /// Share of runs whose most probable class is the truth.
+    pub accuracy: f64,
+    /// `confusion[truth][estimate]`, runs.
+    pub confusion: Vec<Vec<usize>>,
+    /// Mean negative log probability of the true class.
+    pub log_loss: f64,
+    /// Expected calibration error of the top class's probability over [`RELIABILITY_BINS`].
+    pub ece: f64,
+    /// The reliability diagram's bins.
+    pub reliability: Vec<ReliabilityBin>,
+    /// Each class's pose scores.
+    pub poses: Vec<ClassPose>,
+    /// Every evaluated run's truth and estimate, in order.
+    pub runs: Vec<RunResult>,
+    /// Seconds to fit.
+    pub fit_seconds: f64,
+    /// Milliseconds per estimate.
+    pub estimate_ms: f64,
+    /// The fitted settings.
+    pub settings: Vec<(String, f64)>,
+}
+
+/// One evaluated run's truth and estimate.
+#[derive(Debug, Clone, Serialize)]
+pub struct RunResult {
+    /// True class.
+    pub class: usize,
+    /// True values of its unknowns.
+    pub params: Vec<f64>,
+    /// Class probabilities, in the family's order.
+    pub probabilities: Vec<f64>,
+    /// The most probable class's pose: `[unknowns][mean, lo, hi]`.
+    pub pose: Vec<[f64; 3]>,
+}
+
+/// A whole shape experiment's scores.
+#[derive(Debug, Clone, Serialize)]
+pub struct ShapeEvaluation {
+    /// The family's name.
+    pub family: String,
+    /// Its classes.
+    pub classes: Vec<String>,
+    /// Each class's unknowns.
+    pub unknowns: Vec<Vec<String>>,
+    /// The recordings' variant.
+    pub variant: Variant,
+    /// What the estimator measured of their sensor noise, `[CHANNELS]`, SI.
+    pub measured_noise: [f64; 5],
+    /// Training runs per class.
+    pub train_per_class: usize,
+    /// Evaluated runs per class.
+    pub eval_per_class: usize,
+    /// Whether training was randomised.
+    pub randomise: bool,
+    /// Seconds spent simulating.
+    pub simulate_seconds: f64,
+    /// Per whisker set.
+    pub subsets: Vec<SubsetResult>,
+}
+
+/// The runs `samples` read by the whiskers at `idx` of the family's array.
+fn subset(samples: &[ShapeSample], idx: &[usize]) -> Vec<ShapeSample> {
+    samples
+        .iter()
+        .map(|s| ShapeSample {
+            whiskers: idx.iter().map(|&i| s.whiskers[i].clone()).collect(),
+            ..s.clone()
+        })
+        .collect()
+}
+
+/// The evaluated runs' classes and values: `eval_per_class` draws of each class over its range.
+pub fn evaluated_draws(family: &ShapeFamily, settings: &ShapeSettings) -> Vec<(usize, Vec<f64>)> {
+    family.draws(settings.eval_per_class, false, settings.seed ^ 0xe3a1)
+}
+
+/// Runs the shape experiment on `family` (every whisker simulated once; each subset reads its
+/// own). `tick(done, total)` reports the simulated runs.
+pub fn evaluate_shapes(
+    family: &ShapeFamily,
+    settings: &ShapeSettings,
+    tick: &(dyn Fn(usize, usize) + Sync),
+) -> Result<ShapeEvaluation> {
+    let all = family.whiskers();
+    let indices: Vec<Vec<usize>> = settings
+        .subsets
+        .iter()
+        .map(|names| {
+            names
+                .iter()
+                .map(|n| {
+                    all.iter().position(|a| a == n).ok_or_else(|| {
+                        Error::Setting(format!(
+                            "{}: no whisker `{n}` (its whiskers: {})",
+                            family.name(),
+                            all.join(", ")
+                        ))
+                    })
+                })
+                .collect::<Result<Vec<usize>>>()
+        })
+        .collect::<Result<_>>()?;
+    // The recordings: the variant's noise is the seed experiments' (5% of each channel's range
+    // over the clean e2 runs, and the random forces).
+    let noise = Family::builtin("e2")?.noise(settings.variant)?;
+    let total = family.classes().len() * (settings.train_per_class + settings.eval_per_class);
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let step = || {
+        let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+        tick(d, total);
+    };
+    let started = Instant::now();
+    let eval_draws = evaluated_draws(family, settings);
+    let evaluated = family.simulate_all(&eval_draws, &noise, settings.seed ^ 0xe3a2, &step)?;
+    // What the estimator knows of the noise: what it measures on the recordings, pooled over
+    // every whisker.
+    let series: Vec<&[Vec<f64>]> = evaluated
+        .iter()
+        .flat_map(|s| s.whiskers.iter().map(|w| &w[..]))
+        .collect();
+    let channels: Vec<usize> = (0..CHANNELS.len()).collect();
+    let measured = crate::noise::estimate_pooled(&series, &channels)?;
+    let training_family = family.randomised_if(settings.randomise)?;
+    let train_draws = family.draws(settings.train_per_class, true, settings.seed ^ 0xe3b1);
+    let trained_noise = Noise {
+        sensor: measured,
+        process: 0.0,
+    };
+    let training = training_family.simulate_all(
+        &train_draws,
+        &trained_noise,
+        settings.seed ^ 0xe3b2,
+        &step,
+    )?;
+    let simulate_seconds = started.elapsed().as_secs_f64();
+
+    let classes = family.classes().len();
+    let subsets = indices
+        .iter()
+        .zip(&settings.subsets)
+        .map(|(idx, names)| {
+            let t0 = Instant::now();
+            let model = ShapeKrr::fit(family, &subset(&training, idx))?;
+            let fit_seconds = t0.elapsed().as_secs_f64();
+            let t1 = Instant::now();
+            let estimates = subset(&evaluated, idx)
+                .iter()
+                .map(|s| model.predict(&s.whiskers))
+                .collect::<Result<Vec<_>>>()?;
+            let estimate_ms = 1e3 * t1.elapsed().as_secs_f64() / estimates.len().max(1) as f64;
+            let mut confusion = vec![vec![0usize; classes]; classes];
+            let mut bins = vec![(0usize, 0.0f64, 0usize); RELIABILITY_BINS];
+            let mut log_loss = 0.0;
+            let mut runs = Vec::with_capacity(estimates.len());
+            for (s, e) in evaluated.iter().zip(&estimates) {
+                confusion[s.class][e.best] += 1;
+                let top = e.class[e.best].1;
+                let b = ((top * RELIABILITY_BINS as f64) as usize).min(RELIABILITY_BINS - 1);
+                bins[b].0 += 1;
+                bins[b].1 += top;
+                bins[b].2 += usize::from(e.best == s.class);
+                log_loss -= e.class[s.class].1.max(1e-300).ln();
+                runs.push(RunResult {
+                    class: s.class,
+                    params: s.params.clone(),
+                    probabilities: e.class.iter().map(|c| c.1).collect(),
+                    pose: e
+                        .pose
+                        .iter()
+                        .map(|(_, p)| [p.mean, p.ci90[0], p.ci90[1]])
+                        .collect(),
+                });
+            }
+            let n = estimates.len().max(1) as f64;
+            let right: usize = (0..classes).map(|c| confusion[c][c]).sum();
+            let reliability: Vec<ReliabilityBin> = bins
+                .iter()
+                .map(|&(k, conf, ok)| ReliabilityBin {
+                    runs: k,
+                    confidence: if k > 0 { conf / k as f64 } else { 0.0 },
+                    accuracy: if k > 0 { ok as f64 / k as f64 } else { 0.0 },
+                })
+                .collect();
+            let ece = reliability
+                .iter()
+                .map(|b| b.runs as f64 / n * (b.accuracy - b.confidence).abs())
+                .sum();
+            let poses = family
+                .classes()
+                .iter()
+                .enumerate()
+                .map(|(c, class)| {
+                    let mine: Vec<(&ShapeSample, &super::ShapeEstimate)> = evaluated
+                        .iter()
+                        .zip(&estimates)
+                        .filter(|(s, _)| s.class == c)
+                        .collect();
+                    let ok: Vec<_> = mine.iter().filter(|(_, e)| e.best == c).collect();
+                    let unknowns = class
+                        .family
+                        .unknowns()
+                        .iter()
+                        .enumerate()
+                        .map(|(u, name)| {
+                            let k = ok.len().max(1) as f64;
+                            PoseScore {
+                                name: name.to_string(),
+                                mae: ok
+                                    .iter()
+                                    .map(|(s, e)| (e.pose[u].1.mean - s.params[u]).abs())
+                                    .sum::<f64>()
+                                    / k,
+                                coverage: ok
+                                    .iter()
+                                    .filter(|(s, e)| e.pose[u].1.covers(s.params[u]))
+                                    .count() as f64
+                                    / k,
+                            }
+                        })
+                        .collect();
+                    ClassPose {
+                        class: class.name.clone(),
+                        runs: mine.len(),
+                        right: ok.len(),
+                        unknowns,
+                    }
+                })
+                .collect();
+            Ok(SubsetResult {
+                whiskers: names.clone(),
+                accuracy: right as f64 / n,
+                confusion,
+                log_loss: log_loss / n,
+                ece,
+                reliability,
+                poses,
+                runs,
+                fit_seconds,
+                estimate_ms,
+                settings: model.settings(),
+            })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok(ShapeEvaluation {
+        family: family.name().to_string(),
+        classes: family.class_names().iter().map(|s| s.to_string()).collect(),
+        unknowns: family
+            .classes()
+            .iter()
+            .map(|c| c.family.unknowns().iter().map(|s| s.to_string()).collect())
+            .collect(),
+        variant: settings.variant,
+        measured_noise: measured,
+        train_per_class: settings.train_per_class,
+        eval_per_class: settings.eval_per_class,
+        randomise: settings.randomise,
+        simulate_seconds,
+        subsets,
+    })
+}

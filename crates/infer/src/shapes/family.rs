@@ -1,0 +1,235 @@
+//! A family of object classes: one scenario family per class, sharing the whiskers and the
+//! timing, each with its own pose unknowns.
+
+use super::e3;
+use crate::error::{Error, Result};
+use crate::experiment::Noise;
+use crate::family::Family;
+use rayon::prelude::*;
+use std::path::Path;
+use vibrissa_core::rng::Rng;
+
+/// One object class: its name and the scenario family of its runs (its pose unknowns).
+#[derive(Debug, Clone)]
+pub struct Class {
+    /// Its name (`box`, `circle`, …).
+    pub name: String,
+    /// Runs of the class at any pose.
+    pub family: Family,
+}
+
+/// Several object classes struck by the same whiskers: the family of a shape experiment.
+#[derive(Debug, Clone)]
+pub struct ShapeFamily {
+    /// The built-in's name or the file's path.
+    name: String,
+    /// The classes, in the order of class posteriors.
+    classes: Vec<Class>,
+}
+
+/// One run of a shape family: its class, pose and each whisker's observed channels.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ShapeSample {
+    /// Index of its class.
+    pub class: usize,
+    /// The values of its class's unknowns, in order.
+    pub params: Vec<f64>,
+    /// Each whisker's channels, `[whiskers][CHANNELS][samples]`.
+    pub whiskers: Vec<Vec<Vec<f64>>>,
+}
+
+/// Names of the built-in shape families.
+pub const SHAPE_BUILTINS: [&str; 1] = ["e3"];
+
+impl ShapeFamily {
+    /// A shape family from its classes, checked: at least two, distinct names, the same whiskers
+    /// and timing in every class.
+    pub fn new(name: &str, classes: Vec<Class>) -> Result<ShapeFamily> {
+        let bad = |m: String| Error::Setting(format!("{name}: {m}"));
+        if classes.len() < 2 {
+            return Err(bad(format!(
+                "a shape family needs at least two classes, not {}",
+                classes.len()
+            )));
+        }
+        let first = &classes[0];
+        for (k, c) in classes.iter().enumerate() {
+            if classes[..k].iter().any(|o| o.name == c.name) {
+                return Err(bad(format!("the class `{}` is given twice", c.name)));
+            }
+            if c.family.whisker_names() != first.family.whisker_names() {
+                return Err(bad(format!(
+                    "class `{}` has the whiskers [{}] where `{}` has [{}]: every class needs \
+                     the same array",
+                    c.name,
+                    c.family.whisker_names().join(", "),
+                    first.name,
+                    first.family.whisker_names().join(", ")
+                )));
+            }
+            if c.family.samples() != first.family.samples()
+                || c.family.sample_rate() != first.family.sample_rate()
+            {
+                return Err(bad(format!(
+                    "class `{}` records {} samples at {} Hz where `{}` records {} at {} Hz",
+                    c.name,
+                    c.family.samples(),
+                    c.family.sample_rate(),
+                    first.name,
+                    first.family.samples(),
+                    first.family.sample_rate()
+                )));
+            }
+        }
+        Ok(ShapeFamily {
+            name: name.to_string(),
+            classes,
+        })
+    }
+
+    /// A built-in shape family by name (`e3`), or `None`.
+    pub fn builtin(name: &str) -> Option<Result<ShapeFamily>> {
+        (name == "e3").then(|| {
+            let classes = e3::CLASSES
+                .iter()
+                .map(|(class, text)| {
+                    Ok(Class {
+                        name: class.to_string(),
+                        family: Family::open_str(text, &format!("e3/{class}"), &[])?,
+                    })
+                })
+                .collect::<Result<Vec<_>>>()?;
+            ShapeFamily::new(name, classes)
+        })
+    }
+
+    /// A shape family: a built-in name, or a TOML file whose `[classes]` table names each
+    /// class's scenario file (`box = "box.toml"`, paths relative to the file).
+    pub fn open(spec: &str) -> Result<ShapeFamily> {
+        if let Some(f) = ShapeFamily::builtin(spec) {
+            return f;
+        }
+        let classes = vibrissa_io::scenario::read_classes(Path::new(spec))?
+            .into_iter()
+            .map(|(name, file)| {
+                Ok(Class {
+                    name,
+                    family: Family::open(&file.display().to_string(), &[])?,
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        ShapeFamily::new(spec, classes)
+    }
+
+    /// The built-in's name or the file's path.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// The classes, in the order of class posteriors.
+    pub fn classes(&self) -> &[Class] {
+        &self.classes
+    }
+
+    /// The class names, in order.
+    pub fn class_names(&self) -> Vec<&str> {
+        self.classes.iter().map(|c| c.name.as_str()).collect()
+    }
+
+    /// The names of the whiskers read (empty for one whisker without a name).
+    pub fn whiskers(&self) -> Vec<String> {
+        self.classes[0].family.whisker_names()
+    }
+
+    /// The same family reading only the whiskers `names`.
+    pub fn with_whiskers(&self, names: &[&str]) -> Result<ShapeFamily> {
+        let classes = self
+            .classes
+            .iter()
+            .map(|c| {
+                Ok(Class {
+                    name: c.name.clone(),
+                    family: c.family.with_whiskers(names)?,
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        ShapeFamily::new(&self.name, classes)
+    }
+
+    /// The same family with every class's runs randomised when `randomise` is set
+    /// ([`Family::randomised_if`]).
+    pub fn randomised_if(&self, randomise: bool) -> Result<ShapeFamily> {
+        let classes = self
+            .classes
+            .iter()
+            .map(|c| {
+                Ok(Class {
+                    name: c.name.clone(),
+                    family: c.family.clone().randomised_if(randomise)?,
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        ShapeFamily::new(&self.name, classes)
+    }
+
+    /// Samples per run.
+    pub fn samples(&self) -> usize {
+        self.classes[0].family.samples()
+    }
+
+    /// `per_class` draws of every class's unknowns, uniform over each range widened by its
+    /// margin when `margins` is set (training runs), else over the range itself.
+    pub fn draws(&self, per_class: usize, margins: bool, seed: u64) -> Vec<(usize, Vec<f64>)> {
+        let mut out = Vec::with_capacity(per_class * self.classes.len());
+        for (k, c) in self.classes.iter().enumerate() {
+            let mut rng = Rng::stream(seed, 0x5a9e_0000 + k as u64);
+            let ranges = c.family.ranges();
+            let widen = c.family.margins();
+            for _ in 0..per_class {
+                let p = ranges
+                    .iter()
+                    .zip(&widen)
+                    .map(|([lo, hi], [below, above])| {
+                        let (lo, hi) = if margins {
+                            (lo - below, hi + above)
+                        } else {
+                            (*lo, *hi)
+                        };
+                        lo + (hi - lo) * rng.uniform()
+                    })
+                    .collect();
+                out.push((k, p));
+            }
+        }
+        out
+    }
+
+    /// Simulates every draw (in parallel) with `noise`; run `k` is seeded by stream `k` of
+    /// `seed`. `tick` is called once per finished run.
+    pub fn simulate_all(
+        &self,
+        draws: &[(usize, Vec<f64>)],
+        noise: &Noise,
+        seed: u64,
+        tick: &(dyn Fn() + Sync),
+    ) -> Result<Vec<ShapeSample>> {
+        draws
+            .par_iter()
+            .enumerate()
+            .map(|(k, (class, p))| {
+                let whiskers = self.classes[*class]
+                    .family
+                    .simulate_array(p, noise, Family::run_seed(seed, k))?
+                    .into_iter()
+                    .map(|s| s.series)
+                    .collect();
+                tick();
+                Ok(ShapeSample {
+                    class: *class,
+                    params: p.clone(),
+                    whiskers,
+                })
+            })
+            .collect()
+    }
+}

@@ -1,0 +1,20 @@
+//! Shape recognition: which object, of several classes, struck the whiskers, and its pose.
+//!
+//! A [`ShapeFamily`] is one scenario family per object class (each with its own pose unknowns:
+//! position, rotation, size, speed), all struck past the same array of whiskers. The built-in
+//! `e3` ([`e3`]) is four classes — a wall's edge, a box, a circular peg, a triangle — moving past
+//! a fan of five whiskers, read with one, three or five of them. An estimator answers a posterior
+//! over the classes and, for the most probable class, its pose with intervals
+//! ([`ShapeEstimate`]); several whiskers are read jointly, as one recording.
+
+pub mod e3;
+mod estimator;
+mod evaluate;
+mod family;
+
+pub use estimator::{ShapeEstimate, ShapeKrr};
+pub use evaluate::{
+    evaluate_shapes, evaluated_draws, ClassPose, PoseScore, ReliabilityBin, RunResult,
+    ShapeEvaluation, ShapeSettings, SubsetResult,
+};
+pub use family::{Class, ShapeFamily, ShapeSample, SHAPE_BUILTINS};

@@ -1,0 +1,118 @@
+//! Shape families: the built-in e3, shape-family files, exported runs, and the shape
+//! estimator against chance on held-out runs.
+
+use vibrissa_infer::experiment::Noise;
+use vibrissa_infer::shapes::{evaluate_shapes, ShapeFamily, ShapeSettings};
+use vibrissa_infer::Variant;
+
+#[test]
+fn e3_has_four_classes_past_a_fan_of_five_whiskers() {
+    let e3 = ShapeFamily::builtin("e3").unwrap().unwrap();
+    assert_eq!(e3.class_names(), ["wall", "box", "circle", "triangle"]);
+    assert_eq!(e3.whiskers(), ["c1", "c2", "c3", "c4", "c5"]);
+    let unknowns: Vec<Vec<&str>> = e3.classes().iter().map(|c| c.family.unknowns()).collect();
+    assert_eq!(unknowns[0], ["x", "angle", "v"]);
+    assert_eq!(unknowns[1], ["x", "angle", "side", "v"]);
+    assert_eq!(unknowns[2], ["x", "radius", "v"]);
+    assert_eq!(unknowns[3], ["x", "angle", "side", "v"]);
+    assert_eq!(e3.samples(), 151);
+    let one = e3.with_whiskers(&["c3"]).unwrap();
+    assert_eq!(one.whiskers(), ["c3"]);
+    let err = e3.with_whiskers(&["c9"]).unwrap_err().to_string();
+    assert!(err.contains("c9") && err.contains("c1, c2"), "{err}");
+    assert!(ShapeFamily::builtin("e4").is_none());
+    // Draws stay in their class's range (training draws within the margins).
+    for (class, p) in e3.draws(20, false, 3) {
+        for (x, [lo, hi]) in p.iter().zip(e3.classes()[class].family.ranges()) {
+            assert!((lo..=hi).contains(x), "{class} {p:?}");
+        }
+    }
+}
+
+#[test]
+fn an_exported_run_reproduces_the_simulated_one() {
+    let e3 = ShapeFamily::builtin("e3").unwrap().unwrap();
+    let class = &e3.classes()[3].family;
+    let p = [0.0231, 0.4, 0.0105, 0.8];
+    let dir = std::env::temp_dir().join(format!("vibrissa-e3-export-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("run.toml");
+    class.document_at(&p).unwrap().write(&file).unwrap();
+    let loaded = vibrissa_io::scenario::load_full(file.to_str().unwrap(), &[]).unwrap();
+    let o = &loaded.scenario.objects[0];
+    assert_eq!((o.position[0], o.angle), (p[0], p[1]));
+    let outputs = vibrissa_core::array::run(&loaded.scenario, &loaded.whiskers).unwrap();
+    let runs = class.simulate_array(&p, &Noise::NONE, 0).unwrap();
+    assert_eq!(outputs.len(), 5);
+    for (out, run) in outputs.iter().zip(&runs) {
+        for (k, row) in out.rows.iter().enumerate() {
+            assert!((row[2] - run.series[1][k]).abs() < 1e-12);
+        }
+    }
+    // The triangle struck the middle whisker.
+    assert!(runs[2].series[1].iter().any(|x| x.abs() > 1e-3));
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn a_shape_family_file_names_its_classes_and_they_must_share_the_whiskers() {
+    let dir = std::env::temp_dir().join(format!("vibrissa-shapes-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let one = |shape: &str| {
+        format!(
+            "duration = 0.05\nsample_rate = 1000\n[whisker]\npreset = \"w30\"\n[[objects]]\n{shape}\n\
+             position = [0.02, -0.008]\nvelocity = [0.0, 0.5]\n[unknowns]\n\
+             \"objects.0.position.0\" = {{ range = [0.018, 0.026], name = \"x\" }}\n"
+        )
+    };
+    std::fs::write(
+        dir.join("peg.toml"),
+        one("shape = \"circle\"\nradius = 0.003"),
+    )
+    .unwrap();
+    std::fs::write(dir.join("sq.toml"), one("shape = \"square\"\nside = 0.006")).unwrap();
+    std::fs::write(
+        dir.join("shapes.toml"),
+        "[classes]\npeg = \"peg.toml\"\nsquare = \"sq.toml\"\n",
+    )
+    .unwrap();
+    let f = ShapeFamily::open(dir.join("shapes.toml").to_str().unwrap()).unwrap();
+    assert_eq!(f.class_names(), ["peg", "square"]);
+    assert!(f.whiskers().is_empty());
+    std::fs::write(dir.join("bad.toml"), "[classes]\npeg = \"peg.toml\"\n").unwrap();
+    let err = ShapeFamily::open(dir.join("bad.toml").to_str().unwrap())
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("at least two classes"), "{err}");
+    std::fs::write(dir.join("typo.toml"), "[clases]\npeg = \"peg.toml\"\n").unwrap();
+    let err = ShapeFamily::open(dir.join("typo.toml").to_str().unwrap())
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("clases"), "{err}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn the_shape_estimator_beats_chance_on_runs_it_did_not_see() {
+    let e3 = ShapeFamily::builtin("e3").unwrap().unwrap();
+    let settings = ShapeSettings {
+        train_per_class: 150,
+        eval_per_class: 12,
+        variant: Variant::Clean,
+        seed: 5,
+        randomise: false,
+        subsets: vec![vec!["c3".into()]],
+    };
+    let ev = evaluate_shapes(&e3, &settings, &|_, _| {}).unwrap();
+    let s = &ev.subsets[0];
+    // Four classes: chance is 25%.
+    assert!(s.accuracy >= 0.5, "accuracy {}", s.accuracy);
+    for r in &s.runs {
+        assert!((r.probabilities.iter().sum::<f64>() - 1.0).abs() < 1e-9);
+    }
+    let n: usize = s.confusion.iter().flatten().sum();
+    assert_eq!(n, 48);
+    // A peg classified right is placed within a few millimetres.
+    let peg = &s.poses[2];
+    assert!(peg.right > 0 && peg.unknowns[0].mae < 3e-3, "{peg:?}");
+}
