@@ -34,8 +34,18 @@ pub struct Args {
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub(crate) sets: Vec<String>,
     /// The estimator (see --list).
-    #[arg(long, value_name = "NAME", required_unless_present = "list")]
+    #[arg(long, value_name = "NAME", required_unless_present_any = ["list", "shapes"])]
     pub(crate) method: Option<String>,
+    /// Which object struck the whiskers: the class posterior and pose for a shape family, the
+    /// built-in `e3` or a TOML file whose [classes] table names each class's scenario file.
+    #[arg(long, value_name = "e3|FILE.toml", conflicts_with_all = ["experiment", "scenario"])]
+    pub(crate) shapes: Option<String>,
+    /// Shape families: the whiskers read, by name joined by `+` (default: all of the family's).
+    #[arg(long, value_name = "NAMES", requires = "shapes")]
+    pub(crate) whiskers: Option<String>,
+    /// Shape families: training runs per class (default 300).
+    #[arg(long, value_name = "N", requires = "shapes")]
+    pub(crate) training: Option<usize>,
     /// Time-series CSV files in the contract's columns (t, theta01, theta12 required).
     #[arg(long, value_name = "FILE.csv", num_args = 1.., required_unless_present = "list")]
     pub(crate) obs: Vec<PathBuf>,
@@ -230,6 +240,9 @@ pub fn run(args: &Args) -> Result<()> {
                 .collect(),
         };
         return Ok(format.print(&list)?);
+    }
+    if let Some(spec) = &args.shapes {
+        return crate::estimate_shapes::run(args, spec);
     }
     let family = family_of(args)?;
     if let Some(v) = &args.variant {

@@ -9,6 +9,7 @@ mod bench_pf;
 mod calibrate;
 mod estimate;
 mod estimate_pf;
+mod estimate_shapes;
 mod experiment;
 mod experiment_shapes;
 mod files;

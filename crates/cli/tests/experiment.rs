@@ -1065,6 +1065,45 @@ fn experiment_e3_scores_shapes_and_exports_every_evaluated_run() {
     );
     let csv = std::fs::read_to_string(dir.join("run.csv")).unwrap();
     assert!(csv.lines().any(|l| l.contains("c5.theta12")));
+    // The run's class posterior and pose, from its middle whisker.
+    let est = vibrissa()
+        .args([
+            "estimate",
+            "--shapes",
+            "e3",
+            "--whiskers",
+            "c3",
+            "--training",
+            "20",
+            "--json",
+        ])
+        .arg("--obs")
+        .arg(dir.join("run.csv"))
+        .output()
+        .unwrap();
+    assert!(
+        est.status.success(),
+        "{}",
+        String::from_utf8_lossy(&est.stderr)
+    );
+    let e: serde_json::Value = serde_json::from_slice(&est.stdout).unwrap();
+    let p: f64 = e["class"]
+        .as_object()
+        .unwrap()
+        .values()
+        .map(|p| p.as_f64().unwrap())
+        .sum();
+    assert!((p - 1.0).abs() < 1e-9, "{e}");
+    assert_eq!(e["class"].as_object().unwrap().len(), 4);
+    assert!(e["x"]["mean"].as_f64().unwrap() > 0.0, "{e}");
+    assert_eq!(e["method"], "shape-krr");
+    let bad = vibrissa()
+        .args(["estimate", "--shapes", "e3", "--method", "knn", "--obs"])
+        .arg(dir.join("run.csv"))
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("shape-krr"));
     // Options of the shape experiments are refused elsewhere, and bad whisker sets by name.
     let bad = vibrissa()
         .args(["experiment", "e2", "--training", "20"])

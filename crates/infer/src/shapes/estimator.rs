@@ -27,7 +27,7 @@ use rayon::prelude::*;
 /// Principal components of the series kept.
 const COMPONENTS: usize = 40;
 /// Weights of the amplitude features tried, per unit of a channel's RMS per sample.
-const WEIGHTS: [f64; 3] = [0.0, 1.0, 3.0];
+const WEIGHTS: [f64; 3] = [1.0, 3.0, 10.0];
 /// A channel whose RMS is below this share of its median RMS over the training runs is silent.
 const FLOOR: f64 = 0.02;
 /// Length scales tried for the classifier, as multiples of the median distance between runs.

@@ -172,6 +172,26 @@ impl ShapeFamily {
         ShapeFamily::new(&self.name, classes)
     }
 
+    /// The same family with runs of `samples` samples at `rate` Hz (a recording's timing).
+    pub fn with_timing(&self, rate: f64, samples: usize) -> Result<ShapeFamily> {
+        let classes = self
+            .classes
+            .iter()
+            .map(|c| {
+                Ok(Class {
+                    name: c.name.clone(),
+                    family: c.family.with_timing(rate, samples)?,
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        ShapeFamily::new(&self.name, classes)
+    }
+
+    /// Output samples per second of its runs, Hz.
+    pub fn sample_rate(&self) -> f64 {
+        self.classes[0].family.sample_rate()
+    }
+
     /// Samples per run.
     pub fn samples(&self) -> usize {
         self.classes[0].family.samples()
