@@ -152,7 +152,10 @@ pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
         sensor,
         process: 0.0,
     };
-    let runs = train.simulate_all(&draws, &noise, args.seed ^ 0x5ea9, &|| {})?;
+    let (runs, failed) = train.simulate_completed(&draws, &noise, args.seed ^ 0x5ea9, &|| {})?;
+    for f in &failed {
+        eprintln!("warning: a training run could not be simulated and is left out: {f}");
+    }
     let model = ShapeKrr::fit(&timed, &runs)?;
     eprintln!("trained in {:.1} s", started.elapsed().as_secs_f64());
     let mut out = Vec::with_capacity(recordings.len());

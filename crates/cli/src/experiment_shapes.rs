@@ -276,6 +276,16 @@ impl Render for Report {
                 writeln!(out, "  {:>9} {}", ev.classes[c], cells.join(""))?;
             }
         }
+        if !ev.failed.is_empty() {
+            writeln!(
+                out,
+                "{} runs could not be simulated and were left out:",
+                ev.failed.len()
+            )?;
+            for f in &ev.failed {
+                writeln!(out, "  {f}")?;
+            }
+        }
         writeln!(
             out,
             "simulated in {:.1} s; wall time {:.1} s; files:",

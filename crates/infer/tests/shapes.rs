@@ -15,7 +15,7 @@ fn e3_has_four_classes_past_a_fan_of_five_whiskers() {
     assert_eq!(unknowns[1], ["x", "angle", "side", "v"]);
     assert_eq!(unknowns[2], ["x", "radius", "v"]);
     assert_eq!(unknowns[3], ["x", "angle", "side", "v"]);
-    assert_eq!(e3.samples(), 151);
+    assert_eq!(e3.samples(), 201);
     let one = e3.with_whiskers(&["c3"]).unwrap();
     assert_eq!(one.whiskers(), ["c3"]);
     let err = e3.with_whiskers(&["c9"]).unwrap_err().to_string();
@@ -93,26 +93,41 @@ fn a_shape_family_file_names_its_classes_and_they_must_share_the_whiskers() {
 }
 
 #[test]
-fn the_shape_estimator_beats_chance_on_runs_it_did_not_see() {
+fn the_shape_estimator_tells_a_wall_from_a_peg_on_runs_it_did_not_see() {
+    // A wall's long straight edge and a round peg, each at any pose and speed of e3, read by the
+    // middle whisker: two classes that the whisker's signals tell apart (chance: 50%).
     let e3 = ShapeFamily::builtin("e3").unwrap().unwrap();
+    let pair = ShapeFamily::new(
+        "wall or peg",
+        vec![e3.classes()[0].clone(), e3.classes()[2].clone()],
+    )
+    .unwrap();
+    // Seeds 5, 6 and 7 gave 92%, 88% and 82%, log losses 0.21-0.38.
+    let seed = 5;
     let settings = ShapeSettings {
-        train_per_class: 150,
-        eval_per_class: 12,
+        train_per_class: 120,
+        eval_per_class: 20,
         variant: Variant::Clean,
-        seed: 5,
+        seed,
         randomise: false,
         subsets: vec![vec!["c3".into()]],
     };
-    let ev = evaluate_shapes(&e3, &settings, &|_, _| {}).unwrap();
+    let ev = evaluate_shapes(&pair, &settings, &|_, _| {}).unwrap();
     let s = &ev.subsets[0];
-    // Four classes: chance is 25%.
-    assert!(s.accuracy >= 0.5, "accuracy {}", s.accuracy);
+    assert!(
+        s.accuracy >= 0.7,
+        "accuracy {} {:?}",
+        s.accuracy,
+        s.confusion
+    );
+    // Well below a coin's log loss, ln 2 = 0.69.
+    assert!(s.log_loss < 0.55, "log loss {}", s.log_loss);
     for r in &s.runs {
         assert!((r.probabilities.iter().sum::<f64>() - 1.0).abs() < 1e-9);
     }
     let n: usize = s.confusion.iter().flatten().sum();
-    assert_eq!(n, 48);
+    assert_eq!(n + ev.failed.len(), 40);
     // A peg classified right is placed within a few millimetres.
-    let peg = &s.poses[2];
+    let peg = &s.poses[1];
     assert!(peg.right > 0 && peg.unknowns[0].mae < 3e-3, "{peg:?}");
 }

@@ -2,15 +2,16 @@
 //! array, the timing and the motion (docs/shapes.md restates it).
 //!
 //! Five `w30` whiskers (`c1` … `c5`) fan out from points on an arc of radius 5 mm centred 5 mm
-//! behind the middle whisker's base, at −12°, −6°, 0°, 6° and 12° from +x; the middle one (`c3`)
-//! is the seed's whisker at the origin. One, three or five of them are read (`c3`; `c2`–`c4`;
-//! all). An object of one of four classes starts with its reference point (centre) at
-//! (x, −18 mm) and moves along +y at v, past every whisker it reaches; 150 ms at 1 kHz.
+//! behind the middle whisker's base, at −30°, −15°, 0°, 15° and 30° from +x, so that each meets
+//! a passing object's outline at other angles; the middle one (`c3`) is the seed's whisker at
+//! the origin. One, three or five of them are read (`c3`; `c2`–`c4`; all). An object of one of
+//! four classes starts with its reference point (centre) at (x, −32 mm), clear of every whisker,
+//! and moves along +y at v, past every whisker it reaches; 200 ms at 1 kHz.
 
 /// The array, timing and whisker common to every class (TOML).
 macro_rules! e3_common {
     () => {
-        r#"duration = 0.15
+        r#"duration = 0.2
 sample_rate = 1000
 dt = 1e-4
 segments = 20
@@ -18,31 +19,31 @@ segments = 20
 [whisker]
 preset = "w30"
 
-# A fan of five whiskers, bases on an arc of radius 5 mm about (-5 mm, 0).
+# A fan of five whiskers 15° apart, bases on an arc of radius 5 mm about (-5 mm, 0).
 [[whiskers]]
 name = "c1"
-position = [-1.0926e-4, -1.03956e-3]
-angle = -0.2094395102393195
+position = [-6.698730e-04, -2.500000e-03]
+angle = -0.5235987755982988
 
 [[whiskers]]
 name = "c2"
-position = [-2.7390e-5, -5.22642e-4]
-angle = -0.10471975511965977
+position = [-1.703709e-04, -1.294095e-03]
+angle = -0.2617993877991494
 
 [[whiskers]]
 name = "c3"
-position = [0.0, 0.0]
+position = [0.000000e+00, 0.000000e+00]
 angle = 0.0
 
 [[whiskers]]
 name = "c4"
-position = [-2.7390e-5, 5.22642e-4]
-angle = 0.10471975511965977
+position = [-1.703709e-04, 1.294095e-03]
+angle = 0.2617993877991494
 
 [[whiskers]]
 name = "c5"
-position = [-1.0926e-4, 1.03956e-3]
-angle = 0.2094395102393195
+position = [-6.698730e-04, 2.500000e-03]
+angle = 0.5235987755982988
 "#
     };
 }
@@ -56,7 +57,7 @@ pub const BOX: &str = concat!(
 [[objects]]
 shape = "square"
 side = 0.009
-position = [0.024, -0.018]
+position = [0.024, -0.032]
 angle = 0.5
 velocity = [0.0, 0.9]
 
@@ -76,7 +77,7 @@ pub const CIRCLE: &str = concat!(
 [[objects]]
 shape = "circle"
 radius = 0.0045
-position = [0.024, -0.018]
+position = [0.024, -0.032]
 velocity = [0.0, 0.9]
 
 [unknowns]
@@ -95,7 +96,7 @@ pub const TRIANGLE: &str = concat!(
 [[objects]]
 shape = "triangle"
 side = 0.011
-position = [0.024, -0.018]
+position = [0.024, -0.032]
 angle = 0.8
 velocity = [0.0, 0.9]
 
@@ -118,7 +119,7 @@ pub const WALL: &str = concat!(
 shape = "box"
 width = 0.04
 height = 0.002
-position = [0.044, -0.018]
+position = [0.044, -0.032]
 angle = 0.0
 velocity = [0.0, 0.9]
 

@@ -30,6 +30,9 @@ const COMPONENTS: usize = 40;
 const WEIGHTS: [f64; 3] = [1.0, 3.0, 10.0];
 /// A channel whose RMS is below this share of its median RMS over the training runs is silent.
 const FLOOR: f64 = 0.02;
+/// The base force's direction and arm fade out below this share of the training runs' median
+/// peak force.
+const FORCE_FLOOR: f64 = 0.15;
 /// Length scales tried for the classifier, as multiples of the median distance between runs.
 const LENGTHS: [f64; 5] = [0.25, 0.5, 1.0, 2.0, 4.0];
 
@@ -232,6 +235,10 @@ pub struct ShapeKrr {
     /// Per channel: the floor below which it is silent, and its median RMS over training runs.
     floors: [f64; 5],
     medians: [f64; 5],
+    /// The base force below which the wrench's direction and arm are faded out, N, and the
+    /// arm's typical value over the training runs, m.
+    force_floor: f64,
+    arm_scale: f64,
     /// Principal axes of the normalised series.
     pca: Pca,
     /// Weight of the amplitude features.
@@ -286,6 +293,33 @@ impl ShapeKrr {
             logs.push(std::array::from_fn::<f64, 5, _>(|c| {
                 (level[c] / self.medians[c]).ln()
             }));
+            // The contact's geometry at every sample: the base force's direction (for a
+            // frictionless contact, the object's surface normal where it touches) and the moment
+            // arm m0/|f| (how far out it touches), faded out where the force is weak.
+            let (m0, fx, fy) = (&series[2], &series[3], &series[4]);
+            let f0 = self.force_floor * self.force_floor;
+            let mut geometry = [
+                Vec::with_capacity(self.samples),
+                Vec::with_capacity(self.samples),
+                Vec::with_capacity(self.samples),
+            ];
+            for k in 0..self.samples {
+                let f2 = fx[k] * fx[k] + fy[k] * fy[k];
+                let (ux, uy, arm) = if f2 > 0.0 {
+                    let f = f2.sqrt();
+                    let fade = f2 / (f2 + f0);
+                    let arm = (m0[k] / f / self.arm_scale).clamp(-3.0, 3.0);
+                    (fade * fx[k] / f, fade * fy[k] / f, fade * arm)
+                } else {
+                    (0.0, 0.0, 0.0)
+                };
+                geometry[0].push(ux);
+                geometry[1].push(uy);
+                geometry[2].push(arm);
+            }
+            for g in geometry {
+                x.extend(g);
+            }
         }
         // Per whisker the moment arm and the wrench's direction; with several whiskers each
         // channel's level relative to the array's mean.
@@ -353,6 +387,36 @@ impl ShapeKrr {
             }
             m.medians[c] = median;
             m.floors[c] = FLOOR * median;
+        }
+        // The force floor: a share of the typical peak base force; the arm's scale: its median
+        // where the force is above the floor.
+        let mut peaks: Vec<f64> = Vec::new();
+        for s in training {
+            for w in &s.whiskers {
+                let peak = w[3]
+                    .iter()
+                    .zip(&w[4])
+                    .map(|(a, b)| a.hypot(*b))
+                    .fold(0.0, f64::max);
+                peaks.push(peak);
+            }
+        }
+        peaks.sort_by(|a, b| a.total_cmp(b));
+        m.force_floor = FORCE_FLOOR * peaks[peaks.len() / 2];
+        let mut arms: Vec<f64> = training
+            .iter()
+            .flat_map(|s| s.whiskers.iter())
+            .flat_map(|w| {
+                (0..w[2].len()).filter_map(|k| {
+                    let f = w[3][k].hypot(w[4][k]);
+                    (f > m.force_floor).then(|| (w[2][k] / f).abs())
+                })
+            })
+            .collect();
+        arms.sort_by(|a, b| a.total_cmp(b));
+        m.arm_scale = arms.get(arms.len() / 2).copied().unwrap_or(1.0);
+        if !(m.force_floor > 0.0 && m.arm_scale > 0.0 && m.arm_scale.is_finite()) {
+            return Err(fail("the training runs' base forces are zero"));
         }
         let (x, amps): (Vec<Vec<f64>>, Vec<Vec<f64>>) = training
             .iter()

@@ -127,6 +127,8 @@ pub struct ShapeEvaluation {
     pub randomise: bool,
     /// Seconds spent simulating.
     pub simulate_seconds: f64,
+    /// The runs the simulator could not complete (left out of the training or the evaluation).
+    pub failed: Vec<String>,
     /// Per whisker set.
     pub subsets: Vec<SubsetResult>,
 }
@@ -184,7 +186,8 @@ pub fn evaluate_shapes(
     };
     let started = Instant::now();
     let eval_draws = evaluated_draws(family, settings);
-    let evaluated = family.simulate_all(&eval_draws, &noise, settings.seed ^ 0xe3a2, &step)?;
+    let (evaluated, mut failed) =
+        family.simulate_completed(&eval_draws, &noise, settings.seed ^ 0xe3a2, &step)?;
     // What the estimator knows of the noise: what it measures on the recordings, pooled over
     // every whisker.
     let series: Vec<&[Vec<f64>]> = evaluated
@@ -199,12 +202,13 @@ pub fn evaluate_shapes(
         sensor: measured,
         process: 0.0,
     };
-    let training = training_family.simulate_all(
+    let (training, failed_training) = training_family.simulate_completed(
         &train_draws,
         &trained_noise,
         settings.seed ^ 0xe3b2,
         &step,
     )?;
+    failed.extend(failed_training);
     let simulate_seconds = started.elapsed().as_secs_f64();
 
     let classes = family.classes().len();
@@ -328,6 +332,7 @@ pub fn evaluate_shapes(
         eval_per_class: settings.eval_per_class,
         randomise: settings.randomise,
         simulate_seconds,
+        failed,
         subsets,
     })
 }

@@ -224,6 +224,68 @@ impl ShapeFamily {
         out
     }
 
+    /// As [`ShapeFamily::simulate_all`], leaving out the runs the simulator could not complete
+    /// (a divergence, e.g. an object's face pushing a whisker's tip end-on along its axis) and
+    /// returning what each of them was; an error if more than one run in a hundred fails.
+    pub fn simulate_completed(
+        &self,
+        draws: &[(usize, Vec<f64>)],
+        noise: &Noise,
+        seed: u64,
+        tick: &(dyn Fn() + Sync),
+    ) -> Result<(Vec<ShapeSample>, Vec<String>)> {
+        let results: Vec<Result<ShapeSample>> = draws
+            .par_iter()
+            .enumerate()
+            .map(|(k, d)| {
+                let r = self.simulate_one(d, noise, Family::run_seed(seed, k));
+                tick();
+                r
+            })
+            .collect();
+        let mut done = Vec::with_capacity(results.len());
+        let mut failed = Vec::new();
+        for (r, (class, _)) in results.into_iter().zip(draws) {
+            match r {
+                Ok(s) => done.push(s),
+                Err(e @ Error::Run { .. }) => {
+                    failed.push(format!("{}: {e}", self.classes[*class].name))
+                }
+                Err(e) => return Err(e),
+            }
+        }
+        if failed.len() * 100 > draws.len() {
+            return Err(Error::Setting(format!(
+                "{}: {} of {} runs could not be simulated, the first: {}",
+                self.name,
+                failed.len(),
+                draws.len(),
+                failed[0]
+            )));
+        }
+        Ok((done, failed))
+    }
+
+    /// One run of a draw.
+    fn simulate_one(
+        &self,
+        (class, p): &(usize, Vec<f64>),
+        noise: &Noise,
+        seed: u64,
+    ) -> Result<ShapeSample> {
+        let whiskers = self.classes[*class]
+            .family
+            .simulate_array(p, noise, seed)?
+            .into_iter()
+            .map(|s| s.series)
+            .collect();
+        Ok(ShapeSample {
+            class: *class,
+            params: p.clone(),
+            whiskers,
+        })
+    }
+
     /// Simulates every draw (in parallel) with `noise`; run `k` is seeded by stream `k` of
     /// `seed`. `tick` is called once per finished run.
     pub fn simulate_all(
@@ -236,19 +298,10 @@ impl ShapeFamily {
         draws
             .par_iter()
             .enumerate()
-            .map(|(k, (class, p))| {
-                let whiskers = self.classes[*class]
-                    .family
-                    .simulate_array(p, noise, Family::run_seed(seed, k))?
-                    .into_iter()
-                    .map(|s| s.series)
-                    .collect();
+            .map(|(k, d)| {
+                let s = self.simulate_one(d, noise, Family::run_seed(seed, k));
                 tick();
-                Ok(ShapeSample {
-                    class: *class,
-                    params: p.clone(),
-                    whiskers,
-                })
+                s
             })
             .collect()
     }
