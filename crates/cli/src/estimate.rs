@@ -43,7 +43,7 @@ pub struct Args {
     /// Shape families: the whiskers read, by name joined by `+` (default: all of the family's).
     #[arg(long, value_name = "NAMES", requires = "shapes")]
     pub(crate) whiskers: Option<String>,
-    /// Shape families: training runs per class (default 300).
+    /// Shape families: training runs per class (default 800).
     #[arg(long, value_name = "N", requires = "shapes")]
     pub(crate) training: Option<usize>,
     /// Time-series CSV files in the contract's columns (t, theta01, theta12 required).

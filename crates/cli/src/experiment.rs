@@ -31,7 +31,7 @@ pub struct Args {
     /// each class's scenario file (box = "box.toml"), every class with the same whiskers.
     #[arg(long, value_name = "FILE.toml", conflicts_with_all = ["experiment", "scenario"])]
     shapes: Option<String>,
-    /// Shape experiments: training runs per class (default 300).
+    /// Shape experiments: training runs per class (default 800).
     #[arg(long, value_name = "N")]
     training: Option<usize>,
     /// Shape experiments: evaluated runs per class (default 50).

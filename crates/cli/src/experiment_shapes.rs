@@ -7,6 +7,8 @@
 //! run as a scenario file with its truth.
 
 use crate::output::{Align, Render, Table};
+use crate::plot::{render_xy, Mark, XyFigure, XyPanel, XySet};
+use crate::plot_matrix::{render_matrices, Matrix};
 use anyhow::{Context, Result};
 use serde::Serialize;
 use std::io::{self, Write};
@@ -17,7 +19,7 @@ use vibrissa_infer::shapes::{evaluate_shapes, ShapeEvaluation, ShapeFamily, Shap
 use vibrissa_infer::Variant;
 
 /// Training runs per class by default.
-pub const DEFAULT_TRAINING: usize = 300;
+pub const DEFAULT_TRAINING: usize = 800;
 /// Evaluated runs per class by default.
 pub const DEFAULT_RUNS: usize = 50;
 
@@ -133,6 +135,7 @@ pub fn run(args: ShapeArgs) -> Result<()> {
     let json = out.join("results.json");
     crate::files::write_atomic(&json, serde_json::to_string_pretty(&evaluation)?.as_bytes())?;
     files.push(json);
+    files.extend(figures(&evaluation, &out)?);
     if let Some(dir) = args.export {
         files.push(export(&family, &settings, dir)?);
     }
@@ -179,6 +182,123 @@ fn export(family: &ShapeFamily, settings: &ShapeSettings, dir: &Path) -> Result<
     let path = dir.join("truth.csv");
     crate::files::write_atomic(&path, truth.as_bytes())?;
     Ok(path)
+}
+
+/// The figures: the confusion matrix of every whisker set, the accuracy and log loss against
+/// the number of whiskers, and the reliability diagram of the class probabilities.
+fn figures(ev: &ShapeEvaluation, dir: &Path) -> Result<Vec<PathBuf>> {
+    let mut pending = Vec::new();
+    let matrices: Vec<Matrix> = ev
+        .subsets
+        .iter()
+        .map(|s| Matrix {
+            caption: format!(
+                "{} ({}): {:.0}% right",
+                s.whiskers.join("+"),
+                ev.variant.name(),
+                100.0 * s.accuracy
+            ),
+            counts: s.confusion.clone(),
+        })
+        .collect();
+    pending.extend(render_matrices(
+        &dir.join("confusion.png"),
+        &format!("{}: estimated against true class", ev.family),
+        &ev.classes,
+        &matrices,
+    )?);
+    // Accuracy against the number of whiskers read (every set; sets of one whisker each a dot).
+    let point = |f: &dyn Fn(&vibrissa_infer::shapes::SubsetResult) -> f64| -> Vec<(f64, f64)> {
+        ev.subsets
+            .iter()
+            .map(|s| (s.whiskers.len() as f64, f(s)))
+            .collect()
+    };
+    let accuracy = XyFigure {
+        title: format!(
+            "{} ({}): class accuracy and log loss against the whiskers read",
+            ev.family,
+            ev.variant.name()
+        ),
+        x_desc: "whiskers read".into(),
+        y_desc: "accuracy; log loss (nats)".into(),
+        log_y: false,
+        columns: 1,
+        legend_lower_right: false,
+        panels: vec![XyPanel {
+            caption: String::new(),
+            sets: vec![
+                XySet {
+                    label: "accuracy".into(),
+                    points: point(&|s| s.accuracy),
+                    mark: Mark::Dots,
+                    colour: Some(0),
+                },
+                XySet {
+                    label: "log loss".into(),
+                    points: point(&|s| s.log_loss),
+                    mark: Mark::Dots,
+                    colour: Some(1),
+                },
+                XySet {
+                    label: format!("chance ({} classes)", ev.classes.len()),
+                    points: vec![
+                        (1.0, 1.0 / ev.classes.len() as f64),
+                        (5.0, 1.0 / ev.classes.len() as f64),
+                    ],
+                    mark: Mark::Dashed,
+                    colour: None,
+                },
+            ],
+        }],
+    };
+    pending.extend(render_xy(&dir.join("accuracy.png"), &accuracy)?);
+    // Reliability: the mean top probability against the share right, per bin with runs.
+    let mut sets: Vec<XySet> = ev
+        .subsets
+        .iter()
+        .enumerate()
+        .map(|(k, s)| XySet {
+            label: format!("{} whiskers ({})", s.whiskers.len(), s.whiskers.join("+")),
+            points: s
+                .reliability
+                .iter()
+                .filter(|b| b.runs > 0)
+                .map(|b| (b.confidence, b.accuracy))
+                .collect(),
+            mark: Mark::LineDots,
+            colour: Some(k),
+        })
+        .collect();
+    sets.push(XySet {
+        label: "calibrated".into(),
+        points: vec![(0.0, 0.0), (1.0, 1.0)],
+        mark: Mark::Dashed,
+        colour: None,
+    });
+    let reliability = XyFigure {
+        title: format!(
+            "{} ({}): reliability of the class probabilities",
+            ev.family,
+            ev.variant.name()
+        ),
+        x_desc: "probability of the most probable class".into(),
+        y_desc: "share of runs it was right".into(),
+        log_y: false,
+        columns: 1,
+        legend_lower_right: true,
+        panels: vec![XyPanel {
+            caption: String::new(),
+            sets,
+        }],
+    };
+    pending.extend(render_xy(&dir.join("reliability.png"), &reliability)?);
+    let mut files = Vec::new();
+    for (path, file) in pending {
+        file.commit()?;
+        files.push(path);
+    }
+    Ok(files)
 }
 
 /// Percent with no decimals.

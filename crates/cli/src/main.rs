@@ -17,6 +17,7 @@ mod frames;
 mod inverse;
 mod output;
 mod plot;
+mod plot_matrix;
 mod progress;
 mod report;
 mod simulate;

@@ -1044,7 +1044,14 @@ fn experiment_e3_scores_shapes_and_exports_every_evaluated_run() {
         subsets[1]["whiskers"],
         serde_json::json!(["c2", "c3", "c4"])
     );
-    assert!(dir.join("out/results.json").exists());
+    for f in [
+        "results.json",
+        "confusion.png",
+        "accuracy.png",
+        "reliability.svg",
+    ] {
+        assert!(dir.join("out").join(f).exists(), "{f}");
+    }
     // truth.csv names every exported file, which simulates as a scenario of its own.
     let truth = std::fs::read_to_string(export.join("truth.csv")).unwrap();
     let lines: Vec<&str> = truth.lines().collect();

@@ -20,8 +20,8 @@ use crate::error::{Error, Result};
 use crate::experiment::CHANNELS;
 use crate::features::dist2;
 use crate::method::Estimate;
-use crate::methods::kernel_ridge::{kernel, median_distance, Pca, Regression, HOLD, RIDGES};
-use nalgebra::{DMatrix, DVector};
+use crate::methods::kernel_ridge::{median_distance, Pca, Regression, HOLD, RIDGES};
+use nalgebra::DMatrix;
 use rayon::prelude::*;
 
 /// Principal components of the series kept.
@@ -35,6 +35,10 @@ const FLOOR: f64 = 0.02;
 const FORCE_FLOOR: f64 = 0.15;
 /// Length scales tried for the classifier, as multiples of the median distance between runs.
 const LENGTHS: [f64; 5] = [0.25, 0.5, 1.0, 2.0, 4.0];
+/// Most centres of the classifier's kernel expansion.
+const LANDMARKS: usize = 800;
+/// Most runs the principal axes are found from.
+const PCA_RUNS: usize = 1000;
 
 /// A class posterior and the most probable class's pose.
 #[derive(Debug, Clone, PartialEq)]
@@ -50,9 +54,9 @@ pub struct ShapeEstimate {
 /// Kernel ridge scores of each class's indicator, through a softmax.
 #[derive(Debug, Clone, Default)]
 struct Classifier {
-    /// Training points.
+    /// The centres of its kernel expansion (training points).
     z: Vec<Vec<f64>>,
-    /// Dual weights `[classes][runs]`.
+    /// Dual weights `[classes][centres]`.
     alpha: Vec<Vec<f64>>,
     /// Kernel length scale.
     length: f64,
@@ -106,96 +110,123 @@ fn fit_temperature(scores: &[Vec<f64>], labels: &[usize]) -> (f64, f64) {
     (u.exp(), f(u))
 }
 
+/// The training runs used as the classifier's centres (Nyström landmarks): all of them up to
+/// [`LANDMARKS`], else that many spread evenly over them.
+fn landmarks(n: usize) -> Vec<usize> {
+    if n <= LANDMARKS {
+        (0..n).collect()
+    } else {
+        (0..LANDMARKS).map(|j| j * n / LANDMARKS).collect()
+    }
+}
+
+/// The kernel between the rows of `a` and of `b` with length scale `length`.
+fn cross_kernel(a: &[&Vec<f64>], b: &[&Vec<f64>], length: f64) -> DMatrix<f64> {
+    let g = 1.0 / (2.0 * length * length);
+    DMatrix::from_fn(a.len(), b.len(), |i, j| (-dist2(a[i], b[j]) * g).exp())
+}
+
+/// Dual weights on the centres for each ridge of [`RIDGES`] (`None` where the system is not
+/// positive definite): the minimiser of `|Y − K_nm α|² + ridge·αᵀ K_mm α`, `[classes][centres]`.
+fn nystrom_weights(
+    knm: &DMatrix<f64>,
+    kmm: &DMatrix<f64>,
+    y: &DMatrix<f64>,
+) -> Vec<Option<Vec<Vec<f64>>>> {
+    let a = knm.transpose() * knm;
+    let b = knm.transpose() * y;
+    let m = kmm.nrows();
+    RIDGES
+        .iter()
+        .map(|&r| {
+            let mut s = &a + kmm * r;
+            let jitter = 1e-10 * (0..m).map(|i| s[(i, i)]).sum::<f64>() / m as f64;
+            for i in 0..m {
+                s[(i, i)] += jitter;
+            }
+            let alpha = s.cholesky()?.solve(&b);
+            Some(
+                (0..y.ncols())
+                    .map(|c| alpha.column(c).iter().copied().collect())
+                    .collect(),
+            )
+        })
+        .collect()
+}
+
 impl Classifier {
-    /// Fits on points `z` with class `labels` of `classes` classes: the length scale and ridge
-    /// by the held-out log loss (every [`HOLD`]-th run held out, each setting at its best
-    /// temperature), then the weights on every run and the temperature on the leave-one-out
-    /// scores. Returns it and the held-out log loss of its settings.
+    /// Fits on points `z` with class `labels` of `classes` classes, by kernel ridge regression
+    /// of each class's indicator on at most [`LANDMARKS`] centres (Nyström's approximation,
+    /// so that the cost grows linearly with the runs): the length scale and ridge by the
+    /// held-out log loss (every [`HOLD`]-th run held out, each setting at its best temperature),
+    /// the temperature on those held-out scores, then the weights on every run. Returns it and
+    /// the held-out log loss.
     fn fit(z: &[Vec<f64>], labels: &[usize], classes: usize) -> Result<(Classifier, f64)> {
         let fail = |d: &str| Error::Fit {
             method: "shape-krr".into(),
             detail: d.into(),
         };
-        let onehot = |idx: &[usize]| -> Vec<Vec<f64>> {
-            (0..classes)
-                .map(|c| {
-                    idx.iter()
-                        .map(|&i| if labels[i] == c { 1.0 } else { 0.0 })
-                        .collect()
-                })
-                .collect()
+        let onehot = |idx: &[usize]| {
+            DMatrix::from_fn(idx.len(), classes, |i, c| {
+                if labels[idx[i]] == c {
+                    1.0
+                } else {
+                    0.0
+                }
+            })
         };
         let med = median_distance(z);
         let (fit_i, held_i): (Vec<usize>, Vec<usize>) = (0..z.len()).partition(|i| i % HOLD != 0);
-        let zf: Vec<Vec<f64>> = fit_i.iter().map(|&i| z[i].clone()).collect();
+        let zf: Vec<&Vec<f64>> = fit_i.iter().map(|&i| &z[i]).collect();
+        let zh: Vec<&Vec<f64>> = held_i.iter().map(|&i| &z[i]).collect();
+        let centres: Vec<&Vec<f64>> = landmarks(zf.len()).into_iter().map(|i| zf[i]).collect();
         let yf = onehot(&fit_i);
         let held_labels: Vec<usize> = held_i.iter().map(|&i| labels[i]).collect();
-        let tried: Vec<(f64, f64, f64)> = LENGTHS
+        let tried: Vec<(f64, f64, f64, f64)> = LENGTHS
             .par_iter()
             .flat_map_iter(|l| {
                 let length = l * med;
-                let k = kernel(&zf, length);
-                let g = 1.0 / (2.0 * length * length);
-                let kx: Vec<Vec<f64>> = held_i
-                    .iter()
-                    .map(|&h| zf.iter().map(|t| (-dist2(t, &z[h]) * g).exp()).collect())
-                    .collect();
-                RIDGES
-                    .iter()
-                    .filter_map(|&r| {
-                        let alpha = solve_all(&k, r, &yf)?;
-                        let scores: Vec<Vec<f64>> = kx
-                            .iter()
-                            .map(|kh| alpha.iter().map(|a| dot(kh, a)).collect())
+                let knm = cross_kernel(&zf, &centres, length);
+                let kmm = cross_kernel(&centres, &centres, length);
+                let khm = cross_kernel(&zh, &centres, length);
+                nystrom_weights(&knm, &kmm, &yf)
+                    .into_iter()
+                    .zip(RIDGES)
+                    .filter_map(|(alpha, r)| {
+                        let alpha = alpha?;
+                        let scores: Vec<Vec<f64>> = (0..zh.len())
+                            .map(|h| {
+                                alpha
+                                    .iter()
+                                    .map(|a| {
+                                        a.iter().enumerate().map(|(j, w)| w * khm[(h, j)]).sum()
+                                    })
+                                    .collect()
+                            })
                             .collect();
-                        let (_, loss) = fit_temperature(&scores, &held_labels);
-                        Some((loss, length, r))
+                        let (t, loss) = fit_temperature(&scores, &held_labels);
+                        Some((loss, length, r, t))
                     })
                     .collect::<Vec<_>>()
             })
             .collect();
-        let &(held_loss, length, ridge) = tried
+        let &(held_loss, length, ridge, temperature) = tried
             .iter()
             .min_by(|a, b| a.0.total_cmp(&b.0))
             .ok_or_else(|| fail("no kernel setting gave a positive definite system"))?;
-        // Every run, and leave-one-out scores for the temperature.
-        let n = z.len();
-        let mut a = kernel(z, length);
-        for i in 0..n {
-            a[(i, i)] += ridge;
-        }
-        let chol = a
-            .cholesky()
+        // Every run, with the chosen settings.
+        let all: Vec<&Vec<f64>> = z.iter().collect();
+        let centres: Vec<&Vec<f64>> = landmarks(z.len()).into_iter().map(|i| all[i]).collect();
+        let knm = cross_kernel(&all, &centres, length);
+        let kmm = cross_kernel(&centres, &centres, length);
+        let idx: Vec<usize> = (0..z.len()).collect();
+        let k = RIDGES.iter().position(|r| *r == ridge).unwrap_or(0);
+        let alpha = nystrom_weights(&knm, &kmm, &onehot(&idx))
+            .swap_remove(k)
             .ok_or_else(|| fail("kernel matrix not positive definite"))?;
-        let all: Vec<usize> = (0..n).collect();
-        let y = onehot(&all);
-        let alpha: Vec<Vec<f64>> = y
-            .iter()
-            .map(|t| {
-                chol.solve(&DVector::from_column_slice(t))
-                    .iter()
-                    .copied()
-                    .collect()
-            })
-            .collect();
-        let linv = chol
-            .l()
-            .solve_lower_triangular(&DMatrix::<f64>::identity(n, n))
-            .ok_or_else(|| fail("kernel matrix not positive definite"))?;
-        let inv_diag: Vec<f64> = (0..n)
-            .map(|i| linv.column(i).iter().map(|v| v * v).sum())
-            .collect();
-        let loo: Vec<Vec<f64>> = (0..n)
-            .map(|i| {
-                (0..classes)
-                    .map(|c| y[c][i] - alpha[c][i] / inv_diag[i])
-                    .collect()
-            })
-            .collect();
-        let (temperature, _) = fit_temperature(&loo, labels);
         Ok((
             Classifier {
-                z: z.to_vec(),
+                z: centres.into_iter().cloned().collect(),
                 alpha,
                 length,
                 temperature,
@@ -215,11 +246,6 @@ impl Classifier {
 
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
-}
-
-/// `(K + ridge·I)⁻¹ y` for each column of `y`, or `None` if not positive definite.
-fn solve_all(k: &DMatrix<f64>, ridge: f64, y: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
-    crate::methods::kernel_ridge::solve(k, ridge, y)
 }
 
 /// The shape estimator `shape-krr` (see the module's documentation).
@@ -424,7 +450,10 @@ impl ShapeKrr {
             .collect::<Result<Vec<_>>>()?
             .into_iter()
             .unzip();
-        m.pca = Pca::fit(&x, COMPONENTS);
+        // Principal axes from at most PCA_RUNS runs spread over the training set.
+        let step = x.len().div_ceil(PCA_RUNS).max(1);
+        let sub: Vec<Vec<f64>> = x.iter().step_by(step).cloned().collect();
+        m.pca = Pca::fit(&sub, COMPONENTS);
         let labels: Vec<usize> = training.iter().map(|s| s.class).collect();
         // The amplitudes' weight whose classifier predicts held-out runs best.
         let mut best: Option<(f64, f64, Vec<Vec<f64>>, Classifier)> = None;

@@ -198,10 +198,13 @@ pub fn evaluate_shapes(
     let measured = crate::noise::estimate_pooled(&series, &channels)?;
     let training_family = family.randomised_if(settings.randomise)?;
     let train_draws = family.draws(settings.train_per_class, true, settings.seed ^ 0xe3b1);
-    let trained_noise = Noise {
+    // The random forces are part of the experiment's world, stated as a scenario's
+    // `process_noise` would state them (as for e1 and e2); training runs carry them and the
+    // sensor noise that the measured level leaves beyond their response.
+    let trained_noise = family.classes()[0].family.training_sensor_noise(&Noise {
         sensor: measured,
-        process: 0.0,
-    };
+        process: noise.process,
+    })?;
     let (training, failed_training) = training_family.simulate_completed(
         &train_draws,
         &trained_noise,
