@@ -148,10 +148,13 @@ pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
     );
     let train = timed.randomised_if(args.randomise)?;
     let draws = timed.draws(training, true, args.seed);
-    let noise = Noise {
+    // Training runs carry the scenario's random forces (its `process_noise`, 0 unless stated)
+    // and the sensor noise that the measured level leaves beyond their response.
+    let class = &timed.classes()[0].family;
+    let noise = class.training_sensor_noise(&Noise {
         sensor,
-        process: 0.0,
-    };
+        process: class.base().process_noise,
+    })?;
     let (runs, failed) = train.simulate_completed(&draws, &noise, args.seed ^ 0x5ea9, &|| {})?;
     for f in &failed {
         eprintln!("warning: a training run could not be simulated and is left out: {f}");
