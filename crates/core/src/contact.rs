@@ -264,6 +264,59 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 
 /// Stage: find contacts at the evaluation point, solve for their forces, and add them to the step
 /// (by superposition on the unconstrained solve). `t0` is the time at the start of the step.
+/// A contact at the tip whose line of action passes closer than this share of the whisker's
+/// length to every joint counts as end-on.
+const END_ON_ARM: f64 = 0.02;
+
+/// The normal of a contact at the whisker's tip (`nodes`: the chain's nodes, the tip last):
+/// `normal` itself, unless the object meets the tip end-on — the force's line through the tip
+/// passes within [`END_ON_ARM`] of the whisker's length of every joint, the object moves
+/// (velocity `v_obj`) towards the base along the last segment and reaches the tip within the
+/// step (its motion over the step `d_obj` closes the `gap`). No joint can then yield to the
+/// force by bending: the chain has no axial compliance, such a contact has no finite force
+/// that keeps it, and the step diverges. A slender whisker's tip yields sideways instead, in
+/// the direction the object moves across the last segment (or, for a push straight along it,
+/// the side the normal leans to), so the object pushes it aside and slips past. A curved
+/// whisker pressed end-on keeps its normal: the force has an arm about its base.
+fn end_on_normal(
+    normal: [f64; 2],
+    nodes: &[[f64; 2]],
+    v_obj: [f64; 2],
+    gap: f64,
+    d_obj: [f64; 2],
+) -> [f64; 2] {
+    let [.., a, tip] = nodes else {
+        return normal;
+    };
+    let (dx, dy) = (tip[0] - a[0], tip[1] - a[1]);
+    let len = (dx * dx + dy * dy).sqrt();
+    if len <= 0.0 {
+        return normal;
+    }
+    let axis = [dx / len, dy / len];
+    let length = len * (nodes.len() - 1) as f64;
+    let arm = nodes
+        .iter()
+        .map(|p| ((p[0] - tip[0]) * normal[1] - (p[1] - tip[1]) * normal[0]).abs())
+        .fold(0.0, f64::max);
+    let closing = v_obj[0] * axis[0] + v_obj[1] * axis[1] < 0.0;
+    let reaches = gap - (normal[0] * d_obj[0] + normal[1] * d_obj[1]) < 0.0;
+    if arm >= END_ON_ARM * length || !closing || !reaches {
+        return normal;
+    }
+    let side = [-axis[1], axis[0]];
+    let across = v_obj[0] * side[0] + v_obj[1] * side[1];
+    let lean = normal[0] * side[0] + normal[1] * side[1];
+    let sign = if across != 0.0 {
+        across.signum()
+    } else if lean != 0.0 {
+        lean.signum()
+    } else {
+        1.0
+    };
+    [sign * side[0], sign * side[1]]
+}
+
 pub(crate) fn solve(
     model: &Model,
     st: &Stepper,
@@ -401,7 +454,11 @@ pub(crate) fn solve(
                 let o_end = pose_end.to_world(local);
                 let d_obj = [o_end[0] - c.on_object[0], o_end[1] - c.on_object[1]];
                 let v_obj = pose_end.velocity_at(o_end);
-                let nrm = c.normal;
+                let nrm = if i + 1 == n && c.u >= 1.0 {
+                    end_on_normal(c.normal, &ws.node[..=n], v_obj, gap, d_obj)
+                } else {
+                    c.normal
+                };
                 let tan = [-nrm[1], nrm[0]];
                 ws.contacts.cand[slot] = Candidate {
                     gap,
