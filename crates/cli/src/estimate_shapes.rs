@@ -12,13 +12,10 @@ use anyhow::{bail, Result};
 use serde::Serialize;
 use serde_json::{json, Map, Value};
 use std::io::{self, Write};
-use std::time::Instant;
-use vibrissa_infer::experiment::Noise;
-use vibrissa_infer::shapes::{ShapeFamily, ShapeKrr};
+use vibrissa_infer::shapes::{
+    estimate_batch, BatchOptions, ShapeFamily, ShapeKrr, DEFAULT_TRAINING,
+};
 use vibrissa_infer::{Reader, CHANNELS};
-
-/// Training runs per class by default.
-const DEFAULT_TRAINING: usize = crate::experiment_shapes::DEFAULT_TRAINING;
 
 /// The printed estimates, one per file.
 #[derive(Debug, Serialize)]
@@ -64,7 +61,6 @@ impl Render for Estimates {
 
 /// Runs the shape estimate.
 pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
-    let started = Instant::now();
     if let Some(m) = args.method.as_deref() {
         if m != ShapeKrr::NAME {
             bail!(
@@ -107,68 +103,31 @@ pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
         };
         recordings.push(per);
     }
-    let first = &recordings[0][0];
-    let (rate, samples) = (first.rate, first.t.len());
-    for (file, per) in args.obs.iter().zip(&recordings) {
-        let r = &per[0];
-        if (r.rate - rate).abs() > 1e-6 * rate || r.t.len() != samples {
-            bail!(
-                "`{}` has {} samples at {} Hz where `{}` has {samples} at {rate} Hz: estimate \
-                 recordings of one timing together",
-                file.display(),
-                r.t.len(),
-                r.rate,
-                args.obs[0].display()
-            );
-        }
-        if let Some((c, _)) = r.constant_channels(&all).first() {
-            eprintln!(
-                "warning: `{}`: channel {} is constant",
-                file.display(),
-                CHANNELS[*c]
-            );
-        }
-    }
-    let timed = family.with_timing(rate, samples)?;
-    // The sensor noise: stated, none, or measured on every whisker of every file.
-    let series: Vec<&[Vec<f64>]> = recordings.iter().flatten().map(|r| &r.values[..]).collect();
-    let measured = vibrissa_infer::noise::estimate_pooled(&series, &all)?;
-    let stated = crate::estimate::stated_noise(&timed.classes()[0].family, &args.noise)?;
-    let sensor: [f64; 5] = std::array::from_fn(|c| stated[c].unwrap_or(measured[c]));
-    let training = args.training.unwrap_or(DEFAULT_TRAINING);
-    if training < 20 {
-        bail!("--training must be at least 20 runs per class (got {training})");
-    }
+    let stated = crate::estimate::stated_noise(&family.classes()[0].family, &args.noise)?;
+    let options = BatchOptions {
+        training: args.training.unwrap_or(DEFAULT_TRAINING),
+        seed: args.seed,
+        randomise: args.randomise,
+        stated,
+    };
     eprintln!(
         "training {} on {} runs per class of {} ({} whiskers)...",
         ShapeKrr::NAME,
-        training,
+        options.training,
         family.name(),
         whiskers.len().max(1)
     );
-    let train = timed.randomised_if(args.randomise)?;
-    let draws = timed.draws(training, true, args.seed);
-    // Training runs carry the scenario's random forces (its `process_noise`, 0 unless stated)
-    // and the sensor noise that the measured level leaves beyond their response.
-    let class = &timed.classes()[0].family;
-    let noise = class.training_sensor_noise(&Noise {
-        sensor,
-        process: class.base().process_noise,
-    })?;
-    let (runs, failed) = train.simulate_completed(&draws, &noise, args.seed ^ 0x5ea9, &|| {})?;
-    for f in &failed {
-        eprintln!("warning: a training run could not be simulated and is left out: {f}");
+    let names: Vec<String> = args.obs.iter().map(|f| f.display().to_string()).collect();
+    let batch = estimate_batch(&family, &names, &recordings, &options)?;
+    for w in &batch.warnings {
+        eprintln!("warning: {w}");
     }
-    let model = ShapeKrr::fit(&timed, &runs)?;
-    eprintln!("trained in {:.1} s", started.elapsed().as_secs_f64());
+    eprintln!("trained in {:.1} s", batch.training_seconds);
     let mut out = Vec::with_capacity(recordings.len());
-    for (file, per) in args.obs.iter().zip(&recordings) {
-        let t0 = Instant::now();
-        let values: Vec<Vec<Vec<f64>>> = per.iter().map(|r| r.values.clone()).collect();
-        let e = model.predict(&values)?;
+    for (name, (e, seconds)) in names.iter().zip(&batch.estimates) {
         let mut m = Map::new();
-        if args.obs.len() > 1 {
-            m.insert("file".into(), json!(file.display().to_string()));
+        if names.len() > 1 {
+            m.insert("file".into(), json!(name));
         }
         let class: Map<String, Value> =
             e.class.iter().map(|(k, p)| (k.clone(), json!(p))).collect();
@@ -180,10 +139,10 @@ pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
             );
         }
         m.insert("method".into(), json!(ShapeKrr::NAME));
-        m.insert("seconds".into(), json!(t0.elapsed().as_secs_f64()));
+        m.insert("seconds".into(), json!(seconds));
         let noise: Map<String, Value> = CHANNELS
             .iter()
-            .zip(sensor)
+            .zip(batch.noise)
             .map(|(c, s)| (c.to_string(), json!(s)))
             .collect();
         m.insert("noise".into(), Value::Object(noise));

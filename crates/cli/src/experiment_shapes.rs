@@ -19,7 +19,7 @@ use vibrissa_infer::shapes::{evaluate_shapes, ShapeEvaluation, ShapeFamily, Shap
 use vibrissa_infer::Variant;
 
 /// Training runs per class by default.
-pub const DEFAULT_TRAINING: usize = 800;
+pub const DEFAULT_TRAINING: usize = vibrissa_infer::shapes::DEFAULT_TRAINING;
 /// Evaluated runs per class by default.
 pub const DEFAULT_RUNS: usize = 50;
 

@@ -431,6 +431,135 @@ fn estimate(
     Ok((rows, messages))
 }
 
+/// The names of the whiskers a shape family reads (`shapes`: a built-in such as "e3" or a
+/// shape-family file; `whiskers`: a subset of its array, or all).
+#[pyfunction]
+#[pyo3(signature = (shapes, whiskers=None))]
+fn shape_whiskers(shapes: &str, whiskers: Option<Vec<String>>) -> PyResult<Vec<String>> {
+    Ok(shape_family(shapes, whiskers)?.whiskers())
+}
+
+/// The shape family `shapes`, reading `whiskers` (all when `None`).
+fn shape_family(
+    shapes: &str,
+    whiskers: Option<Vec<String>>,
+) -> PyResult<vibrissa_infer::shapes::ShapeFamily> {
+    let family = vibrissa_infer::shapes::ShapeFamily::open(shapes).map_err(value_error)?;
+    match whiskers {
+        Some(w) => {
+            let names: Vec<&str> = w.iter().map(String::as_str).collect();
+            family.with_whiskers(&names).map_err(value_error)
+        }
+        None => Ok(family),
+    }
+}
+
+/// Estimates which object of the shape family `shapes` struck the whiskers in each recording
+/// (`inputs[recording][whisker]`: a path with the whisker's name, or that whisker's arrays), as
+/// `vibrissa estimate --shapes --json` does; returns one estimate object per recording as JSON
+/// text, and the messages the command line prints on standard error.
+#[pyfunction]
+#[pyo3(signature = (shapes, whiskers, inputs, noise, seed, randomise, training))]
+#[allow(clippy::too_many_arguments)]
+fn estimate_shapes(
+    py: Python<'_>,
+    shapes: &str,
+    whiskers: Option<Vec<String>>,
+    inputs: Vec<Vec<(Input<'_>, Option<String>)>>,
+    noise: &str,
+    seed: u64,
+    randomise: bool,
+    training: usize,
+) -> PyResult<(Vec<String>, Vec<String>)> {
+    use vibrissa_infer::shapes::{estimate_batch, BatchOptions, ShapeKrr};
+    let family = shape_family(shapes, whiskers)?;
+    let stated = vibrissa_infer::noise::parse_statement(noise)
+        .map_err(|e| value_error(format!("noise: {e}")))?;
+    let all: Vec<usize> = (0..CHANNELS.len()).collect();
+    let reader = Reader::Method(ShapeKrr::NAME);
+    let mut messages = Vec::new();
+    let mut names = Vec::new();
+    let mut recordings = Vec::new();
+    for per in &inputs {
+        let mut name = String::new();
+        let mut whisker_recordings = Vec::new();
+        for (input, whisker) in per {
+            let rec = match input {
+                Input::Path(path) => {
+                    name = path.clone();
+                    let (series, warnings) =
+                        vibrissa_io::series::read_csv_with_sidecar(path).map_err(value_error)?;
+                    messages.extend(warnings.into_iter().map(|w| format!("warning: {w}")));
+                    let series =
+                        vibrissa_infer::recording::whisker_view(&series, path, whisker.as_deref())
+                            .map_err(value_error)?;
+                    Recording::from_series(&series, path, &all, reader)
+                }
+                Input::Arrays(n, t, columns) => {
+                    name = n.clone();
+                    let t = t.as_array().to_vec();
+                    let columns = columns
+                        .iter()
+                        .map(|c| c.as_ref().map(|a| a.as_array().to_vec()))
+                        .collect();
+                    Recording::from_columns(n, t, columns, None, &all, reader)
+                }
+            };
+            whisker_recordings.push(rec.map_err(value_error)?);
+        }
+        names.push(name);
+        recordings.push(whisker_recordings);
+    }
+    let options = BatchOptions {
+        training,
+        seed,
+        randomise,
+        stated,
+    };
+    messages.push(format!(
+        "training {} on {} runs per class of {}",
+        ShapeKrr::NAME,
+        training,
+        family.name()
+    ));
+    let batch = py
+        .detach(|| estimate_batch(&family, &names, &recordings, &options))
+        .map_err(value_error)?;
+    messages.extend(batch.warnings.iter().map(|w| format!("warning: {w}")));
+    let rows = names
+        .iter()
+        .zip(&batch.estimates)
+        .map(|(name, (e, seconds))| {
+            let mut m = serde_json::Map::new();
+            if names.len() > 1 {
+                m.insert("file".into(), serde_json::json!(name));
+            }
+            let class: serde_json::Map<String, serde_json::Value> = e
+                .class
+                .iter()
+                .map(|(k, p)| (k.clone(), serde_json::json!(p)))
+                .collect();
+            m.insert("class".into(), serde_json::Value::Object(class));
+            for (k, est) in &e.pose {
+                m.insert(
+                    k.clone(),
+                    serde_json::json!({"mean": est.mean, "std": est.std, "ci90": est.ci90}),
+                );
+            }
+            m.insert("method".into(), serde_json::json!(ShapeKrr::NAME));
+            m.insert("seconds".into(), serde_json::json!(seconds));
+            let noise: serde_json::Map<String, serde_json::Value> = CHANNELS
+                .iter()
+                .zip(batch.noise)
+                .map(|(c, x)| (c.to_string(), serde_json::json!(x)))
+                .collect();
+            m.insert("noise".into(), serde_json::Value::Object(noise));
+            serde_json::Value::Object(m).to_string()
+        })
+        .collect();
+    Ok((rows, messages))
+}
+
 /// As [`simulate`], for a scenario given as the JSON text of a Python dict (the keys of a
 /// scenario file, tables as nested dicts).
 #[pyfunction]
@@ -697,6 +826,8 @@ fn _vibrissa(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(simulate_json, m)?)?;
     m.add_function(wrap_pyfunction!(builtins, m)?)?;
     m.add_function(wrap_pyfunction!(estimate, m)?)?;
+    m.add_function(wrap_pyfunction!(estimate_shapes, m)?)?;
+    m.add_function(wrap_pyfunction!(shape_whiskers, m)?)?;
     m.add_function(wrap_pyfunction!(methods, m)?)?;
     m.add_function(wrap_pyfunction!(calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(sweep_plan, m)?)?;

@@ -7,11 +7,13 @@
 //! over the classes and, for the most probable class, its pose with intervals
 //! ([`ShapeEstimate`]); several whiskers are read jointly, as one recording.
 
+mod batch;
 pub mod e3;
 mod estimator;
 mod evaluate;
 mod family;
 
+pub use batch::{estimate_batch, Batch, BatchOptions, DEFAULT_TRAINING};
 pub use estimator::{ShapeEstimate, ShapeKrr};
 pub use evaluate::{
     evaluate_shapes, evaluated_draws, ClassPose, PoseScore, ReliabilityBin, RunResult,

@@ -24,6 +24,7 @@ __all__ = [
     "simulate",
     "sweep",
     "estimate",
+    "estimate_shapes",
     "calibrate",
     "methods",
     "Filter",
@@ -337,6 +338,85 @@ def estimate(
         row["warnings"] = [
             w for w in warnings if f"`{name}`" in w or not any(f"`{n}`" in w for n in names)
         ]
+        out.append(row)
+    return out if several else out[0]
+
+
+def estimate_shapes(
+    obs,
+    shapes="e3",
+    *,
+    whiskers=None,
+    training=800,
+    noise="auto",
+    seed=1,
+    randomise=False,
+    verbose=False,
+):
+    """Which object struck the whiskers, and where: the class posterior and the most probable
+    class's pose, as ``vibrissa estimate --shapes --json`` does.
+
+    >>> run = vibrissa.simulate("runs/run0002-circle.toml")   # written by experiment e3 --export
+    >>> est = vibrissa.estimate_shapes(run, "e3")
+    >>> est["class"], est["x"]["mean"]
+
+    Parameters
+    ----------
+    obs : str, os.PathLike, dict of arrays, pandas.DataFrame, or a list of them
+        A recording of the family's whiskers: a contract CSV path, or columns ``t`` and each
+        whisker's prefixed channels (``c1.theta01``, ...; a family of one whisker: the plain
+        channels). A list estimates each, training once; all must share one timing.
+    shapes : str or os.PathLike
+        The shape family: ``"e3"`` or a file whose ``[classes]`` table names each class's
+        scenario file.
+    whiskers : list of str, optional
+        The whiskers read (default: all of the family's), e.g. ``["c3"]``.
+    training : int
+        Training runs per class (at least 20).
+    noise, seed, randomise, verbose
+        As for :func:`estimate`.
+
+    Returns
+    -------
+    dict, or a list of dicts for a list of recordings
+        ``"class"`` (each class's probability), the most probable class's unknowns as
+        ``{"mean", "std", "ci90"}``, ``"method"``, ``"seconds"``, ``"noise"`` and
+        ``"warnings"``, plus ``"file"`` for each of a list of recordings.
+    """
+    several = isinstance(obs, (list, tuple))
+    shapes = os.fspath(shapes)
+    if whiskers is not None:
+        if isinstance(whiskers, str) or not all(isinstance(w, str) for w in whiskers):
+            raise TypeError("whiskers: expected a list of whisker names")
+        whiskers = list(whiskers)
+    names = _vibrissa.shape_whiskers(shapes, whiskers)
+    recordings = obs if several else [obs]
+    if not recordings:
+        raise ValueError("obs: no recordings given")
+    inputs = []
+    for k, o in enumerate(recordings):
+        if isinstance(o, (str, os.PathLike)):
+            path = os.fspath(o)
+            inputs.append([(path, w) for w in names] if names else [(path, None)])
+        else:
+            inputs.append(
+                [(_recording(k, o, w), w) for w in names] if names else [(_recording(k, o), None)]
+            )
+    training = _count("training", training, 20)
+    seed = _count("seed", seed, 0)
+    rows, messages = _vibrissa.estimate_shapes(
+        shapes, whiskers, inputs, _noise_statement(noise), seed, bool(randomise), training
+    )
+    if verbose:
+        import sys
+
+        for m in messages:
+            print(m, file=sys.stderr)
+    warnings = [m[len("warning: "):] for m in messages if m.startswith("warning: ")]
+    out = []
+    for r in rows:
+        row = json.loads(r)
+        row["warnings"] = warnings
         out.append(row)
     return out if several else out[0]
 

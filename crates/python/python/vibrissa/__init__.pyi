@@ -59,6 +59,17 @@ def estimate(
     verbose: bool = False,
     **keys: Value,
 ) -> Union[dict[str, Any], list[dict[str, Any]]]: ...
+def estimate_shapes(
+    obs: Union[Recording, Sequence[Recording]],
+    shapes: Union[str, os.PathLike[str]] = "e3",
+    *,
+    whiskers: Sequence[str] | None = None,
+    training: int = 800,
+    noise: Union[str, Mapping[str, float], None] = "auto",
+    seed: int = 1,
+    randomise: bool = False,
+    verbose: bool = False,
+) -> Union[dict[str, Any], list[dict[str, Any]]]: ...
 def simulate(
     scenario: Scenario = "e2",
     *,

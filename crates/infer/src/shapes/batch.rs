@@ -1,0 +1,127 @@
+//! Estimating shapes from a batch of recordings: what `vibrissa estimate --shapes` and the
+//! Python package share. The recordings' timing and sensor noise are read from them, the
+//! estimator is trained once on runs of the family at that timing with that noise, and every
+//! recording is estimated.
+
+use super::estimator::{ShapeEstimate, ShapeKrr};
+use super::family::ShapeFamily;
+use crate::error::{Error, Result};
+use crate::experiment::{Noise, CHANNELS};
+use crate::recording::Recording;
+use std::time::Instant;
+
+/// Training runs per class by default.
+pub const DEFAULT_TRAINING: usize = 800;
+
+/// How to train.
+#[derive(Debug, Clone, Copy)]
+pub struct BatchOptions {
+    /// Training runs per class (at least 20).
+    pub training: usize,
+    /// Seed of the training runs.
+    pub seed: u64,
+    /// Train on whiskers and sensors drawn around the scenario's.
+    pub randomise: bool,
+    /// The sensor noise stated per channel of [`CHANNELS`] (the others are measured).
+    pub stated: [Option<f64>; 5],
+}
+
+impl Default for BatchOptions {
+    fn default() -> Self {
+        BatchOptions {
+            training: DEFAULT_TRAINING,
+            seed: 1,
+            randomise: false,
+            stated: [None; 5],
+        }
+    }
+}
+
+/// The estimates of a batch.
+#[derive(Debug, Clone)]
+pub struct Batch {
+    /// One per recording, in order, with the seconds it took.
+    pub estimates: Vec<(ShapeEstimate, f64)>,
+    /// The sensor noise the training runs carried, per channel of [`CHANNELS`].
+    pub noise: [f64; 5],
+    /// Warnings for the user (constant channels, training runs left out).
+    pub warnings: Vec<String>,
+    /// Seconds spent simulating and fitting.
+    pub training_seconds: f64,
+}
+
+/// Estimates every recording of `recordings` (`[recordings][whiskers]`, each recording's
+/// whiskers in the family's order, all of one timing; `names` for messages).
+pub fn estimate_batch(
+    family: &ShapeFamily,
+    names: &[String],
+    recordings: &[Vec<Recording>],
+    options: &BatchOptions,
+) -> Result<Batch> {
+    let started = Instant::now();
+    let bad = |m: String| Error::Observation(m);
+    let Some(first) = recordings.first().and_then(|r| r.first()) else {
+        return Err(bad("no recording to estimate".into()));
+    };
+    if options.training < 20 {
+        return Err(Error::Setting(format!(
+            "training must be at least 20 runs per class (got {})",
+            options.training
+        )));
+    }
+    let all: Vec<usize> = (0..CHANNELS.len()).collect();
+    let (rate, samples) = (first.rate, first.t.len());
+    let mut warnings = Vec::new();
+    for (name, per) in names.iter().zip(recordings) {
+        for r in per {
+            if (r.rate - rate).abs() > 1e-6 * rate || r.t.len() != samples {
+                return Err(bad(format!(
+                    "`{name}` has {} samples at {} Hz where `{}` has {samples} at {rate} Hz: \
+                     estimate recordings of one timing together",
+                    r.t.len(),
+                    r.rate,
+                    names[0]
+                )));
+            }
+            if let Some((c, _)) = r.constant_channels(&all).first() {
+                warnings.push(format!("`{name}`: channel {} is constant", CHANNELS[*c]));
+            }
+        }
+    }
+    let timed = family.with_timing(rate, samples)?;
+    // The sensor noise: stated, or measured on every whisker of every recording.
+    let series: Vec<&[Vec<f64>]> = recordings.iter().flatten().map(|r| &r.values[..]).collect();
+    let measured = crate::noise::estimate_pooled(&series, &all)?;
+    let sensor: [f64; 5] = std::array::from_fn(|c| options.stated[c].unwrap_or(measured[c]));
+    // Training runs carry the scenario's random forces (its `process_noise`, 0 unless stated)
+    // and the sensor noise that the measured level leaves beyond their response.
+    let class = &timed.classes()[0].family;
+    let noise = class.training_sensor_noise(&Noise {
+        sensor,
+        process: class.base().process_noise,
+    })?;
+    let train = timed.randomised_if(options.randomise)?;
+    let draws = timed.draws(options.training, true, options.seed);
+    let (runs, failed) = train.simulate_completed(&draws, &noise, options.seed ^ 0x5ea9, &|| {})?;
+    warnings.extend(
+        failed
+            .iter()
+            .map(|f| format!("a training run could not be simulated and is left out: {f}")),
+    );
+    let model = ShapeKrr::fit(&timed, &runs)?;
+    let training_seconds = started.elapsed().as_secs_f64();
+    let estimates = recordings
+        .iter()
+        .map(|per| {
+            let t0 = Instant::now();
+            let values: Vec<Vec<Vec<f64>>> = per.iter().map(|r| r.values.clone()).collect();
+            Ok((model.predict(&values)?, t0.elapsed().as_secs_f64()))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok(Batch {
+        estimates,
+        noise: sensor,
+        warnings,
+        training_seconds,
+    })
+}

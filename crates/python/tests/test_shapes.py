@@ -1,0 +1,70 @@
+"""vibrissa.estimate_shapes: a class posterior and a pose from recordings of several whiskers."""
+
+import pytest
+
+import vibrissa
+
+# Two whiskers, 10° apart, struck by a peg or a square moving along +y.
+COMMON = """duration = 0.08
+sample_rate = 1000
+
+[whisker]
+preset = "w30"
+
+[[whiskers]]
+name = "a"
+position = [0.0, 0.0]
+
+[[whiskers]]
+name = "b"
+position = [-0.0001, 0.001]
+angle = 0.17
+
+[[objects]]
+{shape}
+position = [0.022, -0.012]
+velocity = [0.0, 0.8]
+
+[unknowns]
+"objects.0.position.0" = {{ range = [0.018, 0.026], name = "x" }}
+"""
+
+
+@pytest.fixture(scope="module")
+def family(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("shapes")
+    (folder / "peg.toml").write_text(COMMON.format(shape='shape = "circle"\nradius = 0.004'))
+    (folder / "square.toml").write_text(COMMON.format(shape='shape = "square"\nside = 0.008'))
+    path = folder / "shapes.toml"
+    path.write_text('[classes]\npeg = "peg.toml"\nsquare = "square.toml"\n')
+    return folder, path
+
+
+def test_a_run_of_each_whisker_gives_a_class_posterior_and_a_pose(family):
+    folder, path = family
+    run = vibrissa.simulate(folder / "peg.toml")
+    assert "a.theta01" in run and "b.theta12" in run
+    est = vibrissa.estimate_shapes(run, path, training=30, noise="none")
+    assert set(est["class"]) == {"peg", "square"}
+    assert abs(sum(est["class"].values()) - 1.0) < 1e-9
+    assert est["method"] == "shape-krr"
+    best = max(est["class"], key=est["class"].get)
+    if best == "peg":
+        lo, hi = est["x"]["ci90"]
+        assert lo < est["x"]["mean"] < hi
+    # One whisker only, and a list of recordings (one object each).
+    both = vibrissa.estimate_shapes([run, run], path, whiskers=["a"], training=30, noise="none")
+    assert len(both) == 2 and both[0]["class"] == both[1]["class"]
+
+
+def test_bad_arguments_are_refused_by_name(family):
+    folder, path = family
+    run = vibrissa.simulate(folder / "peg.toml")
+    with pytest.raises(ValueError, match="c9"):
+        vibrissa.estimate_shapes(run, path, whiskers=["c9"])
+    with pytest.raises(ValueError, match="training"):
+        vibrissa.estimate_shapes(run, path, training=5)
+    with pytest.raises(TypeError, match="whiskers"):
+        vibrissa.estimate_shapes(run, path, whiskers="a")
+    with pytest.raises(ValueError):
+        vibrissa.estimate_shapes(run, folder / "missing.toml")
