@@ -141,50 +141,35 @@ impl ShapeFamily {
         self.classes[0].family.whisker_names()
     }
 
-    /// The same family reading only the whiskers `names`.
-    pub fn with_whiskers(&self, names: &[&str]) -> Result<ShapeFamily> {
+    /// The same family with `edit` applied to every class's scenario family.
+    fn map_classes(&self, edit: impl Fn(&Family) -> Result<Family>) -> Result<ShapeFamily> {
         let classes = self
             .classes
             .iter()
             .map(|c| {
                 Ok(Class {
                     name: c.name.clone(),
-                    family: c.family.with_whiskers(names)?,
+                    family: edit(&c.family)?,
                 })
             })
             .collect::<Result<Vec<_>>>()?;
         ShapeFamily::new(&self.name, classes)
+    }
+
+    /// The same family reading only the whiskers `names`.
+    pub fn with_whiskers(&self, names: &[&str]) -> Result<ShapeFamily> {
+        self.map_classes(|f| f.with_whiskers(names))
     }
 
     /// The same family with every class's runs randomised when `randomise` is set
     /// ([`Family::randomised_if`]).
     pub fn randomised_if(&self, randomise: bool) -> Result<ShapeFamily> {
-        let classes = self
-            .classes
-            .iter()
-            .map(|c| {
-                Ok(Class {
-                    name: c.name.clone(),
-                    family: c.family.clone().randomised_if(randomise)?,
-                })
-            })
-            .collect::<Result<Vec<_>>>()?;
-        ShapeFamily::new(&self.name, classes)
+        self.map_classes(|f| f.clone().randomised_if(randomise))
     }
 
     /// The same family with runs of `samples` samples at `rate` Hz (a recording's timing).
     pub fn with_timing(&self, rate: f64, samples: usize) -> Result<ShapeFamily> {
-        let classes = self
-            .classes
-            .iter()
-            .map(|c| {
-                Ok(Class {
-                    name: c.name.clone(),
-                    family: c.family.with_timing(rate, samples)?,
-                })
-            })
-            .collect::<Result<Vec<_>>>()?;
-        ShapeFamily::new(&self.name, classes)
+        self.map_classes(|f| f.with_timing(rate, samples))
     }
 
     /// Output samples per second of its runs, Hz.
