@@ -414,6 +414,7 @@ fn print_json(report: &Report, lines: bool) -> Result<()> {
     for (k, row) in report.rows.iter().enumerate() {
         let obj = vibrissa_infer::contract::EstimateRow {
             file: lines.then(|| row.file.display().to_string()),
+            class: Vec::new(),
             estimates: row.estimates.clone(),
             method: report.method.clone(),
             seconds: row.seconds,

@@ -10,7 +10,7 @@ use crate::estimate::{read_recording, Args};
 use crate::output::Render;
 use anyhow::{bail, Result};
 use serde::Serialize;
-use serde_json::{json, Map, Value};
+use serde_json::{Map, Value};
 use std::io::{self, Write};
 use vibrissa_infer::shapes::{
     estimate_batch, BatchOptions, ShapeFamily, ShapeKrr, DEFAULT_TRAINING,
@@ -123,31 +123,7 @@ pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
         eprintln!("warning: {w}");
     }
     eprintln!("trained in {:.1} s", batch.training_seconds);
-    let mut out = Vec::with_capacity(recordings.len());
-    for (name, (e, seconds)) in names.iter().zip(&batch.estimates) {
-        let mut m = Map::new();
-        if names.len() > 1 {
-            m.insert("file".into(), json!(name));
-        }
-        let class: Map<String, Value> =
-            e.class.iter().map(|(k, p)| (k.clone(), json!(p))).collect();
-        m.insert("class".into(), Value::Object(class));
-        for (name, est) in &e.pose {
-            m.insert(
-                name.clone(),
-                json!({"mean": est.mean, "std": est.std, "ci90": est.ci90}),
-            );
-        }
-        m.insert("method".into(), json!(ShapeKrr::NAME));
-        m.insert("seconds".into(), json!(seconds));
-        let noise: Map<String, Value> = CHANNELS
-            .iter()
-            .zip(batch.noise)
-            .map(|(c, s)| (c.to_string(), json!(s)))
-            .collect();
-        m.insert("noise".into(), Value::Object(noise));
-        out.push(m);
-    }
+    let out: Vec<Map<String, Value>> = batch.rows(&names).iter().map(|r| r.to_json()).collect();
     match args.format.format() {
         crate::output::Format::Json if out.len() == 1 => {
             println!("{}", serde_json::to_string_pretty(&out[0])?)

@@ -8,7 +8,8 @@
 //!  "noise": {"theta01": 0.0012, "theta12": 0.0011}}
 //! ```
 //!
-//! One entry per unknown, named by its scenario key; `method`, `seconds` (the estimate's own
+//! One entry per unknown, named by its scenario key (or its name); for a shape family `class`,
+//! each class's probability; `method`, `seconds` (the estimate's own
 //! time, training excluded) and `noise` (the sensor noise used per channel read, SI); for the
 //! particle filter its counts under `filter`; with a model check its result under `check`; for
 //! one of several recordings its `file`.
@@ -22,6 +23,8 @@ use serde_json::{json, Map, Value};
 pub struct EstimateRow {
     /// The recording, when it is one of several.
     pub file: Option<String>,
+    /// For a shape family: each class's probability, in the family's order (empty otherwise).
+    pub class: Vec<(String, f64)>,
     /// Its estimates, named by unknown.
     pub estimates: Vec<(String, Estimate)>,
     /// The method's name.
@@ -42,6 +45,14 @@ impl EstimateRow {
         let mut obj = Map::new();
         if let Some(file) = &self.file {
             obj.insert("file".into(), json!(file));
+        }
+        if !self.class.is_empty() {
+            let class: Map<String, Value> = self
+                .class
+                .iter()
+                .map(|(k, p)| (k.clone(), json!(p)))
+                .collect();
+            obj.insert("class".into(), Value::Object(class));
         }
         for (n, e) in &self.estimates {
             obj.insert(
@@ -96,6 +107,7 @@ mod tests {
     fn names_every_unknown_and_the_noise() {
         let row = EstimateRow {
             file: Some("a.csv".into()),
+            class: Vec::new(),
             estimates: vec![
                 ("d".into(), Estimate::normal(0.02, 0.001)),
                 ("v".into(), Estimate::normal(0.6, 0.01)),
@@ -113,5 +125,6 @@ mod tests {
         assert_eq!(v["noise"]["theta12"], 1e-3);
         assert_eq!(v["method"], "knn");
         assert!(v.get("filter").is_none() && v.get("check").is_none());
+        assert!(v.get("class").is_none());
     }
 }

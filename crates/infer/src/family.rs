@@ -455,11 +455,6 @@ impl Family {
         })
     }
 
-    /// The whiskers of the scenario's array kept, in order (empty for a single whisker).
-    pub fn mounts(&self) -> Vec<&Mount> {
-        self.mounts.iter().map(|(_, m)| m).collect()
-    }
-
     /// The names of the array's whiskers kept, in order (empty for a single whisker).
     pub fn whisker_names(&self) -> Vec<String> {
         self.mounts.iter().map(|(_, m)| m.name.clone()).collect()

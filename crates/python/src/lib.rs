@@ -413,6 +413,7 @@ fn estimate(
             };
             let row = EstimateRow {
                 file: several.then(|| name.clone()),
+                class: Vec::new(),
                 estimates,
                 method: method.to_string(),
                 seconds,
@@ -526,36 +527,10 @@ fn estimate_shapes(
         .detach(|| estimate_batch(&family, &names, &recordings, &options))
         .map_err(value_error)?;
     messages.extend(batch.warnings.iter().map(|w| format!("warning: {w}")));
-    let rows = names
+    let rows = batch
+        .rows(&names)
         .iter()
-        .zip(&batch.estimates)
-        .map(|(name, (e, seconds))| {
-            let mut m = serde_json::Map::new();
-            if names.len() > 1 {
-                m.insert("file".into(), serde_json::json!(name));
-            }
-            let class: serde_json::Map<String, serde_json::Value> = e
-                .class
-                .iter()
-                .map(|(k, p)| (k.clone(), serde_json::json!(p)))
-                .collect();
-            m.insert("class".into(), serde_json::Value::Object(class));
-            for (k, est) in &e.pose {
-                m.insert(
-                    k.clone(),
-                    serde_json::json!({"mean": est.mean, "std": est.std, "ci90": est.ci90}),
-                );
-            }
-            m.insert("method".into(), serde_json::json!(ShapeKrr::NAME));
-            m.insert("seconds".into(), serde_json::json!(seconds));
-            let noise: serde_json::Map<String, serde_json::Value> = CHANNELS
-                .iter()
-                .zip(batch.noise)
-                .map(|(c, x)| (c.to_string(), serde_json::json!(x)))
-                .collect();
-            m.insert("noise".into(), serde_json::Value::Object(noise));
-            serde_json::Value::Object(m).to_string()
-        })
+        .map(|r| serde_json::Value::Object(r.to_json()).to_string())
         .collect();
     Ok((rows, messages))
 }

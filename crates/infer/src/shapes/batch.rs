@@ -5,6 +5,7 @@
 
 use super::estimator::{ShapeEstimate, ShapeKrr};
 use super::family::ShapeFamily;
+use crate::contract::EstimateRow;
 use crate::error::{Error, Result};
 use crate::experiment::{Noise, CHANNELS};
 use crate::recording::Recording;
@@ -124,4 +125,29 @@ pub fn estimate_batch(
         warnings,
         training_seconds,
     })
+}
+
+impl Batch {
+    /// The contract's estimate object of every recording, in order (`file` named when there are
+    /// several): `class`, the most probable class's unknowns, `method`, `seconds` and `noise`.
+    pub fn rows(&self, names: &[String]) -> Vec<EstimateRow> {
+        names
+            .iter()
+            .zip(&self.estimates)
+            .map(|(name, (e, seconds))| EstimateRow {
+                file: (names.len() > 1).then(|| name.clone()),
+                class: e.class.clone(),
+                estimates: e.pose.clone(),
+                method: ShapeKrr::NAME.to_string(),
+                seconds: *seconds,
+                noise: CHANNELS
+                    .iter()
+                    .zip(self.noise)
+                    .map(|(c, x)| (c.to_string(), x))
+                    .collect(),
+                filter: Vec::new(),
+                check: None,
+            })
+            .collect()
+    }
 }
