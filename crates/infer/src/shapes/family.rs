@@ -209,9 +209,10 @@ impl ShapeFamily {
         out
     }
 
-    /// As [`ShapeFamily::simulate_all`], leaving out the runs the simulator could not complete
-    /// (a divergence, e.g. an object's face pushing a whisker's tip end-on along its axis) and
-    /// returning what each of them was; an error if more than one run in a hundred fails.
+    /// Simulates every draw (in parallel) with `noise` (run `k` seeded by stream `k` of `seed`,
+    /// `tick` called once per finished run), leaving out the runs the simulator could not
+    /// complete (a divergence) and returning what each of them was; an error if more than one
+    /// run in a hundred fails.
     pub fn simulate_completed(
         &self,
         draws: &[(usize, Vec<f64>)],
@@ -269,25 +270,5 @@ impl ShapeFamily {
             params: p.clone(),
             whiskers,
         })
-    }
-
-    /// Simulates every draw (in parallel) with `noise`; run `k` is seeded by stream `k` of
-    /// `seed`. `tick` is called once per finished run.
-    pub fn simulate_all(
-        &self,
-        draws: &[(usize, Vec<f64>)],
-        noise: &Noise,
-        seed: u64,
-        tick: &(dyn Fn() + Sync),
-    ) -> Result<Vec<ShapeSample>> {
-        draws
-            .par_iter()
-            .enumerate()
-            .map(|(k, d)| {
-                let s = self.simulate_one(d, noise, Family::run_seed(seed, k));
-                tick();
-                s
-            })
-            .collect()
     }
 }
