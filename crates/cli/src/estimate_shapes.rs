@@ -2,18 +2,24 @@
 //! of one or several whiskers.
 //!
 //! Reads every file's whiskers (`c1.theta01`, … for an array; the plain columns for one
-//! whisker), measures the sensor noise on the recordings, trains `shape-krr` once on runs of the
-//! shape family simulated at the files' timing with that noise, and prints one estimate per
-//! file: `"class"` (each class's probability) and the most probable class's pose unknowns.
+//! whisker), measures the sensor noise on the recordings, trains the shape estimator
+//! (`shape-krr`, or the online `shape-esn`) once on runs of the shape family simulated at the
+//! files' timing with that noise, and prints one estimate per file: `"class"` (each class's
+//! probability) and the most probable class's pose unknowns. With `shape-esn`, `--trace` writes
+//! the class posterior after every sample and its plot.
 
 use crate::estimate::{read_recording, Args};
+use crate::files;
 use crate::output::Render;
+use crate::plot::{render_xy, Mark, XyFigure, XyPanel, XySet};
 use anyhow::{bail, Result};
 use serde::Serialize;
 use serde_json::{Map, Value};
 use std::io::{self, Write};
+use std::path::Path;
 use vibrissa_infer::shapes::{
-    estimate_batch, BatchOptions, ShapeFamily, ShapeKrr, DEFAULT_TRAINING,
+    check_shape_method, estimate_batch, BatchOptions, ShapeEsn, ShapeFamily, ShapeKrr,
+    DEFAULT_TRAINING, SHAPE_METHODS,
 };
 use vibrissa_infer::{Reader, CHANNELS};
 
@@ -61,16 +67,33 @@ impl Render for Estimates {
 
 /// Runs the shape estimate.
 pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
-    if let Some(m) = args.method.as_deref() {
-        if m != ShapeKrr::NAME {
+    let method = args.method.as_deref().unwrap_or(ShapeKrr::NAME);
+    if check_shape_method(method).is_err() {
+        bail!(
+            "--method {method}: shape families are estimated by {}",
+            SHAPE_METHODS.join(" or ")
+        );
+    }
+    if args.particles.is_some() || args.check || !args.prior.is_empty() {
+        bail!("--particles, --check and --prior do not apply to shape families");
+    }
+    if let Some(trace) = &args.trace {
+        if method != ShapeEsn::NAME {
             bail!(
-                "--method {m}: shape families are estimated by {} (leave --method out)",
-                ShapeKrr::NAME
+                "--trace with a shape family needs --method {} (the online estimator)",
+                ShapeEsn::NAME
             );
         }
-    }
-    if args.particles.is_some() || args.trace.is_some() || args.check || !args.prior.is_empty() {
-        bail!("--particles, --trace, --check and --prior do not apply to shape families");
+        if args.obs.len() != 1 {
+            bail!(
+                "--trace takes exactly one --obs file (got {})",
+                args.obs.len()
+            );
+        }
+        if files::extension(trace).as_deref() != Some("csv") {
+            bail!("--trace must name a .csv file (got `{}`)", trace.display());
+        }
+        files::check_folder(trace, "--trace")?;
     }
     if !args.sets.is_empty() {
         bail!("--set does not apply to shape families: edit the class files");
@@ -105,6 +128,7 @@ pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
     }
     let stated = crate::estimate::stated_noise(&family.classes()[0].family, &args.noise)?;
     let options = BatchOptions {
+        method: method.to_string(),
         training: args.training.unwrap_or(DEFAULT_TRAINING),
         seed: args.seed,
         randomise: args.randomise,
@@ -112,7 +136,7 @@ pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
     };
     eprintln!(
         "training {} on {} runs per class of {} ({} whiskers)...",
-        ShapeKrr::NAME,
+        method,
         options.training,
         family.name(),
         whiskers.len().max(1)
@@ -123,6 +147,14 @@ pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
         eprintln!("warning: {w}");
     }
     eprintln!("trained in {:.1} s", batch.training_seconds);
+    if let (Some(path), Some(trace), Some(first)) =
+        (&args.trace, batch.traces.first(), recordings.first())
+    {
+        let t = &first[0].t;
+        let classes: Vec<String> = family.class_names().iter().map(|c| c.to_string()).collect();
+        write_trace(path, t, &classes, trace)?;
+        eprintln!("wrote {} and its plot", path.display());
+    }
     let out: Vec<Map<String, Value>> = batch.rows(&names).iter().map(|r| r.to_json()).collect();
     match args.format.format() {
         crate::output::Format::Json if out.len() == 1 => {
@@ -135,6 +167,47 @@ pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
             }
         }
         human => human.print(&Estimates(out))?,
+    }
+    Ok(())
+}
+
+/// Writes the class posterior after every sample as CSV (`t` and one column per class), and its
+/// plot beside it (same name, .png).
+fn write_trace(path: &Path, t: &[f64], classes: &[String], trace: &[Vec<f64>]) -> Result<()> {
+    let mut csv = format!("t,{}\n", classes.join(","));
+    for (tk, p) in t.iter().zip(trace) {
+        let cells: Vec<String> = p.iter().map(|x| x.to_string()).collect();
+        csv.push_str(&format!("{tk},{}\n", cells.join(",")));
+    }
+    let figure = XyFigure {
+        title: format!(
+            "class posterior after every sample ({})",
+            path.file_name()
+                .map_or(String::new(), |n| n.to_string_lossy().to_string())
+        ),
+        x_desc: "t (s)".into(),
+        y_desc: "probability".into(),
+        log_y: false,
+        columns: 1,
+        legend_lower_right: false,
+        panels: vec![XyPanel {
+            caption: String::new(),
+            sets: classes
+                .iter()
+                .enumerate()
+                .map(|(c, name)| XySet {
+                    label: name.clone(),
+                    points: t.iter().zip(trace).map(|(tk, p)| (*tk, p[c])).collect(),
+                    mark: Mark::Line,
+                    colour: Some(c),
+                })
+                .collect(),
+        }],
+    };
+    let pending = render_xy(&path.with_extension("png"), &figure)?;
+    files::write_atomic(path, csv.as_bytes())?;
+    for (_, file) in pending {
+        file.commit()?;
     }
     Ok(())
 }

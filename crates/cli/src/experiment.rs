@@ -41,6 +41,10 @@ pub struct Args {
     /// (`1,3,5`, the default for a fan of five) or names joined by `+` (`c1+c5`).
     #[arg(long, value_name = "SETS")]
     whiskers: Option<String>,
+    /// Shape experiments: the estimators to score (repeatable): shape-krr (reads the recording
+    /// whole) and shape-esn (online: a class posterior after every sample). Default: both.
+    #[arg(long = "method", value_name = "NAME")]
+    methods: Vec<String>,
     /// Shape experiments: train on whiskers and sensors drawn around the scenario's (for
     /// recordings of a whisker known only roughly).
     #[arg(long)]
@@ -136,18 +140,20 @@ pub fn run(args: &Args) -> Result<()> {
             training: args.training,
             runs: args.runs,
             whiskers: args.whiskers.as_deref(),
+            methods: &args.methods,
             randomise: args.randomise,
             export: args.export.as_deref(),
             format: args.format.format(),
         });
     }
     if args.training.is_some()
+        || !args.methods.is_empty()
         || args.runs.is_some()
         || args.whiskers.is_some()
         || args.randomise
         || args.export.is_some()
     {
-        anyhow::bail!("--training, --runs, --whiskers, --randomise and --export apply to shape experiments (e3, --shapes)");
+        anyhow::bail!("--training, --runs, --whiskers, --method, --randomise and --export apply to shape experiments (e3, --shapes)");
     }
     let family = match (&args.scenario, &args.experiment) {
         (Some(file), _) => Family::open(file, &args.sets)?,

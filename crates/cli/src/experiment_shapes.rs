@@ -15,7 +15,9 @@ use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::Instant;
-use vibrissa_infer::shapes::{evaluate_shapes, ShapeEvaluation, ShapeFamily, ShapeSettings};
+use vibrissa_infer::shapes::{
+    evaluate_shapes, ShapeEvaluation, ShapeFamily, ShapeSettings, SHAPE_METHODS,
+};
 use vibrissa_infer::Variant;
 
 /// Training runs per class by default.
@@ -32,6 +34,7 @@ pub struct ShapeArgs<'a> {
     pub training: Option<usize>,
     pub runs: Option<usize>,
     pub whiskers: Option<&'a str>,
+    pub methods: &'a [String],
     pub randomise: bool,
     pub export: Option<&'a Path>,
     pub format: crate::output::Format,
@@ -97,6 +100,11 @@ pub fn run(args: ShapeArgs) -> Result<()> {
         seed: args.seed,
         randomise: args.randomise,
         subsets,
+        methods: if args.methods.is_empty() {
+            SHAPE_METHODS.iter().map(|m| m.to_string()).collect()
+        } else {
+            args.methods.to_vec()
+        },
     };
     if settings.train_per_class < 20 {
         anyhow::bail!(
@@ -184,8 +192,9 @@ fn export(family: &ShapeFamily, settings: &ShapeSettings, dir: &Path) -> Result<
     Ok(path)
 }
 
-/// The figures: the confusion matrix of every whisker set, the accuracy and log loss against
-/// the number of whiskers, and the reliability diagram of the class probabilities.
+/// The figures: the confusion matrix of every estimator and whisker set, the accuracy and log
+/// loss against the number of whiskers, the reliability diagram of the class probabilities, and
+/// an online estimator's posterior over time.
 fn figures(ev: &ShapeEvaluation, dir: &Path) -> Result<Vec<PathBuf>> {
     let mut pending = Vec::new();
     let matrices: Vec<Matrix> = ev
@@ -193,7 +202,8 @@ fn figures(ev: &ShapeEvaluation, dir: &Path) -> Result<Vec<PathBuf>> {
         .iter()
         .map(|s| Matrix {
             caption: format!(
-                "{} ({}): {:.0}% right",
+                "{}, {} ({}): {:.0}% right",
+                s.method,
                 s.whiskers.join("+"),
                 ev.variant.name(),
                 100.0 * s.accuracy
@@ -207,13 +217,45 @@ fn figures(ev: &ShapeEvaluation, dir: &Path) -> Result<Vec<PathBuf>> {
         &ev.classes,
         &matrices,
     )?);
-    // Accuracy against the number of whiskers read (every set; sets of one whisker each a dot).
-    let point = |f: &dyn Fn(&vibrissa_infer::shapes::SubsetResult) -> f64| -> Vec<(f64, f64)> {
+    // Accuracy and log loss against the number of whiskers read, per estimator (sets of one
+    // whisker each a dot).
+    let mut methods: Vec<&str> = Vec::new();
+    for s in &ev.subsets {
+        if !methods.contains(&s.method.as_str()) {
+            methods.push(&s.method);
+        }
+    }
+    let point = |m: &str, f: &dyn Fn(&vibrissa_infer::shapes::SubsetResult) -> f64| {
         ev.subsets
             .iter()
+            .filter(|s| s.method == m)
             .map(|s| (s.whiskers.len() as f64, f(s)))
-            .collect()
+            .collect::<Vec<(f64, f64)>>()
     };
+    let mut sets = Vec::new();
+    for (k, m) in methods.iter().enumerate() {
+        sets.push(XySet {
+            label: format!("{m}: accuracy"),
+            points: point(m, &|s| s.accuracy),
+            mark: Mark::LineDots,
+            colour: Some(2 * k),
+        });
+        sets.push(XySet {
+            label: format!("{m}: log loss"),
+            points: point(m, &|s| s.log_loss),
+            mark: Mark::Dots,
+            colour: Some(2 * k + 1),
+        });
+    }
+    sets.push(XySet {
+        label: format!("chance ({} classes)", ev.classes.len()),
+        points: vec![
+            (1.0, 1.0 / ev.classes.len() as f64),
+            (5.0, 1.0 / ev.classes.len() as f64),
+        ],
+        mark: Mark::Dashed,
+        colour: None,
+    });
     let accuracy = XyFigure {
         title: format!(
             "{} ({}): class accuracy and log loss against the whiskers read",
@@ -227,29 +269,7 @@ fn figures(ev: &ShapeEvaluation, dir: &Path) -> Result<Vec<PathBuf>> {
         legend_lower_right: false,
         panels: vec![XyPanel {
             caption: String::new(),
-            sets: vec![
-                XySet {
-                    label: "accuracy".into(),
-                    points: point(&|s| s.accuracy),
-                    mark: Mark::Dots,
-                    colour: Some(0),
-                },
-                XySet {
-                    label: "log loss".into(),
-                    points: point(&|s| s.log_loss),
-                    mark: Mark::Dots,
-                    colour: Some(1),
-                },
-                XySet {
-                    label: format!("chance ({} classes)", ev.classes.len()),
-                    points: vec![
-                        (1.0, 1.0 / ev.classes.len() as f64),
-                        (5.0, 1.0 / ev.classes.len() as f64),
-                    ],
-                    mark: Mark::Dashed,
-                    colour: None,
-                },
-            ],
+            sets,
         }],
     };
     pending.extend(render_xy(&dir.join("accuracy.png"), &accuracy)?);
@@ -259,7 +279,12 @@ fn figures(ev: &ShapeEvaluation, dir: &Path) -> Result<Vec<PathBuf>> {
         .iter()
         .enumerate()
         .map(|(k, s)| XySet {
-            label: format!("{} whiskers ({})", s.whiskers.len(), s.whiskers.join("+")),
+            label: format!(
+                "{}, {} whiskers ({})",
+                s.method,
+                s.whiskers.len(),
+                s.whiskers.join("+")
+            ),
             points: s
                 .reliability
                 .iter()
@@ -293,6 +318,54 @@ fn figures(ev: &ShapeEvaluation, dir: &Path) -> Result<Vec<PathBuf>> {
         }],
     };
     pending.extend(render_xy(&dir.join("reliability.png"), &reliability)?);
+    // The online estimator's posterior over time, with the most whiskers it read: the first
+    // evaluated run of each class.
+    if let Some(s) = ev
+        .subsets
+        .iter()
+        .filter(|s| !s.traces.is_empty())
+        .max_by_key(|s| s.whiskers.len())
+    {
+        let panels = s
+            .traces
+            .iter()
+            .map(|t| XyPanel {
+                caption: format!("a {} (run {})", ev.classes[t.class], t.run),
+                sets: ev
+                    .classes
+                    .iter()
+                    .enumerate()
+                    .map(|(c, name)| XySet {
+                        label: name.clone(),
+                        points: t
+                            .probabilities
+                            .iter()
+                            .enumerate()
+                            .map(|(k, p)| ((k + 1) as f64 / ev.sample_rate * 1e3, p[c]))
+                            .collect(),
+                        mark: Mark::Line,
+                        colour: Some(c),
+                    })
+                    .collect(),
+            })
+            .collect();
+        let posterior = XyFigure {
+            title: format!(
+                "{} ({}): {}'s class posterior after every sample, {} whiskers",
+                ev.family,
+                ev.variant.name(),
+                s.method,
+                s.whiskers.len()
+            ),
+            x_desc: "time (ms)".into(),
+            y_desc: "probability".into(),
+            log_y: false,
+            columns: 2,
+            legend_lower_right: false,
+            panels,
+        };
+        pending.extend(render_xy(&dir.join("posterior.png"), &posterior)?);
+    }
     let mut files = Vec::new();
     for (path, file) in pending {
         file.commit()?;
@@ -333,6 +406,7 @@ impl Render for Report {
             }
         )?;
         let mut t = Table::new(&[
+            ("method", Align::Left),
             ("whiskers", Align::Left),
             ("accuracy", Align::Right),
             ("log loss", Align::Right),
@@ -342,6 +416,7 @@ impl Render for Report {
         ]);
         for s in &ev.subsets {
             t.row(vec![
+                s.method.clone(),
                 format!("{} ({})", s.whiskers.len(), s.whiskers.join("+")),
                 pct(s.accuracy),
                 format!("{:.3}", s.log_loss),
@@ -356,6 +431,7 @@ impl Render for Report {
             "pose of the runs classified right: mean absolute error (90% coverage)"
         )?;
         let mut t = Table::new(&[
+            ("method", Align::Left),
             ("whiskers", Align::Left),
             ("class", Align::Left),
             ("right", Align::Right),
@@ -372,6 +448,7 @@ impl Render for Report {
                     })
                     .collect();
                 t.row(vec![
+                    s.method.clone(),
                     s.whiskers.len().to_string(),
                     p.class.clone(),
                     format!("{}/{}", p.right, p.runs),
@@ -387,7 +464,8 @@ impl Render for Report {
         for s in &ev.subsets {
             writeln!(
                 out,
-                "confusion with {} whiskers (rows: truth; columns: estimate {}):",
+                "confusion of {} with {} whiskers (rows: truth; columns: estimate {}):",
+                s.method,
                 s.whiskers.len(),
                 ev.classes.join(", ")
             )?;

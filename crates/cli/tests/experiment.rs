@@ -1038,17 +1038,22 @@ fn experiment_e3_scores_shapes_and_exports_every_evaluated_run() {
     );
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["classes"].as_array().unwrap().len(), 4);
+    // Both estimators on both whisker sets.
     let subsets = v["subsets"].as_array().unwrap();
-    assert_eq!(subsets.len(), 2);
+    assert_eq!(subsets.len(), 4);
     assert_eq!(
-        subsets[1]["whiskers"],
+        subsets[3]["whiskers"],
         serde_json::json!(["c2", "c3", "c4"])
     );
+    assert_eq!(subsets[0]["method"], "shape-krr");
+    assert_eq!(subsets[1]["method"], "shape-esn");
+    assert_eq!(subsets[3]["traces"].as_array().unwrap().len(), 4);
     for f in [
         "results.json",
         "confusion.png",
         "accuracy.png",
         "reliability.svg",
+        "posterior.png",
     ] {
         assert!(dir.join("out").join(f).exists(), "{f}");
     }
@@ -1104,13 +1109,51 @@ fn experiment_e3_scores_shapes_and_exports_every_evaluated_run() {
     assert_eq!(e["class"].as_object().unwrap().len(), 4);
     assert!(e["x"]["mean"].as_f64().unwrap() > 0.0, "{e}");
     assert_eq!(e["method"], "shape-krr");
+    // The online estimator, with its posterior after every sample.
+    let trace = dir.join("trace.csv");
+    let est = vibrissa()
+        .args(["estimate", "--shapes", "e3", "--whiskers", "c3"])
+        .args(["--training", "20", "--method", "shape-esn", "--json"])
+        .arg("--trace")
+        .arg(&trace)
+        .arg("--obs")
+        .arg(dir.join("run.csv"))
+        .output()
+        .unwrap();
+    assert!(
+        est.status.success(),
+        "{}",
+        String::from_utf8_lossy(&est.stderr)
+    );
+    let e: serde_json::Value = serde_json::from_slice(&est.stdout).unwrap();
+    assert_eq!(e["method"], "shape-esn");
+    let rows = std::fs::read_to_string(&trace).unwrap();
+    let lines: Vec<&str> = rows.lines().collect();
+    assert_eq!(lines[0], "t,wall,box,circle,triangle");
+    assert_eq!(lines.len(), csv.lines().count());
+    let last: Vec<f64> = lines[lines.len() - 1]
+        .split(',')
+        .skip(1)
+        .map(|x| x.parse().unwrap())
+        .collect();
+    assert!((last[2] - e["class"]["circle"].as_f64().unwrap()).abs() < 1e-12);
+    assert!(trace.with_extension("png").exists());
     let bad = vibrissa()
         .args(["estimate", "--shapes", "e3", "--method", "knn", "--obs"])
         .arg(dir.join("run.csv"))
         .output()
         .unwrap();
     assert!(!bad.status.success());
-    assert!(String::from_utf8_lossy(&bad.stderr).contains("shape-krr"));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("shape-esn"));
+    let bad = vibrissa()
+        .args(["estimate", "--shapes", "e3", "--trace"])
+        .arg(&trace)
+        .arg("--obs")
+        .arg(dir.join("run.csv"))
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("--method shape-esn"));
     // Options of the shape experiments are refused elsewhere, and bad whisker sets by name.
     let bad = vibrissa()
         .args(["experiment", "e2", "--training", "20"])

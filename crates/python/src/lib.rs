@@ -458,10 +458,12 @@ fn shape_family(
 /// Estimates which object of the shape family `shapes` struck the whiskers in each recording
 /// (`inputs[recording][whisker]`: a path with the whisker's name, or that whisker's arrays), as
 /// `vibrissa estimate --shapes --json` does; returns one estimate object per recording as JSON
-/// text, and the messages the command line prints on standard error.
+/// text, the messages the command line prints on standard error, and for an online method each
+/// recording's class posterior after every sample (`[recordings][samples][classes]`) with the
+/// classes' names in that order.
 #[pyfunction]
-#[pyo3(signature = (shapes, whiskers, inputs, noise, seed, randomise, training))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (shapes, whiskers, inputs, noise, seed, randomise, training, method))]
+#[allow(clippy::too_many_arguments, clippy::type_complexity)]
 fn estimate_shapes(
     py: Python<'_>,
     shapes: &str,
@@ -471,7 +473,8 @@ fn estimate_shapes(
     seed: u64,
     randomise: bool,
     training: usize,
-) -> PyResult<(Vec<String>, Vec<String>)> {
+    method: &str,
+) -> PyResult<(Vec<String>, Vec<String>, Vec<Vec<Vec<f64>>>, Vec<String>)> {
     use vibrissa_infer::shapes::{estimate_batch, BatchOptions, ShapeKrr};
     let family = shape_family(shapes, whiskers)?;
     let stated = vibrissa_infer::noise::parse_statement(noise)
@@ -512,6 +515,7 @@ fn estimate_shapes(
         recordings.push(whisker_recordings);
     }
     let options = BatchOptions {
+        method: method.to_string(),
         training,
         seed,
         randomise,
@@ -519,7 +523,7 @@ fn estimate_shapes(
     };
     messages.push(format!(
         "training {} on {} runs per class of {}",
-        ShapeKrr::NAME,
+        method,
         training,
         family.name()
     ));
@@ -532,7 +536,12 @@ fn estimate_shapes(
         .iter()
         .map(|r| serde_json::Value::Object(r.to_json()).to_string())
         .collect();
-    Ok((rows, messages))
+    let classes = family
+        .class_names()
+        .iter()
+        .map(|c| c.to_string())
+        .collect();
+    Ok((rows, messages, batch.traces, classes))
 }
 
 /// As [`simulate`], for a scenario given as the JSON text of a Python dict (the keys of a

@@ -68,3 +68,19 @@ def test_bad_arguments_are_refused_by_name(family):
         vibrissa.estimate_shapes(run, path, whiskers="a")
     with pytest.raises(ValueError):
         vibrissa.estimate_shapes(run, folder / "missing.toml")
+
+
+def test_the_online_estimator_gives_the_posterior_after_every_sample(family):
+    folder, path = family
+    run = vibrissa.simulate(folder / "peg.toml")
+    est = vibrissa.estimate_shapes(run, path, training=30, noise="none", method="shape-esn")
+    assert est["method"] == "shape-esn"
+    trace = est["trace"]
+    assert set(trace) == {"peg", "square"}
+    assert len(trace["peg"]) == len(run["t"])
+    # The last row of the trace is the estimate.
+    for c, p in est["class"].items():
+        assert abs(trace[c][-1] - p) < 1e-9
+    assert "trace" not in vibrissa.estimate_shapes(run, path, training=30, noise="none")
+    with pytest.raises(ValueError, match="shape-esn"):
+        vibrissa.estimate_shapes(run, path, training=30, method="knn")

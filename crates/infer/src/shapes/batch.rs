@@ -5,6 +5,7 @@
 
 use super::estimator::{ShapeEstimate, ShapeKrr};
 use super::family::ShapeFamily;
+use super::method::{check_shape_method, fit_shape_method};
 use crate::contract::EstimateRow;
 use crate::error::{Error, Result};
 use crate::experiment::{Noise, CHANNELS};
@@ -15,8 +16,10 @@ use std::time::Instant;
 pub const DEFAULT_TRAINING: usize = 800;
 
 /// How to train.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct BatchOptions {
+    /// The estimator (of [`super::SHAPE_METHODS`]).
+    pub method: String,
     /// Training runs per class (at least 20).
     pub training: usize,
     /// Seed of the training runs.
@@ -30,6 +33,7 @@ pub struct BatchOptions {
 impl Default for BatchOptions {
     fn default() -> Self {
         BatchOptions {
+            method: ShapeKrr::NAME.to_string(),
             training: DEFAULT_TRAINING,
             seed: 1,
             randomise: false,
@@ -41,8 +45,13 @@ impl Default for BatchOptions {
 /// The estimates of a batch.
 #[derive(Debug, Clone)]
 pub struct Batch {
+    /// The estimator's name.
+    pub method: String,
     /// One per recording, in order, with the seconds it took.
     pub estimates: Vec<(ShapeEstimate, f64)>,
+    /// For an online estimator, each recording's class posterior after every sample
+    /// (`[recordings][samples][classes]`); empty otherwise.
+    pub traces: Vec<Vec<Vec<f64>>>,
     /// The sensor noise the training runs carried, per channel of [`CHANNELS`].
     pub noise: [f64; 5],
     /// Warnings for the user (constant channels, training runs left out).
@@ -64,6 +73,7 @@ pub fn estimate_batch(
     let Some(first) = recordings.first().and_then(|r| r.first()) else {
         return Err(bad("no recording to estimate".into()));
     };
+    check_shape_method(&options.method)?;
     if options.training < 20 {
         return Err(Error::Setting(format!(
             "training must be at least 20 runs per class (got {})",
@@ -109,18 +119,26 @@ pub fn estimate_batch(
             .iter()
             .map(|f| format!("a training run could not be simulated and is left out: {f}")),
     );
-    let model = ShapeKrr::fit(&timed, &runs)?;
+    let model = fit_shape_method(&options.method, &timed, &runs)?;
     let training_seconds = started.elapsed().as_secs_f64();
+    let mut traces = Vec::new();
     let estimates = recordings
         .iter()
         .map(|per| {
             let t0 = Instant::now();
             let values: Vec<Vec<Vec<f64>>> = per.iter().map(|r| r.values.clone()).collect();
-            Ok((model.predict(&values)?, t0.elapsed().as_secs_f64()))
+            let estimate = model.predict(&values)?;
+            let seconds = t0.elapsed().as_secs_f64();
+            if let Some(trace) = model.trace(&values) {
+                traces.push(trace?);
+            }
+            Ok((estimate, seconds))
         })
         .collect::<Result<Vec<_>>>()?;
     Ok(Batch {
+        method: model.name().to_string(),
         estimates,
+        traces,
         noise: sensor,
         warnings,
         training_seconds,
@@ -138,7 +156,7 @@ impl Batch {
                 file: (names.len() > 1).then(|| name.clone()),
                 class: e.class.clone(),
                 estimates: e.pose.clone(),
-                method: ShapeKrr::NAME.to_string(),
+                method: self.method.clone(),
                 seconds: *seconds,
                 noise: CHANNELS
                     .iter()

@@ -65,7 +65,7 @@ struct Classifier {
 }
 
 /// Probabilities of `scores` multiplied by `t`, through a softmax.
-fn softmax(scores: &[f64], t: f64) -> Vec<f64> {
+pub(super) fn softmax(scores: &[f64], t: f64) -> Vec<f64> {
     let m = scores.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
     let e: Vec<f64> = scores.iter().map(|s| ((s - m) * t).exp()).collect();
     let sum: f64 = e.iter().sum();
@@ -85,7 +85,7 @@ fn log_loss(scores: &[Vec<f64>], labels: &[usize], t: f64) -> f64 {
 
 /// The temperature in [0.1, 1000] that minimises [`log_loss`] (golden-section search on its
 /// logarithm; the loss is unimodal in it for scores that rank the true class first on average).
-fn fit_temperature(scores: &[Vec<f64>], labels: &[usize]) -> (f64, f64) {
+pub(super) fn fit_temperature(scores: &[Vec<f64>], labels: &[usize]) -> (f64, f64) {
     let f = |u: f64| log_loss(scores, labels, u.exp());
     let (mut a, mut b) = (0.1f64.ln(), 1000f64.ln());
     let g = (5f64.sqrt() - 1.0) / 2.0;
@@ -248,6 +248,92 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
+/// What the training runs show of each channel's typical level, shared by the shape estimators.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct Scales {
+    /// Per channel: the floor below which it is silent, and its median RMS over training runs.
+    pub floors: [f64; 5],
+    pub medians: [f64; 5],
+    /// The base force below which the wrench's direction and arm are faded out, N, and the
+    /// arm's typical value over the training runs, m.
+    pub force_floor: f64,
+    pub arm_scale: f64,
+}
+
+impl Scales {
+    /// The levels of `training` (every whisker of every run); `method` names the estimator in
+    /// errors.
+    pub fn of(training: &[ShapeSample], method: &str) -> Result<Scales> {
+        let fail = |d: String| Error::Fit {
+            method: method.into(),
+            detail: d,
+        };
+        let mut m = Scales::default();
+        // Each channel's median RMS over the training runs' whiskers, and its floor.
+        for (c, channel) in CHANNELS.iter().enumerate() {
+            let mut levels: Vec<f64> = training
+                .iter()
+                .flat_map(|s| s.whiskers.iter().map(move |w| rms_of(w)[c]))
+                .collect();
+            levels.sort_by(|a, b| a.total_cmp(b));
+            let median = levels.get(levels.len() / 2).copied().unwrap_or(0.0);
+            if !(median > 0.0 && median.is_finite()) {
+                return Err(fail(format!(
+                    "channel {channel} is silent in most training runs"
+                )));
+            }
+            m.medians[c] = median;
+            m.floors[c] = FLOOR * median;
+        }
+        // The force floor: a share of the typical peak base force; the arm's scale: its median
+        // where the force is above the floor.
+        let mut peaks: Vec<f64> = training
+            .iter()
+            .flat_map(|s| s.whiskers.iter())
+            .map(|w| {
+                w[3].iter()
+                    .zip(&w[4])
+                    .map(|(a, b)| a.hypot(*b))
+                    .fold(0.0, f64::max)
+            })
+            .collect();
+        peaks.sort_by(|a, b| a.total_cmp(b));
+        m.force_floor = FORCE_FLOOR * peaks[peaks.len() / 2];
+        let mut arms: Vec<f64> = training
+            .iter()
+            .flat_map(|s| s.whiskers.iter())
+            .flat_map(|w| {
+                (0..w[2].len()).filter_map(|k| {
+                    let f = w[3][k].hypot(w[4][k]);
+                    (f > m.force_floor).then(|| (w[2][k] / f).abs())
+                })
+            })
+            .collect();
+        arms.sort_by(|a, b| a.total_cmp(b));
+        m.arm_scale = arms.get(arms.len() / 2).copied().unwrap_or(1.0);
+        if !(m.force_floor > 0.0 && m.arm_scale > 0.0 && m.arm_scale.is_finite()) {
+            return Err(fail("the training runs' base forces are zero".into()));
+        }
+        Ok(m)
+    }
+
+    /// The contact's geometry at one sample of the base wrench: the base force's direction
+    /// (for a frictionless contact, the object's surface normal where it touches) and the
+    /// moment arm `m0/|f|` in units of its typical value (how far out it touches), faded out
+    /// where the force is weak.
+    pub fn geometry(&self, m0: f64, fx: f64, fy: f64) -> [f64; 3] {
+        let f2 = fx * fx + fy * fy;
+        if f2 > 0.0 {
+            let f = f2.sqrt();
+            let fade = f2 / (f2 + self.force_floor * self.force_floor);
+            let arm = (m0 / f / self.arm_scale).clamp(-3.0, 3.0);
+            [fade * fx / f, fade * fy / f, fade * arm]
+        } else {
+            [0.0; 3]
+        }
+    }
+}
+
 /// The shape estimator `shape-krr` (see the module's documentation).
 #[derive(Debug, Clone, Default)]
 pub struct ShapeKrr {
@@ -258,13 +344,8 @@ pub struct ShapeKrr {
     /// Whiskers and samples per whisker read.
     whiskers: usize,
     samples: usize,
-    /// Per channel: the floor below which it is silent, and its median RMS over training runs.
-    floors: [f64; 5],
-    medians: [f64; 5],
-    /// The base force below which the wrench's direction and arm are faded out, N, and the
-    /// arm's typical value over the training runs, m.
-    force_floor: f64,
-    arm_scale: f64,
+    /// The channels' typical levels over the training runs.
+    scales: Scales,
     /// Principal axes of the normalised series.
     pca: Pca,
     /// Weight of the amplitude features.
@@ -275,7 +356,7 @@ pub struct ShapeKrr {
 }
 
 /// A whisker's per-channel RMS, `[CHANNELS]`.
-fn rms_of(series: &[Vec<f64>]) -> [f64; 5] {
+pub(super) fn rms_of(series: &[Vec<f64>]) -> [f64; 5] {
     std::array::from_fn(|c| {
         let ch = &series[c];
         (ch.iter().map(|v| v * v).sum::<f64>() / ch.len().max(1) as f64).sqrt()
@@ -312,36 +393,24 @@ impl ShapeKrr {
                 )));
             }
             let rms = rms_of(series);
-            let level: [f64; 5] = std::array::from_fn(|c| rms[c].max(self.floors[c]));
+            let level: [f64; 5] = std::array::from_fn(|c| rms[c].max(self.scales.floors[c]));
             for c in 0..CHANNELS.len() {
                 x.extend(series[c].iter().map(|v| v / level[c]));
             }
             logs.push(std::array::from_fn::<f64, 5, _>(|c| {
-                (level[c] / self.medians[c]).ln()
+                (level[c] / self.scales.medians[c]).ln()
             }));
-            // The contact's geometry at every sample: the base force's direction (for a
-            // frictionless contact, the object's surface normal where it touches) and the moment
-            // arm m0/|f| (how far out it touches), faded out where the force is weak.
-            let (m0, fx, fy) = (&series[2], &series[3], &series[4]);
-            let f0 = self.force_floor * self.force_floor;
+            // The contact's geometry at every sample (see [`Scales::geometry`]).
             let mut geometry = [
                 Vec::with_capacity(self.samples),
                 Vec::with_capacity(self.samples),
                 Vec::with_capacity(self.samples),
             ];
-            for k in 0..self.samples {
-                let f2 = fx[k] * fx[k] + fy[k] * fy[k];
-                let (ux, uy, arm) = if f2 > 0.0 {
-                    let f = f2.sqrt();
-                    let fade = f2 / (f2 + f0);
-                    let arm = (m0[k] / f / self.arm_scale).clamp(-3.0, 3.0);
-                    (fade * fx[k] / f, fade * fy[k] / f, fade * arm)
-                } else {
-                    (0.0, 0.0, 0.0)
-                };
-                geometry[0].push(ux);
-                geometry[1].push(uy);
-                geometry[2].push(arm);
+            for ((m0, fx), fy) in series[2].iter().zip(&series[3]).zip(&series[4]) {
+                let g = self.scales.geometry(*m0, *fx, *fy);
+                for (to, v) in geometry.iter_mut().zip(g) {
+                    to.push(v);
+                }
             }
             for g in geometry {
                 x.extend(g);
@@ -398,52 +467,7 @@ impl ShapeKrr {
             samples: first.whiskers[0][0].len(),
             ..ShapeKrr::default()
         };
-        // Each channel's median RMS over the training runs' whiskers, and its floor.
-        for (c, channel) in CHANNELS.iter().enumerate() {
-            let mut levels: Vec<f64> = training
-                .iter()
-                .flat_map(|s| s.whiskers.iter().map(move |w| rms_of(w)[c]))
-                .collect();
-            levels.sort_by(|a, b| a.total_cmp(b));
-            let median = levels[levels.len() / 2];
-            if !(median > 0.0 && median.is_finite()) {
-                return Err(fail(&format!(
-                    "channel {channel} is silent in most training runs"
-                )));
-            }
-            m.medians[c] = median;
-            m.floors[c] = FLOOR * median;
-        }
-        // The force floor: a share of the typical peak base force; the arm's scale: its median
-        // where the force is above the floor.
-        let mut peaks: Vec<f64> = Vec::new();
-        for s in training {
-            for w in &s.whiskers {
-                let peak = w[3]
-                    .iter()
-                    .zip(&w[4])
-                    .map(|(a, b)| a.hypot(*b))
-                    .fold(0.0, f64::max);
-                peaks.push(peak);
-            }
-        }
-        peaks.sort_by(|a, b| a.total_cmp(b));
-        m.force_floor = FORCE_FLOOR * peaks[peaks.len() / 2];
-        let mut arms: Vec<f64> = training
-            .iter()
-            .flat_map(|s| s.whiskers.iter())
-            .flat_map(|w| {
-                (0..w[2].len()).filter_map(|k| {
-                    let f = w[3][k].hypot(w[4][k]);
-                    (f > m.force_floor).then(|| (w[2][k] / f).abs())
-                })
-            })
-            .collect();
-        arms.sort_by(|a, b| a.total_cmp(b));
-        m.arm_scale = arms.get(arms.len() / 2).copied().unwrap_or(1.0);
-        if !(m.force_floor > 0.0 && m.arm_scale > 0.0 && m.arm_scale.is_finite()) {
-            return Err(fail("the training runs' base forces are zero"));
-        }
+        m.scales = Scales::of(training, Self::NAME)?;
         let (x, amps): (Vec<Vec<f64>>, Vec<Vec<f64>>) = training
             .iter()
             .map(|s| m.features(&s.whiskers))

@@ -2,8 +2,8 @@
 //! whiskers; class accuracy, confusion, calibration of the class probabilities, and each class's
 //! pose errors and interval coverage.
 
-use super::estimator::ShapeKrr;
 use super::family::{ShapeFamily, ShapeSample};
+use super::method::{check_shape_method, fit_shape_method};
 use crate::error::{Error, Result};
 use crate::experiment::{Noise, Variant, CHANNELS};
 use crate::family::Family;
@@ -28,6 +28,8 @@ pub struct ShapeSettings {
     pub randomise: bool,
     /// The whisker sets to score, each by names.
     pub subsets: Vec<Vec<String>>,
+    /// The estimators to score on each set (of [`super::SHAPE_METHODS`]).
+    pub methods: Vec<String>,
 }
 
 /// One unknown's scores over the correctly classified runs of a class.
@@ -66,9 +68,22 @@ pub struct ReliabilityBin {
     pub accuracy: f64,
 }
 
-/// The scores with one set of whiskers.
+/// An online estimator's class posterior after every sample of one evaluated run.
+#[derive(Debug, Clone, Serialize)]
+pub struct Trace {
+    /// The run's index among the evaluated runs.
+    pub run: usize,
+    /// Its true class.
+    pub class: usize,
+    /// The posterior after each sample, `[samples][classes]`.
+    pub probabilities: Vec<Vec<f64>>,
+}
+
+/// The scores of one estimator with one set of whiskers.
 #[derive(Debug, Clone, Serialize)]
 pub struct SubsetResult {
+    /// The estimator.
+    pub method: String,
     /// The whiskers read.
     pub whiskers: Vec<String>,
     /// Share of runs whose most probable class is the truth.
@@ -91,6 +106,9 @@ pub struct SubsetResult {
     pub estimate_ms: f64,
     /// The fitted settings.
     pub settings: Vec<(String, f64)>,
+    /// For an online estimator: the posterior over time of the first evaluated run of each
+    /// class.
+    pub traces: Vec<Trace>,
 }
 
 /// One evaluated run's truth and estimate.
@@ -123,6 +141,8 @@ pub struct ShapeEvaluation {
     pub train_per_class: usize,
     /// Evaluated runs per class.
     pub eval_per_class: usize,
+    /// The recordings' sample rate, Hz.
+    pub sample_rate: f64,
     /// Whether training was randomised.
     pub randomise: bool,
     /// Seconds spent simulating.
@@ -157,6 +177,15 @@ pub fn evaluate_shapes(
     tick: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<ShapeEvaluation> {
     let all = family.whiskers();
+    if settings.methods.is_empty() {
+        return Err(Error::Setting(format!(
+            "no shape method to score (known: {})",
+            super::SHAPE_METHODS.join(", ")
+        )));
+    }
+    for m in &settings.methods {
+        check_shape_method(m)?;
+    }
     let indices: Vec<Vec<usize>> = settings
         .subsets
         .iter()
@@ -215,15 +244,21 @@ pub fn evaluate_shapes(
     let simulate_seconds = started.elapsed().as_secs_f64();
 
     let classes = family.classes().len();
-    let subsets = indices
-        .iter()
-        .zip(&settings.subsets)
-        .map(|(idx, names)| {
+    let mut jobs = Vec::new();
+    for (idx, names) in indices.iter().zip(&settings.subsets) {
+        for method in &settings.methods {
+            jobs.push((idx, names, method));
+        }
+    }
+    let subsets = jobs
+        .into_iter()
+        .map(|(idx, names, method)| {
             let t0 = Instant::now();
-            let model = ShapeKrr::fit(family, &subset(&training, idx))?;
+            let model = fit_shape_method(method, family, &subset(&training, idx))?;
             let fit_seconds = t0.elapsed().as_secs_f64();
             let t1 = Instant::now();
-            let estimates = subset(&evaluated, idx)
+            let read = subset(&evaluated, idx);
+            let estimates = read
                 .iter()
                 .map(|s| model.predict(&s.whiskers))
                 .collect::<Result<Vec<_>>>()?;
@@ -306,7 +341,21 @@ pub fn evaluate_shapes(
                     }
                 })
                 .collect();
+            // The first evaluated run of each class, read online.
+            let mut traces = Vec::new();
+            for c in 0..classes {
+                if let Some(k) = read.iter().position(|s| s.class == c) {
+                    if let Some(p) = model.trace(&read[k].whiskers) {
+                        traces.push(Trace {
+                            run: k,
+                            class: c,
+                            probabilities: p?,
+                        });
+                    }
+                }
+            }
             Ok(SubsetResult {
+                method: model.name().to_string(),
                 whiskers: names.clone(),
                 accuracy: right as f64 / n,
                 confusion,
@@ -318,6 +367,7 @@ pub fn evaluate_shapes(
                 fit_seconds,
                 estimate_ms,
                 settings: model.settings(),
+                traces,
             })
         })
         .collect::<Result<Vec<_>>>()?;
@@ -333,6 +383,7 @@ pub fn evaluate_shapes(
         measured_noise: measured,
         train_per_class: settings.train_per_class,
         eval_per_class: settings.eval_per_class,
+        sample_rate: family.sample_rate(),
         randomise: settings.randomise,
         simulate_seconds,
         failed,

@@ -12,11 +12,15 @@ pub mod e3;
 mod estimator;
 mod evaluate;
 mod family;
+mod method;
+mod online;
 
 pub use batch::{estimate_batch, Batch, BatchOptions, DEFAULT_TRAINING};
 pub use estimator::{ShapeEstimate, ShapeKrr};
 pub use evaluate::{
     evaluate_shapes, evaluated_draws, ClassPose, PoseScore, ReliabilityBin, RunResult,
-    ShapeEvaluation, ShapeSettings, SubsetResult,
+    ShapeEvaluation, ShapeSettings, SubsetResult, Trace,
 };
 pub use family::{Class, ShapeFamily, ShapeSample, SHAPE_BUILTINS};
+pub use method::{check_shape_method, fit_shape_method, ShapeMethod, SHAPE_METHODS};
+pub use online::{Online, ShapeEsn};

@@ -351,6 +351,7 @@ def estimate_shapes(
     noise="auto",
     seed=1,
     randomise=False,
+    method="shape-krr",
     verbose=False,
 ):
     """Which object struck the whiskers, and where: the class posterior and the most probable
@@ -375,13 +376,18 @@ def estimate_shapes(
         Training runs per class (at least 20).
     noise, seed, randomise, verbose
         As for :func:`estimate`.
+    method : str
+        ``"shape-krr"`` (reads the recording whole) or ``"shape-esn"`` (online: an echo-state
+        network that updates the class posterior after every sample).
 
     Returns
     -------
     dict, or a list of dicts for a list of recordings
         ``"class"`` (each class's probability), the most probable class's unknowns as
         ``{"mean", "std", "ci90"}``, ``"method"``, ``"seconds"``, ``"noise"`` and
-        ``"warnings"``, plus ``"file"`` for each of a list of recordings.
+        ``"warnings"``, plus ``"file"`` for each of a list of recordings. With
+        ``"shape-esn"`` also ``"trace"``: each class's probability after every sample (a list
+        per class name).
     """
     several = isinstance(obs, (list, tuple))
     shapes = os.fspath(shapes)
@@ -404,8 +410,10 @@ def estimate_shapes(
             )
     training = _count("training", training, 20)
     seed = _count("seed", seed, 0)
-    rows, messages = _vibrissa.estimate_shapes(
-        shapes, whiskers, inputs, _noise_statement(noise), seed, bool(randomise), training
+    if not isinstance(method, str):
+        raise TypeError("method: expected a method name such as 'shape-esn'")
+    rows, messages, traces, classes = _vibrissa.estimate_shapes(
+        shapes, whiskers, inputs, _noise_statement(noise), seed, bool(randomise), training, method
     )
     if verbose:
         import sys
@@ -414,9 +422,11 @@ def estimate_shapes(
             print(m, file=sys.stderr)
     warnings = [m[len("warning: "):] for m in messages if m.startswith("warning: ")]
     out = []
-    for r in rows:
+    for k, r in enumerate(rows):
         row = json.loads(r)
         row["warnings"] = warnings
+        if traces:
+            row["trace"] = {c: [p[i] for p in traces[k]] for i, c in enumerate(classes)}
         out.append(row)
     return out if several else out[0]
 

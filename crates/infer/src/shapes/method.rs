@@ -1,0 +1,80 @@
+//! The one interface of the shape estimators, and fitting one by name.
+
+use super::estimator::{ShapeEstimate, ShapeKrr};
+use super::family::{ShapeFamily, ShapeSample};
+use super::online::ShapeEsn;
+use crate::error::{Error, Result};
+
+/// The shape estimators, by name: `shape-krr` reads the whole recording at once, `shape-esn`
+/// reads it one sample at a time (a class posterior after every sample).
+pub const SHAPE_METHODS: [&str; 2] = [ShapeKrr::NAME, ShapeEsn::NAME];
+
+/// A fitted shape estimator.
+pub trait ShapeMethod: Send + Sync {
+    /// Its name (one of [`SHAPE_METHODS`]).
+    fn name(&self) -> &'static str;
+    /// The class posterior and the most probable class's pose from one recording
+    /// (`[whiskers][CHANNELS][samples]`, the whiskers it was fitted on, in order).
+    fn predict(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<ShapeEstimate>;
+    /// The class posterior after every sample (`[samples][classes]`), for an online method;
+    /// `None` for one that reads the recording whole.
+    fn trace(&self, whiskers: &[Vec<Vec<f64>>]) -> Option<Result<Vec<Vec<f64>>>>;
+    /// Fitted settings worth reporting.
+    fn settings(&self) -> Vec<(String, f64)>;
+}
+
+impl ShapeMethod for ShapeKrr {
+    fn name(&self) -> &'static str {
+        Self::NAME
+    }
+    fn predict(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<ShapeEstimate> {
+        ShapeKrr::predict(self, whiskers)
+    }
+    fn trace(&self, _: &[Vec<Vec<f64>>]) -> Option<Result<Vec<Vec<f64>>>> {
+        None
+    }
+    fn settings(&self) -> Vec<(String, f64)> {
+        ShapeKrr::settings(self)
+    }
+}
+
+impl ShapeMethod for ShapeEsn {
+    fn name(&self) -> &'static str {
+        Self::NAME
+    }
+    fn predict(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<ShapeEstimate> {
+        ShapeEsn::predict(self, whiskers)
+    }
+    fn trace(&self, whiskers: &[Vec<Vec<f64>>]) -> Option<Result<Vec<Vec<f64>>>> {
+        Some(ShapeEsn::trace(self, whiskers))
+    }
+    fn settings(&self) -> Vec<(String, f64)> {
+        ShapeEsn::settings(self)
+    }
+}
+
+/// Checks that `name` is a shape estimator.
+pub fn check_shape_method(name: &str) -> Result<()> {
+    if SHAPE_METHODS.contains(&name) {
+        Ok(())
+    } else {
+        Err(Error::Setting(format!(
+            "unknown shape method `{name}` (known: {})",
+            SHAPE_METHODS.join(", ")
+        )))
+    }
+}
+
+/// Fits the shape estimator `name` on the runs `training` of `family`.
+pub fn fit_shape_method(
+    name: &str,
+    family: &ShapeFamily,
+    training: &[ShapeSample],
+) -> Result<Box<dyn ShapeMethod>> {
+    check_shape_method(name)?;
+    Ok(if name == ShapeEsn::NAME {
+        Box::new(ShapeEsn::fit(family, training)?)
+    } else {
+        Box::new(ShapeKrr::fit(family, training)?)
+    })
+}

@@ -1,0 +1,602 @@
+//! `shape-esn`: an online (Markovian) discriminator that emits a class posterior at every
+//! sample, an echo-state network.
+//!
+//! The network's state is a vector of [`UNITS`] leaky units driven by the recording one sample
+//! at a time:
+//!
+//! `x_k = (1 − a) ⊙ x_{k−1} + a ⊙ tanh(W x_{k−1} + W_in u_k + b)`,
+//!
+//! where `u_k` is what the whiskers read at sample `k` (each channel in units of its typical
+//! level over the training runs, and the base wrench's direction and moment arm, as
+//! `shape-krr` reads them), `W` a fixed random matrix of spectral radius about [`RADIUS`], and
+//! the leak rates `a` spread from [`LEAKS`]`.0` to `.1` so that the units remember from a
+//! millisecond to tens of milliseconds. Nothing but the read-out is trained: the state depends
+//! only on the previous state and the current sample, so the posterior is updated online in
+//! constant time per sample.
+//!
+//! The read-out is linear in `[x_k, m_k, u_k, 1]`, where `m_k`, the running sum of the
+//! states' departures from rest (over the training runs' length), keeps what the contact did
+//! after the leaky units have forgotten it. It is fitted by ridge regression on every
+//! [`STRIDE`]-th sample of every training run to the run's class indicator, so its scores
+//! estimate the classes' probabilities given what has been read so far (before contact, the
+//! classes' shares; sharper as the contact unfolds). The scores are floored, raised to a power
+//! and normalised; the floor and the power, like the ridge, are chosen by the log loss on every
+//! such sample of held-out training runs. Each class's pose is a ridge read-out of the features
+//! after the last sample, fitted on that class's runs, with a normal interval whose spread is
+//! the held-out runs' error.
+//!
+//! The network starts at its rest state (the state it settles to without input). Its weights
+//! are drawn from a fixed seed, so a fit is reproducible.
+
+use super::estimator::{fit_temperature, softmax, Scales, ShapeEstimate};
+use super::family::{ShapeFamily, ShapeSample};
+use crate::error::{Error, Result};
+use crate::experiment::CHANNELS;
+use crate::method::Estimate;
+use crate::methods::kernel_ridge::HOLD;
+use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
+use vibrissa_core::rng::Rng;
+
+/// Units of the network's state.
+pub const UNITS: usize = 200;
+/// Samples between those the read-out is fitted on (neighbours say nearly the same).
+const STRIDE: usize = 2;
+/// Spectral radius of the recurrent weights (below 1: the state forgets its start).
+const RADIUS: f64 = 0.9;
+/// Range of the units' leak rates per sample (log-uniform).
+const LEAKS: (f64, f64) = (0.03, 1.0);
+/// Standard deviation of the biases.
+const BIAS: f64 = 0.2;
+/// Inputs per whisker: the five channels and the wrench's direction and arm.
+const INPUTS: usize = 8;
+/// Each input clamped to this many typical levels.
+const CLAMP: f64 = 10.0;
+/// Floors of the class scores tried (a score estimates a class's probability and may fall
+/// below zero).
+const FLOORS: [f64; 4] = [0.003, 0.01, 0.03, 0.1];
+/// Ridges of the read-outs tried, relative to the mean diagonal of the Gram matrix.
+const RIDGES: [f64; 5] = [1e-7, 1e-6, 1e-5, 1e-4, 1e-3];
+/// Runs stepped together (one matrix product per sample).
+const BATCH: usize = 128;
+/// Seed of the fixed random weights.
+const WEIGHT_SEED: u64 = 0x5e5a_e5e5;
+
+/// The fixed random network.
+#[derive(Debug, Clone)]
+struct Reservoir {
+    /// Recurrent weights, `UNITS × UNITS`.
+    w: DMatrix<f64>,
+    /// Input weights, `UNITS × inputs`.
+    w_in: DMatrix<f64>,
+    /// Biases and leak rates, `UNITS`.
+    bias: DVector<f64>,
+    leak: DVector<f64>,
+    /// The state it settles to with no input (a recording's start: the whisker at rest).
+    rest: DVector<f64>,
+}
+
+impl Reservoir {
+    /// The network for `inputs` inputs (fixed by [`WEIGHT_SEED`]).
+    fn new(inputs: usize) -> Reservoir {
+        let mut rng = Rng::new(WEIGHT_SEED ^ inputs as u64);
+        // Gaussian entries of variance 1/UNITS have spectral radius about 1 (the circular law).
+        let s = RADIUS / (UNITS as f64).sqrt();
+        let w = DMatrix::from_fn(UNITS, UNITS, |_, _| s * rng.normal());
+        let si = 1.0 / (inputs as f64).sqrt();
+        let w_in = DMatrix::from_fn(UNITS, inputs, |_, _| si * rng.normal());
+        let bias = DVector::from_fn(UNITS, |_, _| BIAS * rng.normal());
+        let (lo, hi) = (LEAKS.0.ln(), LEAKS.1.ln());
+        let leak = DVector::from_fn(UNITS, |i, _| {
+            (lo + (hi - lo) * i as f64 / (UNITS - 1) as f64).exp()
+        });
+        let mut r = Reservoir {
+            w,
+            w_in,
+            bias,
+            leak,
+            rest: DVector::zeros(UNITS),
+        };
+        // The slowest unit forgets its start by a factor e per 1/LEAKS.0 steps.
+        let mut x = DMatrix::zeros(UNITS, 1);
+        let mut m = DMatrix::zeros(UNITS, 1);
+        let u = DMatrix::zeros(inputs, 1);
+        for _ in 0..(40.0 / LEAKS.0) as usize {
+            r.step(&mut x, &mut m, &u, 0.0);
+        }
+        r.rest = x.column(0).into_owned();
+        r
+    }
+
+    /// The rest state repeated for `runs` runs.
+    fn start(&self, runs: usize) -> DMatrix<f64> {
+        DMatrix::from_fn(UNITS, runs, |i, _| self.rest[i])
+    }
+
+    /// One step of the states `x` (`UNITS × runs`) driven by inputs `u` (`inputs × runs`),
+    /// adding `memory` times the new states' departures from rest to their running sums `m`.
+    fn step(&self, x: &mut DMatrix<f64>, m: &mut DMatrix<f64>, u: &DMatrix<f64>, memory: f64) {
+        let mut pre = &self.w * &*x;
+        pre.gemm(1.0, &self.w_in, u, 1.0);
+        for j in 0..x.ncols() {
+            for i in 0..UNITS {
+                let a = self.leak[i];
+                let v = (pre[(i, j)] + self.bias[i]).tanh();
+                let next = (1.0 - a) * x[(i, j)] + a * v;
+                x[(i, j)] = next;
+                m[(i, j)] += memory * (next - self.rest[i]);
+            }
+        }
+    }
+
+    /// The read-out's features of the runs' states: `[x; m; u; 1]`, one column per run.
+    fn features(x: &DMatrix<f64>, m: &DMatrix<f64>, u: &DMatrix<f64>, phi: &mut DMatrix<f64>) {
+        let inputs = u.nrows();
+        phi.rows_mut(0, UNITS).copy_from(x);
+        phi.rows_mut(UNITS, UNITS).copy_from(m);
+        phi.rows_mut(2 * UNITS, inputs).copy_from(u);
+        phi.row_mut(2 * UNITS + inputs).fill(1.0);
+    }
+}
+
+/// The online shape estimator `shape-esn` (see the module's documentation).
+#[derive(Debug, Clone)]
+pub struct ShapeEsn {
+    /// Class names, in order.
+    classes: Vec<String>,
+    /// Each class's unknowns' names.
+    names: Vec<Vec<String>>,
+    /// Whiskers read.
+    whiskers: usize,
+    /// The channels' typical levels.
+    scales: Scales,
+    reservoir: Reservoir,
+    /// Weight of each state in the running sums (one over the training runs' samples).
+    memory: f64,
+    /// Class read-out, `classes × features`.
+    readout: DMatrix<f64>,
+    /// The class probabilities are the read-out's scores (estimates of the indicators'
+    /// expectations) floored at `floor`, raised to `power` and normalised.
+    floor: f64,
+    power: f64,
+    /// Each class's pose read-out (`unknowns × features`, in units of the ranges), the
+    /// held-out spread of each unknown (same units) and the ranges.
+    poses: Vec<PoseReadout>,
+}
+
+/// A class's pose read-out: weights (`unknowns × features`, values in units of the ranges),
+/// each unknown's held-out RMS error in the same units, and the ranges.
+#[derive(Debug, Clone)]
+struct PoseReadout {
+    weights: DMatrix<f64>,
+    spread: Vec<f64>,
+    ranges: Vec<[f64; 2]>,
+}
+
+/// The inputs of one sample of every whisker: `[whiskers][CHANNELS][samples]` at `k`.
+fn inputs_at(scales: &Scales, whiskers: &[Vec<Vec<f64>>], k: usize, to: &mut [f64]) {
+    for (w, series) in whiskers.iter().enumerate() {
+        let o = w * INPUTS;
+        for c in 0..CHANNELS.len() {
+            to[o + c] = (series[c][k] / scales.medians[c]).clamp(-CLAMP, CLAMP);
+        }
+        let g = scales.geometry(series[2][k], series[3][k], series[4][k]);
+        to[o + 5..o + 8].copy_from_slice(&g);
+    }
+}
+
+/// A read-out's features: the state, its running sum, the inputs and 1.
+fn features_len(inputs: usize) -> usize {
+    2 * UNITS + inputs + 1
+}
+
+/// What a pass over a batch of runs accumulates.
+struct Pass {
+    /// `Φᵀ Φ` and `Φᵀ Y` over every sample (features × features, features × classes).
+    gram: DMatrix<f64>,
+    cross: DMatrix<f64>,
+    /// Each run's features after its last sample.
+    finals: Vec<DVector<f64>>,
+    /// With read-outs given: each run's scores `[read-outs][samples][classes]`.
+    scores: Vec<Vec<Vec<Vec<f64>>>>,
+}
+
+impl ShapeEsn {
+    /// The method's name.
+    pub const NAME: &'static str = "shape-esn";
+
+    fn fail(detail: &str) -> Error {
+        Error::Fit {
+            method: Self::NAME.into(),
+            detail: detail.into(),
+        }
+    }
+
+    /// Steps `runs` through the network in batches, accumulating the read-out's Gram matrices
+    /// (labels from `labels`) and, for each of `readouts`, the scores at every sample.
+    fn pass(
+        scales: &Scales,
+        reservoir: &Reservoir,
+        runs: &[&ShapeSample],
+        classes: usize,
+        readouts: &[DMatrix<f64>],
+        memory: f64,
+    ) -> Pass {
+        let inputs = reservoir.w_in.ncols();
+        let f = features_len(inputs);
+        let chunks: Vec<&[&ShapeSample]> = runs.chunks(BATCH).collect();
+        let parts: Vec<Pass> = chunks
+            .par_iter()
+            .map(|chunk| {
+                let b = chunk.len();
+                let samples = chunk[0].whiskers[0][0].len();
+                let mut x = reservoir.start(b);
+                let mut mem = DMatrix::<f64>::zeros(UNITS, b);
+                let mut u = DMatrix::<f64>::zeros(inputs, b);
+                let mut phi = DMatrix::<f64>::zeros(f, b);
+                let y = DMatrix::from_fn(b, classes, |j, c| f64::from(chunk[j].class == c));
+                let mut gram = DMatrix::<f64>::zeros(f, f);
+                let mut cross = DMatrix::<f64>::zeros(f, classes);
+                let mut scores = vec![vec![Vec::with_capacity(samples); readouts.len()]; b];
+                let mut col = vec![0.0; inputs];
+                for k in 0..samples {
+                    for (j, s) in chunk.iter().enumerate() {
+                        inputs_at(scales, &s.whiskers, k, &mut col);
+                        u.column_mut(j).copy_from_slice(&col);
+                    }
+                    reservoir.step(&mut x, &mut mem, &u, memory);
+                    Reservoir::features(&x, &mem, &u, &mut phi);
+                    if k % STRIDE != STRIDE - 1 {
+                        continue;
+                    }
+                    let pt = phi.transpose();
+                    gram.gemm(1.0, &phi, &pt, 1.0);
+                    cross.gemm(1.0, &phi, &y, 1.0);
+                    for (r, readout) in readouts.iter().enumerate() {
+                        let s = readout * &phi;
+                        for (j, run) in scores.iter_mut().enumerate() {
+                            run[r].push(s.column(j).iter().copied().collect());
+                        }
+                    }
+                }
+                let finals = (0..b).map(|j| phi.column(j).into_owned()).collect();
+                Pass {
+                    gram,
+                    cross,
+                    finals,
+                    scores,
+                }
+            })
+            .collect();
+        let mut out = Pass {
+            gram: DMatrix::zeros(f, f),
+            cross: DMatrix::zeros(f, classes),
+            finals: Vec::with_capacity(runs.len()),
+            scores: Vec::with_capacity(runs.len()),
+        };
+        for p in parts {
+            out.gram += p.gram;
+            out.cross += p.cross;
+            out.finals.extend(p.finals);
+            out.scores.extend(p.scores);
+        }
+        out
+    }
+
+    /// Ridge solutions `(G + r·mean(diag G)·I)⁻¹ C`, transposed, for every ridge of [`RIDGES`]
+    /// (`None` where not positive definite).
+    fn ridge(gram: &DMatrix<f64>, cross: &DMatrix<f64>) -> Vec<Option<DMatrix<f64>>> {
+        let n = gram.nrows();
+        let scale = gram.diagonal().sum() / n as f64;
+        RIDGES
+            .iter()
+            .map(|r| {
+                let mut g = gram.clone();
+                for i in 0..n {
+                    g[(i, i)] += r * scale;
+                }
+                g.cholesky().map(|c| c.solve(cross).transpose())
+            })
+            .collect()
+    }
+
+    /// Fits on the runs `training` of `family` (every class represented, runs of equal length).
+    pub fn fit(family: &ShapeFamily, training: &[ShapeSample]) -> Result<ShapeEsn> {
+        let classes = family.classes().len();
+        for c in 0..classes {
+            if training.iter().filter(|s| s.class == c).count() < 10 {
+                return Err(Self::fail(&format!(
+                    "needs at least 10 training runs of every class (`{}` has fewer)",
+                    family.classes()[c].name
+                )));
+            }
+        }
+        let whiskers = training[0].whiskers.len();
+        let samples = training[0].whiskers[0][0].len();
+        if training.iter().any(|s| {
+            s.whiskers.len() != whiskers
+                || s.whiskers.iter().any(|w| {
+                    w.len() < CHANNELS.len()
+                        || w.iter()
+                            .any(|ch| ch.len() != samples || ch.iter().any(|v| !v.is_finite()))
+                })
+        }) {
+            return Err(Self::fail(
+                "training runs differ in whiskers or length, or hold non-finite samples",
+            ));
+        }
+        let scales = Scales::of(training, Self::NAME)?;
+        let reservoir = Reservoir::new(whiskers * INPUTS);
+        let memory = 1.0 / samples as f64;
+        let (fit_i, held_i): (Vec<usize>, Vec<usize>) =
+            (0..training.len()).partition(|i| i % HOLD != 0);
+        let fit_runs: Vec<&ShapeSample> = fit_i.iter().map(|&i| &training[i]).collect();
+        let held_runs: Vec<&ShapeSample> = held_i.iter().map(|&i| &training[i]).collect();
+        // The read-out on the fitted runs for every ridge, scored on the held-out ones at every
+        // sample; the ridge and temperature with the lowest held-out log loss win.
+        let fitted = Self::pass(&scales, &reservoir, &fit_runs, classes, &[], memory);
+        let candidates: Vec<(usize, DMatrix<f64>)> = Self::ridge(&fitted.gram, &fitted.cross)
+            .into_iter()
+            .enumerate()
+            .filter_map(|(i, r)| r.map(|r| (i, r)))
+            .collect();
+        if candidates.is_empty() {
+            return Err(Self::fail("the read-out's system is not positive definite"));
+        }
+        let readouts: Vec<DMatrix<f64>> = candidates.iter().map(|c| c.1.clone()).collect();
+        let held = Self::pass(&scales, &reservoir, &held_runs, classes, &readouts, memory);
+        let labels: Vec<usize> = held_runs.iter().map(|s| s.class).collect();
+        let mut best: Option<(f64, usize, f64, f64)> = None;
+        for (r, &(ridge, _)) in candidates.iter().enumerate() {
+            for floor in FLOORS {
+                // The logarithms of the floored scores and the labels of every held-out sample.
+                let mut logs = Vec::new();
+                let mut each = Vec::new();
+                for (run, &l) in held.scores.iter().zip(&labels) {
+                    for s in &run[r] {
+                        logs.push(s.iter().map(|v| v.max(floor).ln()).collect());
+                        each.push(l);
+                    }
+                }
+                let (power, loss) = fit_temperature(&logs, &each);
+                if best.map_or(true, |b| loss < b.0) {
+                    best = Some((loss, ridge, floor, power));
+                }
+            }
+        }
+        let (_, ridge, floor, power) = best.expect("at least one candidate");
+        // The final read-out on every run.
+        let gram = &fitted.gram + &held.gram;
+        let cross = &fitted.cross + &held.cross;
+        let readout = Self::ridge(&gram, &cross)
+            .swap_remove(ridge)
+            .ok_or_else(|| Self::fail("the read-out's system is not positive definite"))?;
+        // Each class's pose from the final states.
+        let mut finals = vec![None; training.len()];
+        for (i, v) in fit_i.iter().zip(fitted.finals) {
+            finals[*i] = Some(v);
+        }
+        for (i, v) in held_i.iter().zip(held.finals) {
+            finals[*i] = Some(v);
+        }
+        let finals: Vec<DVector<f64>> = finals.into_iter().map(|v| v.expect("every run")).collect();
+        let poses = family
+            .classes()
+            .iter()
+            .enumerate()
+            .map(|(c, class)| {
+                let ranges = class.family.ranges();
+                let idx: Vec<usize> = (0..training.len())
+                    .filter(|&i| training[i].class == c)
+                    .collect();
+                Self::pose_readout(&finals, training, &idx, &ranges).map(|(weights, spread)| {
+                    PoseReadout {
+                        weights,
+                        spread,
+                        ranges,
+                    }
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        Ok(ShapeEsn {
+            classes: family.class_names().iter().map(|s| s.to_string()).collect(),
+            names: family
+                .classes()
+                .iter()
+                .map(|c| c.family.unknowns().iter().map(|s| s.to_string()).collect())
+                .collect(),
+            whiskers,
+            scales,
+            reservoir,
+            memory,
+            readout,
+            floor,
+            power,
+            poses,
+        })
+    }
+
+    /// A class's pose read-out from the final states of its runs `idx` (values in units of
+    /// `ranges`): the ridge with the least held-out error, refitted on all of them, and each
+    /// unknown's held-out RMS error.
+    fn pose_readout(
+        finals: &[DVector<f64>],
+        training: &[ShapeSample],
+        idx: &[usize],
+        ranges: &[[f64; 2]],
+    ) -> Result<(DMatrix<f64>, Vec<f64>)> {
+        let n = finals[idx[0]].len();
+        let target = |i: usize| {
+            DVector::from_fn(ranges.len(), |u, _| {
+                let [lo, hi] = ranges[u];
+                (training[i].params[u] - lo) / (hi - lo)
+            })
+        };
+        let accumulate = |runs: &[usize]| {
+            let mut g = DMatrix::zeros(n, n);
+            let mut c = DMatrix::zeros(n, ranges.len());
+            for &i in runs {
+                g.ger(1.0, &finals[i], &finals[i], 1.0);
+                c.ger(1.0, &finals[i], &target(i), 1.0);
+            }
+            (g, c)
+        };
+        // Every HOLD-th of the class's runs held out while the ridge is chosen.
+        let fit: Vec<usize> = (0..idx.len())
+            .filter(|j| j % HOLD != 0)
+            .map(|j| idx[j])
+            .collect();
+        let held: Vec<usize> = (0..idx.len()).step_by(HOLD).map(|j| idx[j]).collect();
+        let (g, c) = accumulate(&fit);
+        let mut best: Option<(f64, usize, Vec<f64>)> = None;
+        for (r, m) in Self::ridge(&g, &c).into_iter().enumerate() {
+            let Some(m) = m else { continue };
+            let mut sq = vec![0.0; ranges.len()];
+            for &i in &held {
+                let e = &m * &finals[i] - target(i);
+                for (s, v) in sq.iter_mut().zip(e.iter()) {
+                    *s += v * v;
+                }
+            }
+            let total: f64 = sq.iter().sum();
+            if best.as_ref().map_or(true, |b| total < b.0) {
+                let spread = sq
+                    .iter()
+                    .map(|s| (s / held.len().max(1) as f64).sqrt())
+                    .collect();
+                best = Some((total, r, spread));
+            }
+        }
+        let (_, r, spread) =
+            best.ok_or_else(|| Self::fail("a pose read-out's system is not positive definite"))?;
+        let (g, c) = accumulate(idx);
+        let m = Self::ridge(&g, &c)
+            .swap_remove(r)
+            .ok_or_else(|| Self::fail("a pose read-out's system is not positive definite"))?;
+        Ok((m, spread))
+    }
+
+    /// A filter over one recording, fed one sample at a time.
+    pub fn start(&self) -> Online<'_> {
+        let inputs = self.reservoir.w_in.ncols();
+        Online {
+            model: self,
+            x: self.reservoir.start(1),
+            m: DMatrix::zeros(UNITS, 1),
+            u: DMatrix::zeros(inputs, 1),
+            phi: DMatrix::zeros(features_len(inputs), 1),
+            column: vec![0.0; inputs],
+        }
+    }
+
+    /// The class posterior after every sample of one recording (`[whiskers][CHANNELS]
+    /// [samples]`), `[samples][classes]`.
+    pub fn trace(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<Vec<Vec<f64>>> {
+        self.check(whiskers)?;
+        let mut online = self.start();
+        let samples = whiskers[0][0].len();
+        Ok((0..samples).map(|k| online.push(whiskers, k)).collect())
+    }
+
+    /// The class posterior after the last sample and the most probable class's pose.
+    pub fn predict(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<ShapeEstimate> {
+        self.check(whiskers)?;
+        let mut online = self.start();
+        let samples = whiskers[0][0].len();
+        let mut p = Vec::new();
+        for k in 0..samples {
+            p = online.push(whiskers, k);
+        }
+        Ok(online.estimate(p))
+    }
+
+    fn check(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<()> {
+        if whiskers.len() != self.whiskers {
+            return Err(Error::Observation(format!(
+                "{} whiskers where {} was trained on {}",
+                whiskers.len(),
+                Self::NAME,
+                self.whiskers
+            )));
+        }
+        let samples = whiskers[0].first().map_or(0, |c| c.len());
+        for (w, series) in whiskers.iter().enumerate() {
+            if samples == 0
+                || series.len() < CHANNELS.len()
+                || series.iter().any(|ch| ch.len() != samples)
+                || series.iter().flatten().any(|v| !v.is_finite())
+            {
+                return Err(Error::Observation(format!(
+                    "whisker {} needs the channels {} with the same number (at least 1) of finite samples",
+                    w + 1,
+                    CHANNELS.join(", ")
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// Fitted settings worth reporting.
+    pub fn settings(&self) -> Vec<(String, f64)> {
+        vec![
+            ("units".into(), UNITS as f64),
+            ("class_floor".into(), self.floor),
+            ("class_power".into(), self.power),
+        ]
+    }
+}
+
+/// A recording being read by [`ShapeEsn`], one sample at a time.
+#[derive(Debug, Clone)]
+pub struct Online<'a> {
+    model: &'a ShapeEsn,
+    x: DMatrix<f64>,
+    m: DMatrix<f64>,
+    u: DMatrix<f64>,
+    phi: DMatrix<f64>,
+    column: Vec<f64>,
+}
+
+impl Online<'_> {
+    /// Reads sample `k` of `whiskers` (`[whiskers][CHANNELS][samples]`, checked by the caller)
+    /// and returns the class posterior.
+    pub fn push(&mut self, whiskers: &[Vec<Vec<f64>>], k: usize) -> Vec<f64> {
+        let m = self.model;
+        inputs_at(&m.scales, whiskers, k, &mut self.column);
+        self.u.column_mut(0).copy_from_slice(&self.column);
+        m.reservoir
+            .step(&mut self.x, &mut self.m, &self.u, m.memory);
+        Reservoir::features(&self.x, &self.m, &self.u, &mut self.phi);
+        let logs: Vec<f64> = (&m.readout * &self.phi)
+            .iter()
+            .map(|s| s.max(m.floor).ln())
+            .collect();
+        softmax(&logs, m.power)
+    }
+
+    /// The estimate with posterior `p` at the current state.
+    pub fn estimate(&self, p: Vec<f64>) -> ShapeEstimate {
+        let m = self.model;
+        let best = (0..p.len()).fold(0, |b, c| if p[c] > p[b] { c } else { b });
+        let PoseReadout {
+            weights,
+            spread,
+            ranges,
+        } = &m.poses[best];
+        let y = weights * &self.phi;
+        let pose = m.names[best]
+            .iter()
+            .enumerate()
+            .map(|(u, n)| {
+                let [lo, hi] = ranges[u];
+                let w = hi - lo;
+                (n.clone(), Estimate::normal(lo + w * y[u], w * spread[u]))
+            })
+            .collect();
+        ShapeEstimate {
+            class: m.classes.iter().cloned().zip(p).collect(),
+            best,
+            pose,
+        }
+    }
+}
