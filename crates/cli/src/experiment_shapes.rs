@@ -197,9 +197,16 @@ fn export(family: &ShapeFamily, settings: &ShapeSettings, dir: &Path) -> Result<
 /// an online estimator's posterior over time.
 fn figures(ev: &ShapeEvaluation, dir: &Path) -> Result<Vec<PathBuf>> {
     let mut pending = Vec::new();
-    let matrices: Vec<Matrix> = ev
-        .subsets
+    // One row per estimator, one column per whisker set.
+    let mut methods: Vec<&str> = Vec::new();
+    for s in &ev.subsets {
+        if !methods.contains(&s.method.as_str()) {
+            methods.push(&s.method);
+        }
+    }
+    let matrices: Vec<Matrix> = methods
         .iter()
+        .flat_map(|m| ev.subsets.iter().filter(move |s| s.method == *m))
         .map(|s| Matrix {
             caption: format!(
                 "{}, {} ({}): {:.0}% right",
@@ -216,15 +223,10 @@ fn figures(ev: &ShapeEvaluation, dir: &Path) -> Result<Vec<PathBuf>> {
         &format!("{}: estimated against true class", ev.family),
         &ev.classes,
         &matrices,
+        matrices.len() / methods.len().max(1),
     )?);
     // Accuracy and log loss against the number of whiskers read, per estimator (sets of one
     // whisker each a dot).
-    let mut methods: Vec<&str> = Vec::new();
-    for s in &ev.subsets {
-        if !methods.contains(&s.method.as_str()) {
-            methods.push(&s.method);
-        }
-    }
     let point = |m: &str, f: &dyn Fn(&vibrissa_infer::shapes::SubsetResult) -> f64| {
         ev.subsets
             .iter()

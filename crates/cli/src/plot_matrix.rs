@@ -22,13 +22,15 @@ const PANEL: u32 = 420;
 /// Height of the title, px.
 const TITLE: u32 = 50;
 
-/// Draws `matrices` side by side, with the class `labels`, as the PNG `png` and the SVG beside
-/// it; returns `(target, pending)` for both, to be committed with the command's other files.
+/// Draws `matrices` in a grid of `columns` columns filled row by row, with the class `labels`,
+/// as the PNG `png` and the SVG beside it; returns `(target, pending)` for both, to be committed
+/// with the command's other files.
 pub fn render_matrices(
     png: &Path,
     title: &str,
     labels: &[String],
     matrices: &[Matrix],
+    columns: usize,
 ) -> Result<Vec<(PathBuf, Pending)>> {
     check_png(png)?;
     if matrices.is_empty() || labels.is_empty() {
@@ -45,19 +47,21 @@ pub fn render_matrices(
         );
     }
     register_font()?;
-    let size = (PANEL * matrices.len() as u32, TITLE + PANEL);
+    let columns = columns.clamp(1, matrices.len());
+    let rows = matrices.len().div_ceil(columns);
+    let size = (PANEL * columns as u32, TITLE + PANEL * rows as u32);
     let context = || format!("cannot draw the figure `{}`", png.display());
     let png_file = Pending::beside(png)?;
     {
         let root = BitMapBackend::new(png_file.temp(), size).into_drawing_area();
-        draw(&root, title, labels, matrices).with_context(context)?;
+        draw(&root, title, labels, matrices, (rows, columns)).with_context(context)?;
         root.present().map_err(plotting).with_context(context)?;
     }
     let svg = png.with_extension("svg");
     let mut text = String::new();
     {
         let root = SVGBackend::with_string(&mut text, size).into_drawing_area();
-        draw(&root, title, labels, matrices).with_context(context)?;
+        draw(&root, title, labels, matrices, (rows, columns)).with_context(context)?;
         root.present().map_err(plotting).with_context(context)?;
     }
     let svg_file = Pending::beside(&svg)?;
@@ -71,13 +75,14 @@ fn draw<DB: DrawingBackend>(
     title: &str,
     labels: &[String],
     matrices: &[Matrix],
+    grid: (usize, usize),
 ) -> Result<()> {
     root.fill(&WHITE).map_err(plotting)?;
     let body = root
         .titled(title, (FAMILY, 22).into_font().color(&BLACK))
         .map_err(plotting)?;
     let k = labels.len();
-    for (area, m) in body.split_evenly((1, matrices.len())).iter().zip(matrices) {
+    for (area, m) in body.split_evenly(grid).iter().zip(matrices) {
         let mut chart = ChartBuilder::on(area)
             .caption(&m.caption, (FAMILY, 17))
             .margin(10)
