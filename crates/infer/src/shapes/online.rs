@@ -1,20 +1,22 @@
 //! `shape-esn`: an online (Markovian) discriminator that emits a class posterior at every
 //! sample, an echo-state network.
 //!
-//! The network's state is a vector of [`UNITS`] leaky units driven by the recording one sample
-//! at a time:
+//! The network's state is one block of leaky units per whisker ([`UNITS`] for one whisker,
+//! [`ARRAY_UNITS`] shared out among an array's), each block driven by its own whisker's
+//! recording one sample at a time:
 //!
 //! `x_k = (1 − a) ⊙ x_{k−1} + a ⊙ tanh(W x_{k−1} + W_in u_k + b)`,
 //!
-//! where `u_k` is what the whiskers read at sample `k` (each channel in units of its typical
+//! where `u_k` is what the whisker reads at sample `k` (each channel in units of its typical
 //! level over the training runs, and the base wrench's direction and moment arm, as
 //! `shape-krr` reads them), `W` a fixed random matrix of spectral radius about [`RADIUS`], and
 //! the leak rates `a` spread from [`LEAKS`]`.0` to `.1` so that the units remember from a
-//! millisecond to tens of milliseconds. Nothing but the read-out is trained: the state depends
-//! only on the previous state and the current sample, so the posterior is updated online in
-//! constant time per sample.
+//! millisecond to tens of milliseconds. Every block has the same weights, so the whiskers'
+//! histories are kept apart and encoded alike; the read-out sees them all (the joint reading).
+//! Nothing but the read-out is trained: the state depends only on the previous state and the
+//! current sample, so the posterior is updated online in constant time per sample.
 //!
-//! The read-out is linear in `[x_k, m_k, u_k, 1]`, where `m_k`, the running sum of the
+//! The read-out is linear in `[x_k, m_k, u_k, 1]` over every block, where `m_k`, the running sum of the
 //! states' departures from rest (over the training runs' length), keeps what the contact did
 //! after the leaky units have forgotten it. It is fitted by ridge regression on every
 //! [`STRIDE`]-th sample of every training run to the run's class indicator, so its scores
@@ -38,10 +40,14 @@ use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use vibrissa_core::rng::Rng;
 
-/// Units of the network's state.
+/// Units of the network's state with one whisker.
 pub const UNITS: usize = 200;
+/// Units of the whole state with several whiskers, shared out among them.
+const ARRAY_UNITS: usize = 400;
+/// Fewest units per whisker.
+const MIN_UNITS: usize = 64;
 /// Samples between those the read-out is fitted on (neighbours say nearly the same).
-const STRIDE: usize = 2;
+const STRIDE: usize = 4;
 /// Spectral radius of the recurrent weights (below 1: the state forgets its start).
 const RADIUS: f64 = 0.9;
 /// Range of the units' leak rates per sample (log-uniform).
@@ -62,80 +68,119 @@ const BATCH: usize = 128;
 /// Seed of the fixed random weights.
 const WEIGHT_SEED: u64 = 0x5e5a_e5e5;
 
-/// The fixed random network.
+/// Units of one whisker's block for an array of `whiskers` whiskers: [`UNITS`] for one
+/// whisker, [`ARRAY_UNITS`] shared out among several, at least [`MIN_UNITS`] each.
+pub fn units_per_whisker(whiskers: usize) -> usize {
+    if whiskers <= 1 {
+        UNITS
+    } else {
+        (ARRAY_UNITS / whiskers).max(MIN_UNITS)
+    }
+}
+
+/// The fixed random network: one block of leaky units per whisker, every block with the same
+/// weights, driven by its own whisker's inputs (so each whisker's history is kept apart and
+/// the read-out sees them jointly).
 #[derive(Debug, Clone)]
 struct Reservoir {
-    /// Recurrent weights, `UNITS × UNITS`.
+    /// Units per block.
+    units: usize,
+    /// Blocks (whiskers).
+    blocks: usize,
+    /// Recurrent weights, `units × units`.
     w: DMatrix<f64>,
-    /// Input weights, `UNITS × inputs`.
+    /// Input weights, `units × INPUTS`.
     w_in: DMatrix<f64>,
-    /// Biases and leak rates, `UNITS`.
+    /// Biases and leak rates, `units`.
     bias: DVector<f64>,
     leak: DVector<f64>,
-    /// The state it settles to with no input (a recording's start: the whisker at rest).
+    /// The state a block settles to with no input (a recording's start: the whisker at rest).
     rest: DVector<f64>,
 }
 
 impl Reservoir {
-    /// The network for `inputs` inputs (fixed by [`WEIGHT_SEED`]).
-    fn new(inputs: usize) -> Reservoir {
-        let mut rng = Rng::new(WEIGHT_SEED ^ inputs as u64);
-        // Gaussian entries of variance 1/UNITS have spectral radius about 1 (the circular law).
-        let s = RADIUS / (UNITS as f64).sqrt();
-        let w = DMatrix::from_fn(UNITS, UNITS, |_, _| s * rng.normal());
-        let si = 1.0 / (inputs as f64).sqrt();
-        let w_in = DMatrix::from_fn(UNITS, inputs, |_, _| si * rng.normal());
-        let bias = DVector::from_fn(UNITS, |_, _| BIAS * rng.normal());
+    /// The network for `whiskers` whiskers (fixed by [`WEIGHT_SEED`]).
+    fn new(whiskers: usize) -> Reservoir {
+        let units = units_per_whisker(whiskers);
+        let mut rng = Rng::new(WEIGHT_SEED ^ units as u64);
+        // Gaussian entries of variance 1/units have spectral radius about 1 (the circular law).
+        let s = RADIUS / (units as f64).sqrt();
+        let w = DMatrix::from_fn(units, units, |_, _| s * rng.normal());
+        let si = 1.0 / (INPUTS as f64).sqrt();
+        let w_in = DMatrix::from_fn(units, INPUTS, |_, _| si * rng.normal());
+        let bias = DVector::from_fn(units, |_, _| BIAS * rng.normal());
         let (lo, hi) = (LEAKS.0.ln(), LEAKS.1.ln());
-        let leak = DVector::from_fn(UNITS, |i, _| {
-            (lo + (hi - lo) * i as f64 / (UNITS - 1) as f64).exp()
+        let leak = DVector::from_fn(units, |i, _| {
+            (lo + (hi - lo) * i as f64 / (units - 1) as f64).exp()
         });
         let mut r = Reservoir {
+            units,
+            blocks: 1,
             w,
             w_in,
             bias,
             leak,
-            rest: DVector::zeros(UNITS),
+            rest: DVector::zeros(units),
         };
         // The slowest unit forgets its start by a factor e per 1/LEAKS.0 steps.
-        let mut x = DMatrix::zeros(UNITS, 1);
-        let mut m = DMatrix::zeros(UNITS, 1);
-        let u = DMatrix::zeros(inputs, 1);
+        let mut x = DMatrix::zeros(units, 1);
+        let mut m = DMatrix::zeros(units, 1);
+        let u = DMatrix::zeros(INPUTS, 1);
         for _ in 0..(40.0 / LEAKS.0) as usize {
             r.step(&mut x, &mut m, &u, 0.0);
         }
         r.rest = x.column(0).into_owned();
+        r.blocks = whiskers.max(1);
         r
+    }
+
+    /// Units of the whole state (every block).
+    fn size(&self) -> usize {
+        self.units * self.blocks
     }
 
     /// The rest state repeated for `runs` runs.
     fn start(&self, runs: usize) -> DMatrix<f64> {
-        DMatrix::from_fn(UNITS, runs, |i, _| self.rest[i])
+        DMatrix::from_fn(self.size(), runs, |i, _| self.rest[i % self.units])
     }
 
-    /// One step of the states `x` (`UNITS × runs`) driven by inputs `u` (`inputs × runs`),
+    /// One step of the states `x` (`size × runs`) driven by inputs `u` (`INPUTS·blocks × runs`),
     /// adding `memory` times the new states' departures from rest to their running sums `m`.
     fn step(&self, x: &mut DMatrix<f64>, m: &mut DMatrix<f64>, u: &DMatrix<f64>, memory: f64) {
-        let mut pre = &self.w * &*x;
-        pre.gemm(1.0, &self.w_in, u, 1.0);
-        for j in 0..x.ncols() {
-            for i in 0..UNITS {
-                let a = self.leak[i];
-                let v = (pre[(i, j)] + self.bias[i]).tanh();
-                let next = (1.0 - a) * x[(i, j)] + a * v;
-                x[(i, j)] = next;
-                m[(i, j)] += memory * (next - self.rest[i]);
+        let n = self.units;
+        for b in 0..self.blocks {
+            let mut pre = &self.w * x.rows(b * n, n);
+            pre.gemm(1.0, &self.w_in, &u.rows(b * INPUTS, INPUTS), 1.0);
+            for j in 0..x.ncols() {
+                for i in 0..n {
+                    let a = self.leak[i];
+                    let v = (pre[(i, j)] + self.bias[i]).tanh();
+                    let next = (1.0 - a) * x[(b * n + i, j)] + a * v;
+                    x[(b * n + i, j)] = next;
+                    m[(b * n + i, j)] += memory * (next - self.rest[i]);
+                }
             }
         }
     }
 
+    /// Features of the read-outs: the state, its running sums, the inputs and 1.
+    fn features_len(&self) -> usize {
+        2 * self.size() + INPUTS * self.blocks + 1
+    }
+
     /// The read-out's features of the runs' states: `[x; m; u; 1]`, one column per run.
-    fn features(x: &DMatrix<f64>, m: &DMatrix<f64>, u: &DMatrix<f64>, phi: &mut DMatrix<f64>) {
-        let inputs = u.nrows();
-        phi.rows_mut(0, UNITS).copy_from(x);
-        phi.rows_mut(UNITS, UNITS).copy_from(m);
-        phi.rows_mut(2 * UNITS, inputs).copy_from(u);
-        phi.row_mut(2 * UNITS + inputs).fill(1.0);
+    fn features(
+        &self,
+        x: &DMatrix<f64>,
+        m: &DMatrix<f64>,
+        u: &DMatrix<f64>,
+        phi: &mut DMatrix<f64>,
+    ) {
+        let (n, inputs) = (self.size(), u.nrows());
+        phi.rows_mut(0, n).copy_from(x);
+        phi.rows_mut(n, n).copy_from(m);
+        phi.rows_mut(2 * n, inputs).copy_from(u);
+        phi.row_mut(2 * n + inputs).fill(1.0);
     }
 }
 
@@ -185,11 +230,6 @@ fn inputs_at(scales: &Scales, whiskers: &[Vec<Vec<f64>>], k: usize, to: &mut [f6
     }
 }
 
-/// A read-out's features: the state, its running sum, the inputs and 1.
-fn features_len(inputs: usize) -> usize {
-    2 * UNITS + inputs + 1
-}
-
 /// What a pass over a batch of runs accumulates.
 struct Pass {
     /// `Φᵀ Φ` and `Φᵀ Y` over every sample (features × features, features × classes).
@@ -222,8 +262,8 @@ impl ShapeEsn {
         readouts: &[DMatrix<f64>],
         memory: f64,
     ) -> Pass {
-        let inputs = reservoir.w_in.ncols();
-        let f = features_len(inputs);
+        let inputs = INPUTS * reservoir.blocks;
+        let f = reservoir.features_len();
         let chunks: Vec<&[&ShapeSample]> = runs.chunks(BATCH).collect();
         let parts: Vec<Pass> = chunks
             .par_iter()
@@ -231,7 +271,7 @@ impl ShapeEsn {
                 let b = chunk.len();
                 let samples = chunk[0].whiskers[0][0].len();
                 let mut x = reservoir.start(b);
-                let mut mem = DMatrix::<f64>::zeros(UNITS, b);
+                let mut mem = DMatrix::<f64>::zeros(reservoir.size(), b);
                 let mut u = DMatrix::<f64>::zeros(inputs, b);
                 let mut phi = DMatrix::<f64>::zeros(f, b);
                 let y = DMatrix::from_fn(b, classes, |j, c| f64::from(chunk[j].class == c));
@@ -245,7 +285,7 @@ impl ShapeEsn {
                         u.column_mut(j).copy_from_slice(&col);
                     }
                     reservoir.step(&mut x, &mut mem, &u, memory);
-                    Reservoir::features(&x, &mem, &u, &mut phi);
+                    reservoir.features(&x, &mem, &u, &mut phi);
                     if k % STRIDE != STRIDE - 1 {
                         continue;
                     }
@@ -326,7 +366,7 @@ impl ShapeEsn {
             ));
         }
         let scales = Scales::of(training, Self::NAME)?;
-        let reservoir = Reservoir::new(whiskers * INPUTS);
+        let reservoir = Reservoir::new(whiskers);
         let memory = 1.0 / samples as f64;
         let (fit_i, held_i): (Vec<usize>, Vec<usize>) =
             (0..training.len()).partition(|i| i % HOLD != 0);
@@ -478,13 +518,14 @@ impl ShapeEsn {
 
     /// A filter over one recording, fed one sample at a time.
     pub fn start(&self) -> Online<'_> {
-        let inputs = self.reservoir.w_in.ncols();
+        let r = &self.reservoir;
+        let inputs = INPUTS * r.blocks;
         Online {
             model: self,
-            x: self.reservoir.start(1),
-            m: DMatrix::zeros(UNITS, 1),
+            x: r.start(1),
+            m: DMatrix::zeros(r.size(), 1),
             u: DMatrix::zeros(inputs, 1),
-            phi: DMatrix::zeros(features_len(inputs), 1),
+            phi: DMatrix::zeros(r.features_len(), 1),
             column: vec![0.0; inputs],
         }
     }
@@ -539,7 +580,7 @@ impl ShapeEsn {
     /// Fitted settings worth reporting.
     pub fn settings(&self) -> Vec<(String, f64)> {
         vec![
-            ("units".into(), UNITS as f64),
+            ("units".into(), self.reservoir.size() as f64),
             ("class_floor".into(), self.floor),
             ("class_power".into(), self.power),
         ]
@@ -566,7 +607,8 @@ impl Online<'_> {
         self.u.column_mut(0).copy_from_slice(&self.column);
         m.reservoir
             .step(&mut self.x, &mut self.m, &self.u, m.memory);
-        Reservoir::features(&self.x, &self.m, &self.u, &mut self.phi);
+        m.reservoir
+            .features(&self.x, &self.m, &self.u, &mut self.phi);
         let logs: Vec<f64> = (&m.readout * &self.phi)
             .iter()
             .map(|s| s.max(m.floor).ln())
