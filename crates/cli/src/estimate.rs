@@ -244,7 +244,11 @@ pub fn run(args: &Args) -> Result<()> {
     if let Some(spec) = &args.shapes {
         return crate::estimate_shapes::run(args, spec);
     }
-    let family = family_of(args)?;
+    // For an array's recordings, the named whisker at its place in the array.
+    let family = family_of(args)?.for_whisker(
+        args.whisker.as_deref(),
+        args.method.as_deref() == Some("pf"),
+    )?;
     if let Some(v) = &args.variant {
         Variant::parse(v)?;
         eprintln!(

@@ -443,7 +443,11 @@ impl Family {
         noise: &Noise,
         seed: u64,
     ) -> Result<Sample> {
-        let s = self.recording_scenario(p, delay, noise, seed)?;
+        // One whisker kept of an array: that whisker, at its place, against the objects.
+        let s = match &self.mounts[..] {
+            [(k, m)] => self.mounted(&self.plain_recording(p, delay, noise, seed)?, *k, m, seed),
+            _ => self.recording_scenario(p, delay, noise, seed)?,
+        };
         let out = sim::run(&s, &mut |_| {}).map_err(|source| self.run_error(p, source))?;
         // Columns 1..=5 of the contract's rows are the observed channels.
         let series = (0..CHANNELS.len())
@@ -486,21 +490,55 @@ impl Family {
         Ok(f)
     }
 
+    /// The family that estimates from one whisker's recording: for a scenario with an array of
+    /// whiskers, the array's whisker `whisker` (required), simulated at its place; for a scenario
+    /// of one whisker, the family itself (`whisker` names the recording's columns only).
+    /// `filter`: the particle filter models one whisker at the origin, so a whisker mounted
+    /// elsewhere (moved, turned, or with a whisker or base motion of its own) is refused.
+    pub fn for_whisker(&self, whisker: Option<&str>, filter: bool) -> Result<Family> {
+        if self.mounts.is_empty() {
+            return Ok(self.clone());
+        }
+        let names = self.whisker_names();
+        let Some(name) = whisker else {
+            return Err(Error::Setting(format!(
+                "{} holds an array of whiskers ({}): name the one whose recording is read",
+                self.name,
+                names.join(", ")
+            )));
+        };
+        let f = self.with_whiskers(&[name])?;
+        if filter {
+            let (_, m) = &f.mounts[0];
+            if m.position != [0.0, 0.0] || m.angle != 0.0 || m.whisker.is_some() || m.base.is_some()
+            {
+                return Err(Error::Setting(format!(
+                    "{}: the particle filter models one whisker at the origin pointing along +x \
+                     with the scenario's whisker and base motion; `{name}` is mounted otherwise \
+                     (use another method, or a scenario of that whisker alone)",
+                    self.name
+                )));
+            }
+        }
+        Ok(f)
+    }
+
     /// Simulates the run at `p` on every whisker of the array (one whisker if the scenario has
     /// no `[[whiskers]]`) with `noise`, seeded by `seed`: the observed channels of each whisker
     /// in the array's order, whisker `k`'s random forces and sensor noise drawn from streams of
-    /// `seed` and `k` as `vibrissa simulate` draws them. The whiskers of a randomised family
-    /// share the run's drawn whisker and sensors.
+    /// `seed` and `k` as `vibrissa simulate` draws them. Each whisker of a randomised family
+    /// gets its own draw of whisker and sensors.
     pub fn simulate_array(&self, p: &[f64], noise: &Noise, seed: u64) -> Result<Vec<Sample>> {
         if self.mounts.is_empty() {
             return Ok(vec![self.simulate(p, noise, seed)?]);
         }
-        let s = self.recording_scenario(p, 0.0, noise, seed)?;
-        // Whisker k's streams follow its place in the file's array, whichever are kept.
+        let s = self.plain_recording(p, 0.0, noise, seed)?;
+        // Whisker k's streams (and draws) follow its place in the file's array, whichever are
+        // kept.
         self.mounts
             .iter()
             .map(|(k, m)| {
-                let out = sim::run(&m.scenario(&s, *k), &mut |_| {})
+                let out = sim::run(&self.mounted(&s, *k, m, seed), &mut |_| {})
                     .map_err(|source| self.run_error(p, source))?;
                 Ok(Sample {
                     series: (0..CHANNELS.len())
@@ -530,10 +568,27 @@ impl Family {
         noise: &Noise,
         seed: u64,
     ) -> Result<Scenario> {
-        let mut s = self.scenario(p)?;
+        let mut s = self.plain_recording(p, delay, noise, seed)?;
         if let Some(around) = &self.randomised {
             around.apply(&mut s, seed);
         }
+        Ok(s)
+    }
+
+    /// Whisker `k` of the array, `mount`, in the run `s` (made by [`Family::plain_recording`]
+    /// with `seed`): its own scenario, and for a randomised family its own draw of whisker and
+    /// sensors (each whisker of a real array differs from the others).
+    fn mounted(&self, s: &Scenario, k: usize, mount: &Mount, seed: u64) -> Scenario {
+        let mut m = mount.scenario(s, k);
+        if let Some(around) = &self.randomised {
+            around.apply(&mut m, Rng::stream(seed, k as u64 + 1).next_u64());
+        }
+        m
+    }
+
+    /// [`Family::recording_scenario`] without the randomised whisker and sensors.
+    fn plain_recording(&self, p: &[f64], delay: f64, noise: &Noise, seed: u64) -> Result<Scenario> {
+        let mut s = self.scenario(p)?;
         if delay != 0.0 {
             for o in &mut s.objects {
                 match &mut o.motion {
@@ -689,6 +744,29 @@ fn product(values: &[Vec<f64>]) -> Vec<Vec<f64>> {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn each_whisker_of_a_randomised_array_gets_its_own_draw() {
+        let text = "duration = 0.01\n[[whiskers]]\nname = \"a\"\n[[whiskers]]\nname = \"b\"\nposition = [0.0, 0.002]\n[[objects]]\nshape = \"circle\"\nradius = 0.002\nposition = [0.02, -0.01]\n[unknowns]\n\"objects.0.position.0\" = [0.015, 0.025]\n";
+        let family = Family::open_str(text, "pair", &[])
+            .unwrap()
+            .randomised_if(true)
+            .unwrap();
+        let s = family
+            .plain_recording(&[0.02], 0.0, &Noise::NONE, 7)
+            .unwrap();
+        let (a, b) = (&family.mounts[0], &family.mounts[1]);
+        let (wa, wb) = (
+            family.mounted(&s, a.0, &a.1, 7).whisker,
+            family.mounted(&s, b.0, &b.1, 7).whisker,
+        );
+        assert_ne!(wa.youngs_modulus, wb.youngs_modulus);
+        assert_ne!(wa.youngs_modulus, s.whisker.youngs_modulus);
+        // The same seed gives the same draw.
+        assert_eq!(
+            family.mounted(&s, a.0, &a.1, 7).whisker.youngs_modulus,
+            wa.youngs_modulus
+        );
+    }
 
     #[test]
     fn training_noise_leaves_out_what_the_random_forces_show() {

@@ -311,9 +311,11 @@ fn estimate(
     check: bool,
     whisker: Option<&str>,
 ) -> PyResult<(Vec<String>, Vec<String>)> {
-    let family = family(scenario, scenario_json, &sets)?;
-    let probe = vibrissa_infer::methods::by_name(method).map_err(value_error)?;
     let pf = method == "pf";
+    let family = family(scenario, scenario_json, &sets)?
+        .for_whisker(whisker, pf)
+        .map_err(value_error)?;
+    let probe = vibrissa_infer::methods::by_name(method).map_err(value_error)?;
     if pf && particles == Some(0) {
         return Err(value_error("particles: at least 1"));
     }
