@@ -23,8 +23,9 @@ use vibrissa_infer::{
 /// Arguments of `vibrissa experiment`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The built-in experiment: e1 (distance only), e2 (distance and speed) or e3 (shape
-    /// recognition: the object's class and pose, with 1, 3 and 5 whiskers).
+    /// The built-in experiment: e1 (distance only), e2 (distance and speed), e3 (shape
+    /// recognition: the class and pose of an object moved past 1, 3 or 5 whiskers) or e3-active
+    /// (the same whiskers whisked against a still object).
     #[arg(value_name = "EXPERIMENT", required_unless_present_any = ["scenario", "shapes"])]
     experiment: Option<String>,
     /// Run a shape experiment on a shape family instead: a TOML file whose [classes] table names
@@ -162,7 +163,7 @@ pub fn run(args: &Args) -> Result<()> {
             Family::open(name, &args.sets)?
         }
         (None, None) => {
-            anyhow::bail!("name an experiment (e1, e2, e3) or give --scenario FILE.toml")
+            anyhow::bail!("name an experiment (e1, e2, e3, e3-active) or give --scenario FILE.toml")
         }
     };
     let scenario_file = match &args.scenario {

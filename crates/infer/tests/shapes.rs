@@ -1,5 +1,5 @@
-//! Shape families: the built-in e3, shape-family files, exported runs, and the shape
-//! estimator against chance on held-out runs.
+//! Shape families: the built-in e3 and e3-active, shape-family files, exported runs, and the
+//! shape estimators against chance on held-out runs.
 
 use vibrissa_infer::experiment::Noise;
 use vibrissa_infer::shapes::{evaluate_shapes, ShapeFamily, ShapeSettings};
@@ -26,6 +26,57 @@ fn e3_has_four_classes_past_a_fan_of_five_whiskers() {
         for (x, [lo, hi]) in p.iter().zip(e3.classes()[class].family.ranges()) {
             assert!((lo..=hi).contains(x), "{class} {p:?}");
         }
+    }
+}
+
+#[test]
+fn e3_active_whisks_the_fan_against_still_objects_clear_of_it_at_the_start() {
+    let active = ShapeFamily::builtin("e3-active").unwrap().unwrap();
+    assert_eq!(active.class_names(), ["wall", "box", "circle", "triangle"]);
+    assert_eq!(active.whiskers(), ["c1", "c2", "c3", "c4", "c5"]);
+    let unknowns: Vec<Vec<&str>> = active
+        .classes()
+        .iter()
+        .map(|c| c.family.unknowns())
+        .collect();
+    assert_eq!(unknowns[0], ["y", "angle"]);
+    assert_eq!(unknowns[1], ["x", "y", "angle", "side"]);
+    assert_eq!(unknowns[2], ["x", "y", "radius"]);
+    assert_eq!(unknowns[3], ["x", "y", "angle", "side"]);
+    assert_eq!(active.samples(), 201);
+    for class in active.classes() {
+        // Every corner of the training ranges (each range widened by its margins) starts clear
+        // of every whisker, and the whisk brings the fan against the object.
+        let corners: Vec<[f64; 2]> = class
+            .family
+            .ranges()
+            .iter()
+            .zip(class.family.margins())
+            .map(|([lo, hi], [below, above])| [lo - below, hi + above])
+            .collect();
+        let mut touched = 0;
+        for k in 0..1usize << corners.len() {
+            let p: Vec<f64> = corners
+                .iter()
+                .enumerate()
+                .map(|(i, c)| c[(k >> i) & 1])
+                .collect();
+            let runs = class
+                .family
+                .simulate_array(&p, &Noise::NONE, 1)
+                .unwrap_or_else(|e| panic!("{} at {p:?}: {e}", class.name));
+            let force = runs
+                .iter()
+                .flat_map(|w| w.series[4].iter())
+                .fold(0.0f64, |m, f| m.max(f.abs()));
+            touched += usize::from(force > 1e-4);
+        }
+        assert!(
+            2 * touched >= 1 << corners.len(),
+            "{}: the fan touched the object in {touched} of {} corners",
+            class.name,
+            1 << corners.len()
+        );
     }
 }
 

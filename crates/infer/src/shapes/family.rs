@@ -39,7 +39,7 @@ pub struct ShapeSample {
 }
 
 /// Names of the built-in shape families.
-pub const SHAPE_BUILTINS: [&str; 1] = ["e3"];
+pub const SHAPE_BUILTINS: [&str; 2] = ["e3", "e3-active"];
 
 impl ShapeFamily {
     /// A shape family from its classes, checked: at least two, distinct names, the same whiskers
@@ -87,20 +87,23 @@ impl ShapeFamily {
         })
     }
 
-    /// A built-in shape family by name (`e3`), or `None`.
+    /// A built-in shape family by name (`e3`, `e3-active`), or `None`.
     pub fn builtin(name: &str) -> Option<Result<ShapeFamily>> {
-        (name == "e3").then(|| {
-            let classes = e3::CLASSES
-                .iter()
-                .map(|(class, text)| {
-                    Ok(Class {
-                        name: class.to_string(),
-                        family: Family::open_str(text, &format!("e3/{class}"), &[])?,
-                    })
+        let classes: &[(&str, &str)] = match name {
+            "e3" => &e3::CLASSES,
+            "e3-active" => &e3::ACTIVE_CLASSES,
+            _ => return None,
+        };
+        let classes = classes
+            .iter()
+            .map(|(class, text)| {
+                Ok(Class {
+                    name: class.to_string(),
+                    family: Family::open_str(text, &format!("{name}/{class}"), &[])?,
                 })
-                .collect::<Result<Vec<_>>>()?;
-            ShapeFamily::new(name, classes)
-        })
+            })
+            .collect::<Result<Vec<_>>>();
+        Some(classes.and_then(|c| ShapeFamily::new(name, c)))
     }
 
     /// A shape family: a built-in name, or a TOML file whose `[classes]` table names each
