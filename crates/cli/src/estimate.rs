@@ -75,7 +75,8 @@ pub struct Args {
     #[arg(long)]
     pub(crate) randomise: bool,
     /// For recordings of an array of whiskers (columns `c1.theta01`, ...): the whisker whose
-    /// columns are read.
+    /// columns are read. Required when the scenario holds `[[whiskers]]`: the methods then train
+    /// on that whisker where the array mounts it (pf only on one at the origin).
     #[arg(long, value_name = "NAME")]
     pub(crate) whisker: Option<String>,
     /// Seed of the training runs.

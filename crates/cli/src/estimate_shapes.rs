@@ -133,6 +133,7 @@ pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
         seed: args.seed,
         randomise: args.randomise,
         stated,
+        trace: args.trace.is_some(),
     };
     eprintln!(
         "training {} on {} runs per class of {} ({} whiskers)...",

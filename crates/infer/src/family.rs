@@ -259,9 +259,12 @@ impl Family {
         Ok(response)
     }
 
-    /// The whisker.
+    /// The whisker (for a family that keeps one whisker of an array, that whisker's).
     pub fn whisker(&self) -> &WhiskerParams {
-        &self.base.whisker
+        match &self.mounts[..] {
+            [(_, m)] => m.whisker.as_ref().unwrap_or(&self.base.whisker),
+            _ => &self.base.whisker,
+        }
     }
 
     /// The experiment box the file names (`experiment = "e1" | "e2"`), with the file's `d` and
@@ -443,11 +446,7 @@ impl Family {
         noise: &Noise,
         seed: u64,
     ) -> Result<Sample> {
-        // One whisker kept of an array: that whisker, at its place, against the objects.
-        let s = match &self.mounts[..] {
-            [(k, m)] => self.mounted(&self.plain_recording(p, delay, noise, seed)?, *k, m, seed),
-            _ => self.recording_scenario(p, delay, noise, seed)?,
-        };
+        let s = self.recording_scenario(p, delay, noise, seed)?;
         let out = sim::run(&s, &mut |_| {}).map_err(|source| self.run_error(p, source))?;
         // Columns 1..=5 of the contract's rows are the observed channels.
         let series = (0..CHANNELS.len())
@@ -560,7 +559,7 @@ impl Family {
 
     /// The scenario that [`Family::simulate_delayed`] runs: the run at `p` with its randomised
     /// whisker and sensors (if any), recorded from `delay` seconds early, with `noise`, seeded by
-    /// `seed`.
+    /// `seed`; for a family that keeps one whisker of an array, that whisker's own scenario.
     pub fn recording_scenario(
         &self,
         p: &[f64],
@@ -569,6 +568,10 @@ impl Family {
         seed: u64,
     ) -> Result<Scenario> {
         let mut s = self.plain_recording(p, delay, noise, seed)?;
+        // One whisker kept of an array: that whisker, at its place, against the objects.
+        if let [(k, m)] = &self.mounts[..] {
+            return Ok(self.mounted(&s, *k, m, seed));
+        }
         if let Some(around) = &self.randomised {
             around.apply(&mut s, seed);
         }

@@ -207,3 +207,62 @@ fn both_shape_estimators_tell_a_wall_from_a_peg_on_runs_they_did_not_see() {
     }
     assert!(ev.subsets[0].traces.is_empty(), "shape-krr is not online");
 }
+
+#[test]
+fn the_online_estimator_refuses_what_it_was_not_trained_on() {
+    use vibrissa_infer::shapes::{ShapeEsn, ShapeSample};
+    // Ten runs of every e3 class read by one whisker, 24 samples of made-up signals whose
+    // level depends on the class.
+    let e3 = ShapeFamily::builtin("e3")
+        .unwrap()
+        .unwrap()
+        .with_whiskers(&["c3"])
+        .unwrap();
+    let mut training = Vec::new();
+    for class in 0..4 {
+        let ranges = e3.classes()[class].family.ranges();
+        for k in 0..10 {
+            let series: Vec<Vec<f64>> = (0..5)
+                .map(|c| {
+                    (0..24)
+                        .map(|i| ((i * (c + 1) + k) as f64 * 0.3).sin() * (1.0 + class as f64))
+                        .collect()
+                })
+                .collect();
+            training.push(ShapeSample {
+                class,
+                params: ranges.iter().map(|[lo, hi]| 0.5 * (lo + hi)).collect(),
+                whiskers: vec![series],
+            });
+        }
+    }
+    let model = ShapeEsn::fit(&e3, &training).unwrap();
+    let run = &training[0].whiskers;
+    let (estimate, trace) = model.read(run).unwrap();
+    assert_eq!(trace.len(), 24);
+    assert_eq!(estimate.class.len(), 4);
+    // A recording of another length (the running sums are scaled to the training runs'), of
+    // two whiskers, or with a NaN is refused, and so is such a sample fed online.
+    let short: Vec<Vec<Vec<f64>>> = vec![run[0].iter().map(|c| c[..20].to_vec()).collect()];
+    let err = model.predict(&short).unwrap_err().to_string();
+    assert!(err.contains("24 samples") && err.contains("20"), "{err}");
+    assert!(model.predict(&[run[0].clone(), run[0].clone()]).is_err());
+    let mut nan = run.clone();
+    nan[0][2][5] = f64::NAN;
+    assert!(model.predict(&nan).is_err());
+    let mut online = model.start();
+    assert!(online.push(&[[0.0; 5], [0.0; 5]]).is_err());
+    assert!(online.push(&[[0.0, f64::NAN, 0.0, 0.0, 0.0]]).is_err());
+    let p = online.push(&[[0.0; 5]]).unwrap();
+    assert!((p.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+    // Too short to fit.
+    let tiny: Vec<ShapeSample> = training
+        .iter()
+        .map(|s| ShapeSample {
+            whiskers: vec![s.whiskers[0].iter().map(|c| c[..5].to_vec()).collect()],
+            ..s.clone()
+        })
+        .collect();
+    let err = ShapeEsn::fit(&e3, &tiny).unwrap_err().to_string();
+    assert!(err.contains("8 samples"), "{err}");
+}

@@ -522,6 +522,7 @@ fn estimate_shapes(
         seed,
         randomise,
         stated,
+        trace: true,
     };
     messages.push(format!(
         "training {} on {} runs per class of {}",

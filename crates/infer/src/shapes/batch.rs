@@ -28,6 +28,8 @@ pub struct BatchOptions {
     pub randomise: bool,
     /// The sensor noise stated per channel of [`CHANNELS`] (the others are measured).
     pub stated: [Option<f64>; 5],
+    /// Also keep an online estimator's posterior after every sample ([`Batch::traces`]).
+    pub trace: bool,
 }
 
 impl Default for BatchOptions {
@@ -38,6 +40,7 @@ impl Default for BatchOptions {
             seed: 1,
             randomise: false,
             stated: [None; 5],
+            trace: false,
         }
     }
 }
@@ -49,8 +52,8 @@ pub struct Batch {
     pub method: String,
     /// One per recording, in order, with the seconds it took.
     pub estimates: Vec<(ShapeEstimate, f64)>,
-    /// For an online estimator, each recording's class posterior after every sample
-    /// (`[recordings][samples][classes]`); empty otherwise.
+    /// With [`BatchOptions::trace`] and an online estimator, each recording's class posterior
+    /// after every sample (`[recordings][samples][classes]`); empty otherwise.
     pub traces: Vec<Vec<Vec<f64>>>,
     /// The sensor noise the training runs carried, per channel of [`CHANNELS`].
     pub noise: [f64; 5],
@@ -129,8 +132,10 @@ pub fn estimate_batch(
             let values: Vec<Vec<Vec<f64>>> = per.iter().map(|r| r.values.clone()).collect();
             let estimate = model.predict(&values)?;
             let seconds = t0.elapsed().as_secs_f64();
-            if let Some(trace) = model.trace(&values) {
-                traces.push(trace?);
+            if options.trace {
+                if let Some(trace) = model.trace(&values) {
+                    traces.push(trace?);
+                }
             }
             Ok((estimate, seconds))
         })

@@ -193,6 +193,8 @@ pub struct ShapeEsn {
     names: Vec<Vec<String>>,
     /// Whiskers read.
     whiskers: usize,
+    /// Samples of the training runs (the running sums are scaled to it: recordings must have it).
+    samples: usize,
     /// The channels' typical levels.
     scales: Scales,
     reservoir: Reservoir,
@@ -221,13 +223,17 @@ struct PoseReadout {
 /// The inputs of one sample of every whisker: `[whiskers][CHANNELS][samples]` at `k`.
 fn inputs_at(scales: &Scales, whiskers: &[Vec<Vec<f64>>], k: usize, to: &mut [f64]) {
     for (w, series) in whiskers.iter().enumerate() {
-        let o = w * INPUTS;
-        for c in 0..CHANNELS.len() {
-            to[o + c] = (series[c][k] / scales.medians[c]).clamp(-CLAMP, CLAMP);
-        }
-        let g = scales.geometry(series[2][k], series[3][k], series[4][k]);
-        to[o + 5..o + 8].copy_from_slice(&g);
+        let values = std::array::from_fn(|c| series[c][k]);
+        input_of(scales, &values, &mut to[w * INPUTS..(w + 1) * INPUTS]);
     }
+}
+
+/// The inputs of one whisker's sample (its [`CHANNELS`]) into `to` (`INPUTS` long).
+fn input_of(scales: &Scales, values: &[f64; 5], to: &mut [f64]) {
+    for c in 0..CHANNELS.len() {
+        to[c] = (values[c] / scales.medians[c]).clamp(-CLAMP, CLAMP);
+    }
+    to[5..8].copy_from_slice(&scales.geometry(values[2], values[3], values[4]));
 }
 
 /// What a pass over a batch of runs accumulates.
@@ -352,7 +358,18 @@ impl ShapeEsn {
             }
         }
         let whiskers = training[0].whiskers.len();
-        let samples = training[0].whiskers[0][0].len();
+        let samples = training[0]
+            .whiskers
+            .first()
+            .and_then(|w| w.first())
+            .map_or(0, |c| c.len());
+        if whiskers == 0 || samples < 2 * STRIDE {
+            return Err(Self::fail(&format!(
+                "training runs need at least one whisker and {} samples (got {whiskers} whiskers \
+                 of {samples} samples)",
+                2 * STRIDE
+            )));
+        }
         if training.iter().any(|s| {
             s.whiskers.len() != whiskers
                 || s.whiskers.iter().any(|w| {
@@ -446,6 +463,7 @@ impl ShapeEsn {
                 .map(|c| c.family.unknowns().iter().map(|s| s.to_string()).collect())
                 .collect(),
             whiskers,
+            samples,
             scales,
             reservoir,
             memory,
@@ -533,22 +551,28 @@ impl ShapeEsn {
     /// The class posterior after every sample of one recording (`[whiskers][CHANNELS]
     /// [samples]`), `[samples][classes]`.
     pub fn trace(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<Vec<Vec<f64>>> {
-        self.check(whiskers)?;
-        let mut online = self.start();
-        let samples = whiskers[0][0].len();
-        Ok((0..samples).map(|k| online.push(whiskers, k)).collect())
+        Ok(self.read(whiskers)?.1)
     }
 
     /// The class posterior after the last sample and the most probable class's pose.
     pub fn predict(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<ShapeEstimate> {
+        Ok(self.read(whiskers)?.0)
+    }
+
+    /// The estimate after the last sample and the posterior after every sample.
+    pub fn read(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<(ShapeEstimate, Vec<Vec<f64>>)> {
         self.check(whiskers)?;
         let mut online = self.start();
-        let samples = whiskers[0][0].len();
-        let mut p = Vec::new();
-        for k in 0..samples {
-            p = online.push(whiskers, k);
+        let mut trace = Vec::with_capacity(self.samples);
+        for k in 0..self.samples {
+            let sample: Vec<[f64; 5]> = whiskers
+                .iter()
+                .map(|w| std::array::from_fn(|c| w[c][k]))
+                .collect();
+            trace.push(online.push(&sample)?);
         }
-        Ok(online.estimate(p))
+        let last = trace.last().cloned().unwrap_or_default();
+        Ok((online.estimate(last), trace))
     }
 
     fn check(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<()> {
@@ -561,6 +585,14 @@ impl ShapeEsn {
             )));
         }
         let samples = whiskers[0].first().map_or(0, |c| c.len());
+        if samples != self.samples {
+            return Err(Error::Observation(format!(
+                "{} was trained on recordings of {} samples (its running sums are scaled to that \
+                 length); this one has {samples}",
+                Self::NAME,
+                self.samples
+            )));
+        }
         for (w, series) in whiskers.iter().enumerate() {
             if samples == 0
                 || series.len() < CHANNELS.len()
@@ -599,11 +631,30 @@ pub struct Online<'a> {
 }
 
 impl Online<'_> {
-    /// Reads sample `k` of `whiskers` (`[whiskers][CHANNELS][samples]`, checked by the caller)
-    /// and returns the class posterior.
-    pub fn push(&mut self, whiskers: &[Vec<Vec<f64>>], k: usize) -> Vec<f64> {
+    /// Reads one sample of every whisker (each whisker's [`CHANNELS`], in the order the model
+    /// was trained on) and returns the class posterior after it.
+    pub fn push(&mut self, sample: &[[f64; 5]]) -> Result<Vec<f64>> {
         let m = self.model;
-        inputs_at(&m.scales, whiskers, k, &mut self.column);
+        if sample.len() != m.whiskers {
+            return Err(Error::Observation(format!(
+                "a sample of {} whiskers where {} was trained on {}",
+                sample.len(),
+                ShapeEsn::NAME,
+                m.whiskers
+            )));
+        }
+        if sample.iter().flatten().any(|v| !v.is_finite()) {
+            return Err(Error::Observation(format!(
+                "a sample with a value that is not finite: {sample:?}"
+            )));
+        }
+        for (w, values) in sample.iter().enumerate() {
+            input_of(
+                &m.scales,
+                values,
+                &mut self.column[w * INPUTS..(w + 1) * INPUTS],
+            );
+        }
         self.u.column_mut(0).copy_from_slice(&self.column);
         m.reservoir
             .step(&mut self.x, &mut self.m, &self.u, m.memory);
@@ -613,7 +664,7 @@ impl Online<'_> {
             .iter()
             .map(|s| s.max(m.floor).ln())
             .collect();
-        softmax(&logs, m.power)
+        Ok(softmax(&logs, m.power))
     }
 
     /// The estimate with posterior `p` at the current state.

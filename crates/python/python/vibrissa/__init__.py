@@ -285,7 +285,9 @@ def estimate(
         Add the model check (``"check"``): does the scenario explain the recording at its estimate?
     whisker : str, optional
         For a recording of an array of whiskers (columns ``c1.theta01``, ...), the whisker whose
-        columns are read.
+        columns are read. Required when the scenario itself holds ``[[whiskers]]``: the methods
+        then train on that whisker where the array mounts it (``"pf"`` only on one at the
+        origin).
     verbose : bool
         Print what is trained and every warning (they are also attached as ``"warnings"``).
     overrides, **keys
