@@ -539,11 +539,7 @@ fn estimate_shapes(
         .iter()
         .map(|r| serde_json::Value::Object(r.to_json()).to_string())
         .collect();
-    let classes = family
-        .class_names()
-        .iter()
-        .map(|c| c.to_string())
-        .collect();
+    let classes = family.class_names().iter().map(|c| c.to_string()).collect();
     Ok((rows, messages, batch.traces, classes))
 }
 
