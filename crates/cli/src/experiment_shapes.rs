@@ -194,7 +194,7 @@ fn export(family: &ShapeFamily, settings: &ShapeSettings, dir: &Path) -> Result<
 
 /// The figures: the confusion matrix of every estimator and whisker set, the accuracy and log
 /// loss against the number of whiskers, the reliability diagram of the class probabilities, and
-/// an online estimator's posterior over time.
+/// an online estimator's posterior over time and accuracy after every sample.
 fn figures(ev: &ShapeEvaluation, dir: &Path) -> Result<Vec<PathBuf>> {
     let mut pending = Vec::new();
     // One row per estimator, one column per whisker set.
@@ -367,6 +367,61 @@ fn figures(ev: &ShapeEvaluation, dir: &Path) -> Result<Vec<PathBuf>> {
             panels,
         };
         pending.extend(render_xy(&dir.join("posterior.png"), &posterior)?);
+    }
+    // How soon the online estimators know: their accuracy after every sample, per whisker set.
+    let mut sets: Vec<XySet> = ev
+        .subsets
+        .iter()
+        .filter(|s| !s.accuracy_over_time.is_empty())
+        .enumerate()
+        .map(|(k, s)| XySet {
+            label: format!(
+                "{}, {} whiskers ({})",
+                s.method,
+                s.whiskers.len(),
+                s.whiskers.join("+")
+            ),
+            points: s
+                .accuracy_over_time
+                .iter()
+                .enumerate()
+                .map(|(i, a)| ((i + 1) as f64 / ev.sample_rate * 1e3, *a))
+                .collect(),
+            mark: Mark::Line,
+            colour: Some(k),
+        })
+        .collect();
+    if !sets.is_empty() {
+        let end = sets
+            .iter()
+            .flat_map(|s| s.points.last())
+            .fold(0.0f64, |m, p| m.max(p.0));
+        sets.push(XySet {
+            label: format!("chance ({} classes)", ev.classes.len()),
+            points: vec![
+                (0.0, 1.0 / ev.classes.len() as f64),
+                (end, 1.0 / ev.classes.len() as f64),
+            ],
+            mark: Mark::Dashed,
+            colour: None,
+        });
+        let over_time = XyFigure {
+            title: format!(
+                "{} ({}): accuracy of the online class posterior after every sample",
+                ev.family,
+                ev.variant.name()
+            ),
+            x_desc: "time (ms)".into(),
+            y_desc: "share of runs whose most probable class is the truth".into(),
+            log_y: false,
+            columns: 1,
+            legend_lower_right: true,
+            panels: vec![XyPanel {
+                caption: String::new(),
+                sets,
+            }],
+        };
+        pending.extend(render_xy(&dir.join("accuracy_time.png"), &over_time)?);
     }
     let mut files = Vec::new();
     for (path, file) in pending {

@@ -206,6 +206,13 @@ fn both_shape_estimators_tell_a_wall_from_a_peg_on_runs_they_did_not_see() {
         }
     }
     assert!(ev.subsets[0].traces.is_empty(), "shape-krr is not online");
+    // Its accuracy after every sample ends at the estimates' accuracy; before contact it is
+    // about even (one class named for every run).
+    let over = &online.accuracy_over_time;
+    assert_eq!(over.len(), pair.samples());
+    assert!((over.last().unwrap() - online.accuracy).abs() < 1e-12);
+    assert!((over[0] - 0.5).abs() <= 0.1, "{}", over[0]);
+    assert!(ev.subsets[0].accuracy_over_time.is_empty());
 }
 
 #[test]

@@ -109,6 +109,9 @@ pub struct SubsetResult {
     /// For an online estimator: the posterior over time of the first evaluated run of each
     /// class.
     pub traces: Vec<Trace>,
+    /// For an online estimator: the share of runs whose most probable class is the truth after
+    /// each sample (the last is `accuracy`); empty otherwise.
+    pub accuracy_over_time: Vec<f64>,
 }
 
 /// One evaluated run's truth and estimate.
@@ -341,15 +344,39 @@ pub fn evaluate_shapes(
                     }
                 })
                 .collect();
-            // The first evaluated run of each class, read online.
+            // An online estimator: the share of runs whose most probable class is the truth
+            // after every sample, and the first evaluated run of each class's posterior.
+            let mut accuracy_over_time = Vec::new();
             let mut traces = Vec::new();
-            for c in 0..classes {
-                if let Some(k) = read.iter().position(|s| s.class == c) {
-                    if let Some(p) = model.trace(&read[k].whiskers) {
+            if read
+                .first()
+                .and_then(|s| model.trace(&s.whiskers))
+                .is_some()
+            {
+                let all = read
+                    .iter()
+                    .map(|s| model.trace(&s.whiskers).unwrap_or_else(|| Ok(Vec::new())))
+                    .collect::<Result<Vec<_>>>()?;
+                let samples = all.iter().map(Vec::len).min().unwrap_or(0);
+                accuracy_over_time = (0..samples)
+                    .map(|k| {
+                        read.iter()
+                            .zip(&all)
+                            .filter(|(s, p)| {
+                                let p = &p[k];
+                                (0..p.len()).fold(0, |b, c| if p[c] > p[b] { c } else { b })
+                                    == s.class
+                            })
+                            .count() as f64
+                            / n
+                    })
+                    .collect();
+                for c in 0..classes {
+                    if let Some(k) = read.iter().position(|s| s.class == c) {
                         traces.push(Trace {
                             run: k,
                             class: c,
-                            probabilities: p?,
+                            probabilities: all[k].clone(),
                         });
                     }
                 }
@@ -368,6 +395,7 @@ pub fn evaluate_shapes(
                 estimate_ms,
                 settings: model.settings(),
                 traces,
+                accuracy_over_time,
             })
         })
         .collect::<Result<Vec<_>>>()?;
