@@ -1054,6 +1054,7 @@ fn experiment_e3_scores_shapes_and_exports_every_evaluated_run() {
         "accuracy.png",
         "reliability.svg",
         "posterior.png",
+        "accuracy_time.png",
     ] {
         assert!(dir.join("out").join(f).exists(), "{f}");
     }
