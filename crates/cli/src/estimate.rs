@@ -462,6 +462,23 @@ pub(crate) fn family_of(args: &Args) -> Result<Family> {
     Ok(Family::open(spec, &args.sets)?)
 }
 
+/// Checks `--trace`, if given: one `--obs` file, a `.csv` name, a folder that exists.
+pub(crate) fn check_trace_file(args: &Args) -> Result<()> {
+    if let Some(trace) = &args.trace {
+        if args.obs.len() != 1 {
+            bail!(
+                "--trace takes exactly one --obs file (got {})",
+                args.obs.len()
+            );
+        }
+        if crate::files::extension(trace).as_deref() != Some("csv") {
+            bail!("--trace must name a .csv file (got `{}`)", trace.display());
+        }
+        crate::files::check_folder(trace, "--trace")?;
+    }
+    Ok(())
+}
+
 /// The sensor noise the recordings are taken to have per channel of [`CHANNELS`]: the
 /// scenario's stated channels, overridden by `--noise` (`auto`: none; `none`: every channel 0;
 /// `CHANNEL=SIGMA,...`: those channels). `None`: estimated from the recordings.

@@ -34,18 +34,7 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
             args.max_delay
         );
     }
-    if let Some(trace) = &args.trace {
-        if args.obs.len() != 1 {
-            bail!(
-                "--trace takes exactly one --obs file (got {})",
-                args.obs.len()
-            );
-        }
-        if files::extension(trace).as_deref() != Some("csv") {
-            bail!("--trace must name a .csv file (got `{}`)", trace.display());
-        }
-        files::check_folder(trace, "--trace")?;
-    }
+    crate::estimate::check_trace_file(args)?;
     let channels = parse_channels(&args.channels)?;
     let priors = parse_priors(&args.prior)?;
 

@@ -77,24 +77,13 @@ pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
     if args.particles.is_some() || args.check || !args.prior.is_empty() {
         bail!("--particles, --check and --prior do not apply to shape families");
     }
-    if let Some(trace) = &args.trace {
-        if method != ShapeEsn::NAME {
-            bail!(
-                "--trace with a shape family needs --method {} (the online estimator)",
-                ShapeEsn::NAME
-            );
-        }
-        if args.obs.len() != 1 {
-            bail!(
-                "--trace takes exactly one --obs file (got {})",
-                args.obs.len()
-            );
-        }
-        if files::extension(trace).as_deref() != Some("csv") {
-            bail!("--trace must name a .csv file (got `{}`)", trace.display());
-        }
-        files::check_folder(trace, "--trace")?;
+    if args.trace.is_some() && method != ShapeEsn::NAME {
+        bail!(
+            "--trace with a shape family needs --method {} (the online estimator)",
+            ShapeEsn::NAME
+        );
     }
+    crate::estimate::check_trace_file(args)?;
     if !args.sets.is_empty() {
         bail!("--set does not apply to shape families: edit the class files");
     }

@@ -281,12 +281,7 @@ fn figures(ev: &ShapeEvaluation, dir: &Path) -> Result<Vec<PathBuf>> {
         .iter()
         .enumerate()
         .map(|(k, s)| XySet {
-            label: format!(
-                "{}, {} whiskers ({})",
-                s.method,
-                s.whiskers.len(),
-                s.whiskers.join("+")
-            ),
+            label: set_label(s),
             points: s
                 .reliability
                 .iter()
@@ -375,12 +370,7 @@ fn figures(ev: &ShapeEvaluation, dir: &Path) -> Result<Vec<PathBuf>> {
         .filter(|s| !s.accuracy_over_time.is_empty())
         .enumerate()
         .map(|(k, s)| XySet {
-            label: format!(
-                "{}, {} whiskers ({})",
-                s.method,
-                s.whiskers.len(),
-                s.whiskers.join("+")
-            ),
+            label: set_label(s),
             points: s
                 .accuracy_over_time
                 .iter()
@@ -429,6 +419,16 @@ fn figures(ev: &ShapeEvaluation, dir: &Path) -> Result<Vec<PathBuf>> {
         files.push(path);
     }
     Ok(files)
+}
+
+/// An estimator and whisker set, for a figure's legend.
+fn set_label(s: &vibrissa_infer::shapes::SubsetResult) -> String {
+    format!(
+        "{}, {} whiskers ({})",
+        s.method,
+        s.whiskers.len(),
+        s.whiskers.join("+")
+    )
 }
 
 /// Percent with no decimals.

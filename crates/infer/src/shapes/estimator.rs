@@ -458,11 +458,7 @@ impl ShapeKrr {
         let first = &training[0];
         let mut m = ShapeKrr {
             classes: family.class_names().iter().map(|s| s.to_string()).collect(),
-            names: family
-                .classes()
-                .iter()
-                .map(|c| c.family.unknowns().iter().map(|s| s.to_string()).collect())
-                .collect(),
+            names: family.unknown_names(),
             whiskers: first.whiskers.len(),
             samples: first.whiskers[0][0].len(),
             ..ShapeKrr::default()

@@ -348,15 +348,14 @@ pub fn evaluate_shapes(
             // after every sample, and the first evaluated run of each class's posterior.
             let mut accuracy_over_time = Vec::new();
             let mut traces = Vec::new();
-            if read
-                .first()
-                .and_then(|s| model.trace(&s.whiskers))
-                .is_some()
-            {
-                let all = read
-                    .iter()
-                    .map(|s| model.trace(&s.whiskers).unwrap_or_else(|| Ok(Vec::new())))
-                    .collect::<Result<Vec<_>>>()?;
+            // (`None` for an estimator that reads the recording whole.)
+            let online = read
+                .iter()
+                .map(|s| model.trace(&s.whiskers))
+                .collect::<Option<Vec<_>>>()
+                .map(|t| t.into_iter().collect::<Result<Vec<_>>>())
+                .transpose()?;
+            if let Some(all) = online {
                 let samples = all.iter().map(Vec::len).min().unwrap_or(0);
                 accuracy_over_time = (0..samples)
                     .map(|k| {
@@ -402,11 +401,7 @@ pub fn evaluate_shapes(
     Ok(ShapeEvaluation {
         family: family.name().to_string(),
         classes: family.class_names().iter().map(|s| s.to_string()).collect(),
-        unknowns: family
-            .classes()
-            .iter()
-            .map(|c| c.family.unknowns().iter().map(|s| s.to_string()).collect())
-            .collect(),
+        unknowns: family.unknown_names(),
         variant: settings.variant,
         measured_noise: measured,
         train_per_class: settings.train_per_class,

@@ -139,6 +139,14 @@ impl ShapeFamily {
         self.classes.iter().map(|c| c.name.as_str()).collect()
     }
 
+    /// Each class's unknowns' names, in the classes' order.
+    pub fn unknown_names(&self) -> Vec<Vec<String>> {
+        self.classes
+            .iter()
+            .map(|c| c.family.unknowns().iter().map(|s| s.to_string()).collect())
+            .collect()
+    }
+
     /// The names of the whiskers read (empty for one whisker without a name).
     pub fn whiskers(&self) -> Vec<String> {
         self.classes[0].family.whisker_names()

@@ -457,11 +457,7 @@ impl ShapeEsn {
             .collect::<Result<Vec<_>>>()?;
         Ok(ShapeEsn {
             classes: family.class_names().iter().map(|s| s.to_string()).collect(),
-            names: family
-                .classes()
-                .iter()
-                .map(|c| c.family.unknowns().iter().map(|s| s.to_string()).collect())
-                .collect(),
+            names: family.unknown_names(),
             whiskers,
             samples,
             scales,
