@@ -33,9 +33,10 @@
 //! the angles, not the rates, along the static compliance `K⁻¹Jᵀ`.
 
 use crate::chain::Model;
-use crate::dynamics::{fma, shift_force, Inputs, Stepper, Workspace};
+use crate::dynamics::{Inputs, Stepper, Workspace};
 use crate::error::Result;
 use crate::objects::{bounds, closest, Closest};
+use crate::planar::{fma, shift_force};
 
 /// Largest number of simultaneous contact candidates handled in one step.
 pub const MAX_CONTACTS: usize = 24;

@@ -18,6 +18,7 @@ pub mod dynamics;
 pub mod error;
 pub mod inverse;
 pub mod objects;
+mod planar;
 pub mod rng;
 pub mod scenes;
 pub mod sensors;
