@@ -207,6 +207,35 @@ pub struct Inputs<'a> {
     pub objects: &'a [Object],
 }
 
+/// Checks that every load names an existing segment and a point on it, with a finite force.
+pub fn check_loads(model: &Model, loads: &[PointLoad]) -> Result<()> {
+    for (k, l) in loads.iter().enumerate() {
+        if l.segment >= model.n {
+            return Err(Error::invalid(
+                format!("loads[{k}].segment"),
+                l.segment,
+                format!("a segment index from 0 to {}", model.n - 1),
+            ));
+        }
+        let len = model.len[l.segment];
+        if !(l.along.is_finite() && (0.0..=len * (1.0 + 1e-12)).contains(&l.along)) {
+            return Err(Error::invalid(
+                format!("loads[{k}].along"),
+                l.along,
+                format!("in [0, {len}] m"),
+            ));
+        }
+        if !(l.force[0].is_finite() && l.force[1].is_finite()) {
+            return Err(Error::invalid(
+                format!("loads[{k}].force"),
+                format!("{:?}", l.force),
+                "finite components",
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// One whisker's dynamic state. Cheap to clone (`clone_from` reuses the buffer); many states
 /// share one [`Model`].
 #[derive(Debug, PartialEq)]
@@ -914,7 +943,7 @@ fn check_inputs(model: &Model, inputs: &Inputs) -> Result<()> {
         ));
     }
     if !inputs.loads.is_empty() {
-        crate::statics::check_loads(model, inputs.loads)?;
+        check_loads(model, inputs.loads)?;
     }
     Ok(())
 }
