@@ -4,7 +4,8 @@
 //!   clamped–free frequencies).
 //! - [`whisker`]: the whisker description and presets.
 //! - [`chain`]: the segment-chain discretisation ([`chain::Model`]).
-//! - [`dynamics`]: states, scratch and the time step.
+//! - [`dynamics`]: the time step, one file per stage: settings, inputs, state, scratch,
+//!   kinematics, the articulated-body solve, [`contact`] and the step that runs them.
 //! - [`sensors`]: the contract's observation channels.
 //! - [`batch`]: many states stepped in parallel against one model.
 #![warn(missing_docs)]
@@ -13,7 +14,6 @@ pub mod array;
 pub mod batch;
 pub mod beam;
 pub mod chain;
-pub mod contact;
 pub mod dynamics;
 pub mod error;
 pub mod inverse;
@@ -28,6 +28,7 @@ pub mod validate;
 pub mod whisker;
 
 pub use chain::{Discretisation, Model};
+pub use dynamics::contact;
 pub use dynamics::{BaseMotion, Inputs, Integrator, PointLoad, State, Stepper, Workspace};
 pub use error::{Error, Result};
 pub use whisker::{Whisker, WhiskerParams};
