@@ -22,6 +22,7 @@ mod planar;
 pub mod rng;
 pub mod scenes;
 pub mod sensors;
+mod signal;
 pub mod sim;
 pub mod statics;
 pub mod validate;
