@@ -328,7 +328,7 @@ impl Model {
             let cl = self.com[i];
             let cx = nodes[i][0] + c * cl[0] - s * cl[1];
             let cy = nodes[i][1] + s * cl[0] + c * cl[1];
-            let b = crate::dynamics::body_inertia(self.mass[i], self.inertia[i], cx, cy);
+            let b = crate::planar::body_inertia(self.mass[i], self.inertia[i], cx, cy);
             for k in 0..6 {
                 comp[i][k] = comp[i + 1][k] + b[k];
             }
@@ -339,7 +339,7 @@ impl Model {
             let si = [1.0, nodes[i][1], -nodes[i][0]];
             for j in i..n {
                 let sj = [1.0, nodes[j][1], -nodes[j][0]];
-                let ic = crate::dynamics::sym_mul(&comp[j], sj);
+                let ic = crate::planar::sym_mul(&comp[j], sj);
                 let v = si[0] * ic[0] + si[1] * ic[1] + si[2] * ic[2];
                 m[(i, j)] = v;
                 m[(j, i)] = v;

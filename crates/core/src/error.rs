@@ -85,3 +85,12 @@ pub fn check_finite(name: &str, value: f64) -> Result<f64> {
         Err(Error::invalid(name, value, "a finite number"))
     }
 }
+
+/// A number for a message: four significant digits, in scientific notation when large or small.
+pub(crate) fn readable(x: f64) -> String {
+    if !x.is_finite() || x == 0.0 || (1e-3..1e4).contains(&x.abs()) {
+        format!("{x:.4}")
+    } else {
+        format!("{x:.3e}")
+    }
+}

@@ -155,7 +155,7 @@ pub fn ringing_after_release() -> Result<Ringing> {
     let out = sim::run(&sc, &mut |_| {})?;
     let last = out.rows.iter().rposition(|r| r[6] > 0.5).unwrap_or(0);
     let (t, y): (Vec<f64>, Vec<f64>) = out.rows[last + 10..].iter().map(|r| (r[0], r[1])).unzip();
-    let frequency = crate::validate::crossing_frequency(&t, &y).unwrap_or(f64::NAN);
+    let frequency = crate::signal::crossing_frequency(&t, &y).unwrap_or(f64::NAN);
     let model = Model::new(&sc.whisker.check()?, sc.segments, sc.discretisation)?;
     let f1 = model.modes()?.frequencies[0];
     Ok(Ringing {

@@ -470,16 +470,16 @@ fn explain_divergence(e: Error, scenario: &Scenario, dt: f64) -> Error {
         Some((k, v)) if v > FAST_OBJECT => format!(
             "objects[{k}] moves at {} m/s, far faster than a whisker is ever struck (below \
              about 10 m/s); give its speed in m/s",
-            crate::dynamics::readable(v)
+            crate::error::readable(v)
         ),
         _ if scenario.process_noise > STRONG_PROCESS_NOISE => format!(
             "process_noise = {} N·s^½·m^-½ pushes the whisker far harder than any experiment \
              (2e-5); lower it",
-            crate::dynamics::readable(scenario.process_noise)
+            crate::error::readable(scenario.process_noise)
         ),
         _ => format!(
             "the time step dt = {} s may be too long for this whisker: try a shorter one",
-            crate::dynamics::readable(dt)
+            crate::error::readable(dt)
         ),
     };
     Error::Diverged {

@@ -6,6 +6,7 @@
 //! the dynamics must settle to.
 
 use crate::chain::Model;
+pub use crate::dynamics::check_loads;
 use crate::dynamics::PointLoad;
 use crate::error::{Error, Result};
 use nalgebra::{DMatrix, DVector};
@@ -39,35 +40,6 @@ fn load_point(model: &Model, nodes: &[[f64; 2]], load: &PointLoad) -> [f64; 2] {
     let (p, q) = (nodes[load.segment], nodes[load.segment + 1]);
     let f = load.along / model.len[load.segment];
     [p[0] + f * (q[0] - p[0]), p[1] + f * (q[1] - p[1])]
-}
-
-/// Checks that every load names an existing segment and a point on it, with a finite force.
-pub fn check_loads(model: &Model, loads: &[PointLoad]) -> Result<()> {
-    for (k, l) in loads.iter().enumerate() {
-        if l.segment >= model.n {
-            return Err(Error::invalid(
-                format!("loads[{k}].segment"),
-                l.segment,
-                format!("a segment index from 0 to {}", model.n - 1),
-            ));
-        }
-        let len = model.len[l.segment];
-        if !(l.along.is_finite() && (0.0..=len * (1.0 + 1e-12)).contains(&l.along)) {
-            return Err(Error::invalid(
-                format!("loads[{k}].along"),
-                l.along,
-                format!("in [0, {len}] m"),
-            ));
-        }
-        if !(l.force[0].is_finite() && l.force[1].is_finite()) {
-            return Err(Error::invalid(
-                format!("loads[{k}].force"),
-                format!("{:?}", l.force),
-                "finite components",
-            ));
-        }
-    }
-    Ok(())
 }
 
 /// Solves for the equilibrium of `model` (base along +x) under the dead `loads`.

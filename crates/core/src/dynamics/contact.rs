@@ -32,114 +32,18 @@
 //! the history. What penetration remains (up to `h·v/2` after a fast impact) is removed by moving
 //! the angles, not the rates, along the static compliance `K⁻¹Jᵀ`.
 
+pub use super::state::ContactReport;
+pub use super::workspace::{Scratch, MAX_CONTACTS};
+
+use super::inputs::Inputs;
+use super::integrator::Stepper;
+use super::workspace::{Candidate, Workspace};
 use crate::chain::Model;
-use crate::dynamics::{fma, shift_force, Inputs, Stepper, Workspace};
 use crate::error::Result;
 use crate::objects::{bounds, closest, Closest};
-
-/// Largest number of simultaneous contact candidates handled in one step.
-pub const MAX_CONTACTS: usize = 24;
-
-/// The contact nearest the whisker's base after a step.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ContactReport {
-    /// Contact point on the whisker's axis, world frame, m.
-    pub point: [f64; 2],
-    /// Arc length from the base to the contact point, m.
-    pub s: f64,
-    /// Force the object applies to the whisker there, world frame, N.
-    pub force: [f64; 2],
-    /// Contact normal (from the object towards the whisker), world frame.
-    pub normal: [f64; 2],
-    /// Normal force, N (≥ 0).
-    pub normal_force: f64,
-    /// Tangential (friction) force along the normal turned +90°, N (|·| ≤ μ·normal force).
-    pub tangential_force: f64,
-    /// Number of contacts carrying force.
-    pub count: usize,
-    /// Index of the object touched.
-    pub object: usize,
-}
-
-/// One contact candidate.
-#[derive(Debug, Clone, Copy, Default)]
-struct Candidate {
-    /// Segment and whisker point (world).
-    seg: usize,
-    point: [f64; 2],
-    /// Arc length of the point.
-    s: f64,
-    /// Gap at the evaluation point, m.
-    gap: f64,
-    /// Normal (object → whisker) and tangent.
-    n: [f64; 2],
-    t: [f64; 2],
-    /// Constant parts of the end-of-step gap (m) and tangential slip velocity (m/s).
-    c_n: f64,
-    c_t: f64,
-    /// Friction coefficient and object index.
-    mu: f64,
-    object: usize,
-    /// Normal relative velocity of whisker and object at the end of the step (b = 0), m/s.
-    c_v: f64,
-    /// End-of-step gap predicted without contact force, m, and whether it calls for contact.
-    g_pred: f64,
-    active: bool,
-    /// A new contact (the object carried no force in the previous step): an impulse.
-    impact: bool,
-    /// Forces.
-    lambda_n: f64,
-    lambda_t: f64,
-}
-
-/// Preallocated contact scratch, part of a [`Workspace`].
-#[derive(Debug, Clone)]
-pub struct Scratch {
-    pub(crate) count: usize,
-    cand: [Candidate; MAX_CONTACTS],
-    /// Generalised forces of unit normal and tangential forces: `[2·MAX_CONTACTS][N]`.
-    jac: Vec<f64>,
-    /// `(M + A)⁻¹` applied to them: `[2·MAX_CONTACTS][N]`.
-    resp: Vec<f64>,
-    /// Delassus matrix `[2·MAX_CONTACTS]²` (rows/columns: n0, t0, n1, t1, …).
-    w: Vec<f64>,
-    /// Scratch for one application of `(M + A)⁻¹`: `u` per joint.
-    u: Vec<f64>,
-    /// End-of-step angles and rates at b = 0 (`q_end = q0 + cq·b`, `v_end = v0 + cv·b`).
-    q0: Vec<f64>,
-    v0: Vec<f64>,
-    /// Joint accelerations caused by the last solve's impacts `[N]` (integrated as impulses), and
-    /// by its lasting contacts (integrated like other forces; kept to drop them at release).
-    pub(crate) acc: Vec<f64>,
-    pub(crate) acc_lasting: Vec<f64>,
-    /// Correction of the end-of-step angles that removes any remaining penetration `[N]`.
-    pub(crate) position_fix: Vec<f64>,
-    /// Dense scratch of the pivoting solve, `[MAX_CONTACTS][MAX_CONTACTS + 1]` (only the part in
-    /// use is written), and of post-stabilisation's compliance matrix, `[MAX_CONTACTS]²`.
-    dense: Vec<f64>,
-    stat: Vec<f64>,
-}
+use crate::planar::{fma, shift_force};
 
 impl Scratch {
-    /// Scratch for an `n`-segment model.
-    pub fn new(n: usize) -> Scratch {
-        Scratch {
-            count: 0,
-            cand: [Candidate::default(); MAX_CONTACTS],
-            jac: vec![0.0; 2 * MAX_CONTACTS * n],
-            resp: vec![0.0; 2 * MAX_CONTACTS * n],
-            w: vec![0.0; 4 * MAX_CONTACTS * MAX_CONTACTS],
-            u: vec![0.0; n],
-            q0: vec![0.0; n],
-            v0: vec![0.0; n],
-            acc: vec![0.0; n],
-            acc_lasting: vec![0.0; n],
-            position_fix: vec![0.0; n],
-            dense: vec![0.0; MAX_CONTACTS * (MAX_CONTACTS + 1)],
-            stat: vec![0.0; MAX_CONTACTS * MAX_CONTACTS],
-        }
-    }
-
     /// Forgets the last solve's contacts (a step without objects).
     pub(crate) fn clear(&mut self) {
         if self.count > 0 {
