@@ -19,6 +19,18 @@ pub struct Integrator {
     pub tolerance: f64,
     /// Most geometric iterations per step (1 = linearly implicit, one solve per step).
     pub max_iterations: usize,
+    /// Substeps of a step near contact, 1 to [`MAX_CONTACT_SUBSTEPS`]: a step that starts in
+    /// contact, or with an object closer to the whisker than both can move in two steps, is taken
+    /// as this many equal substeps, so that impacts, sliding and release are resolved at
+    /// `dt / contact_substeps` while the free whisker keeps the step `dt`
+    /// ([`step_with`](super::step_with)). 1, the default, takes every step whole.
+    pub contact_substeps: usize,
+    /// Steps taken whole (those not in substeps near contact) use a copy of the chain whose
+    /// masses and inertias are scaled so that its first mode rings at the chain's own first
+    /// natural frequency despite the method's period error at this step (−0.87% at 1 ms for the
+    /// w30 whisker), and statics are unchanged ([`step_with`](super::step_with)). false, the
+    /// default, steps the chain as it is.
+    pub fit_first_mode: bool,
 }
 
 impl Default for Integrator {
@@ -28,6 +40,8 @@ impl Default for Integrator {
             rho_inf: DEFAULT_RHO_INF,
             tolerance: DEFAULT_TOLERANCE,
             max_iterations: DEFAULT_MAX_ITERATIONS,
+            contact_substeps: 1,
+            fit_first_mode: false,
         }
     }
 }
@@ -41,6 +55,9 @@ impl Integrator {
         }
     }
 }
+
+/// Most substeps of a step near contact ([`Integrator::contact_substeps`]).
+pub const MAX_CONTACT_SUBSTEPS: usize = 1000;
 
 /// Default geometric tolerance, rad.
 pub const DEFAULT_TOLERANCE: f64 = 1.0e-5;
@@ -83,6 +100,13 @@ impl Integrator {
                 "an integer from 1 to 20",
             ));
         }
+        if !(1..=MAX_CONTACT_SUBSTEPS).contains(&self.contact_substeps) {
+            return Err(Error::invalid(
+                "contact_substeps",
+                self.contact_substeps,
+                format!("an integer from 1 (no substeps) to {MAX_CONTACT_SUBSTEPS}"),
+            ));
+        }
         // Hilber–Hughes–Taylor parameters in the generalized-α family (αm = 0).
         let alpha_m = 0.0;
         let alpha_f = (1.0 - r) / (1.0 + r);
@@ -94,6 +118,8 @@ impl Integrator {
             rho_inf: r,
             tolerance: self.tolerance,
             max_iterations: self.max_iterations,
+            contact_substeps: self.contact_substeps,
+            fit_first_mode: self.fit_first_mode,
             alpha_m,
             alpha_f,
             gamma,
@@ -115,6 +141,10 @@ pub struct Stepper {
     pub tolerance: f64,
     /// Most geometric iterations per step.
     pub max_iterations: usize,
+    /// Substeps of a step near contact (1: none).
+    pub contact_substeps: usize,
+    /// Whole steps on a chain whose first mode is fitted to the step.
+    pub fit_first_mode: bool,
     pub(super) alpha_m: f64,
     pub(super) alpha_f: f64,
     pub(super) gamma: f64,
@@ -126,8 +156,22 @@ pub struct Stepper {
 }
 
 impl Stepper {
+    /// The settings these coefficients were derived from.
+    pub fn integrator(&self) -> Integrator {
+        Integrator {
+            dt: self.dt,
+            rho_inf: self.rho_inf,
+            tolerance: self.tolerance,
+            max_iterations: self.max_iterations,
+            contact_substeps: self.contact_substeps,
+            fit_first_mode: self.fit_first_mode,
+        }
+    }
     /// The method's αf: forces balance at `t_{n+1} - αf·dt`.
     pub fn alpha_f(&self) -> f64 {
+        self.alpha_f
+    }
+    pub(crate) fn alpha_f_coef(&self) -> f64 {
         self.alpha_f
     }
     pub(crate) fn beta_coef(&self) -> f64 {

@@ -34,6 +34,8 @@
 //! - `articulated`: the articulated-body solve and the base reaction;
 //! - [`contact`]: contact forces as constraints, solved on the articulated factorisation;
 //! - `step`: the time step that runs these stages ([`step`], [`initialize`]);
+//! - `substeps`: a step near contact taken as substeps
+//!   ([`Integrator::contact_substeps`]);
 //! - `energy`: energies and momentum of a state.
 
 mod articulated;
@@ -44,12 +46,14 @@ mod integrator;
 mod kinematics;
 mod state;
 mod step;
+mod substeps;
 mod workspace;
 
 pub use energy::{kinetic_energy, momentum, potential_energy};
 pub use inputs::{check_loads, BaseMotion, Inputs, PointLoad};
 pub use integrator::{
-    Integrator, Stepper, DEFAULT_MAX_ITERATIONS, DEFAULT_RHO_INF, DEFAULT_TOLERANCE, MAX_DT,
+    Integrator, Stepper, DEFAULT_MAX_ITERATIONS, DEFAULT_RHO_INF, DEFAULT_TOLERANCE,
+    MAX_CONTACT_SUBSTEPS, MAX_DT,
 };
 pub use state::State;
 pub use step::{initialize, step, step_with, Forcing, NoForcing, MAX_HALVINGS};

@@ -6,6 +6,7 @@ use super::contact;
 use super::inputs::{check_inputs, BaseMotion, Inputs};
 use super::integrator::{Integrator, Stepper, MAX_DT};
 use super::state::State;
+use super::substeps;
 use super::workspace::Workspace;
 use crate::chain::Model;
 use crate::error::{check_finite, readable, Error, Result};
@@ -71,7 +72,31 @@ pub const MAX_HALVINGS: u32 = 4;
 /// interpolated to the middle), each halved again if it fails, up to [`MAX_HALVINGS`] times. Only
 /// when that fails too does the step return [`Error::Diverged`], and the state is then left as
 /// it was before the step.
+///
+/// With [`Integrator::contact_substeps`] above 1, a step near contact (see the `substeps`
+/// module) is taken as that many equal substeps, each one step as above.
 pub fn step_with<F: Forcing + ?Sized>(
+    model: &Model,
+    st: &Stepper,
+    state: &mut State,
+    inputs: &Inputs,
+    ws: &mut Workspace,
+    forcing: &mut F,
+) -> Result<()> {
+    if st.contact_substeps > 1
+        && !inputs.objects.is_empty()
+        && substeps::near_contact(model, st, state, inputs, ws)
+    {
+        return substeps::take(model, st, state, inputs, ws, forcing);
+    }
+    if st.fit_first_mode {
+        return substeps::fitted_step(model, st, state, inputs, ws, forcing);
+    }
+    step_whole(model, st, state, inputs, ws, forcing)
+}
+
+/// One step of `st`, halved where it diverges (see [`step_with`]).
+pub(super) fn step_whole<F: Forcing + ?Sized>(
     model: &Model,
     st: &Stepper,
     state: &mut State,
@@ -122,6 +147,8 @@ fn halves<F: Forcing + ?Sized>(
         rho_inf: st.rho_inf,
         tolerance: st.tolerance,
         max_iterations: st.max_iterations,
+        contact_substeps: st.contact_substeps,
+        fit_first_mode: st.fit_first_mode,
     }
     .check()?;
     let (b0, b1) = (state.base, inputs.base);

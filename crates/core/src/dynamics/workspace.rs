@@ -60,6 +60,12 @@ pub struct Workspace {
     pub iterations: usize,
     /// The state at the start of the step being taken (restored if the step fails).
     pub(super) backup: Option<State>,
+    /// The state at the start of a step taken in substeps (restored if a substep fails).
+    pub(super) substep_backup: Option<State>,
+    /// The state at the start of a substep (taken again in finer steps at an impact or release).
+    pub(super) event_backup: Option<State>,
+    /// The chain fitted to a step's first mode: the source chain, the step and the fitted copy.
+    pub(super) fitted: Option<Box<super::substeps::Fitted>>,
 }
 
 impl Workspace {
@@ -83,6 +89,9 @@ impl Workspace {
             contacts: Scratch::new(n),
             iterations: 0,
             backup: None,
+            substep_backup: None,
+            event_backup: None,
+            fitted: None,
         }
     }
 
