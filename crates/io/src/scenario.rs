@@ -24,6 +24,8 @@
 //! rho_inf = 0.99             # integrator: high-frequency spectral radius, [0.5, 1]
 //! tolerance = 1e-5           # integrator: geometric tolerance, rad
 //! max_iterations = 6         # integrator: most geometric iterations per step, 1..=20
+//! contact_substeps = 1       # integrator: substeps of a step near contact, 1..=1000 (1: none;
+//!                            # e.g. dt = 1e-3 with 10; see docs/contact.md, "Long time steps")
 //! segments = 20              # segment count N
 //! discretisation = "gregory" # "gregory" | "trapezoid" | "seed"
 //! process_noise = 0.0        # N·s^½·m^-½, random forces on every segment

@@ -33,6 +33,8 @@ pub(super) struct FileTable {
     rho_inf: Option<f64>,
     tolerance: Option<f64>,
     max_iterations: Option<usize>,
+    contact_substeps: Option<usize>,
+    fit_first_mode: Option<bool>,
     sample_rate: Option<f64>,
     seed: Option<u64>,
     segments: Option<usize>,
@@ -276,6 +278,12 @@ impl FileTable {
             max_iterations: self
                 .max_iterations
                 .unwrap_or(defaults.integrator.max_iterations),
+            contact_substeps: self
+                .contact_substeps
+                .unwrap_or(defaults.integrator.contact_substeps),
+            fit_first_mode: self
+                .fit_first_mode
+                .unwrap_or(defaults.integrator.fit_first_mode),
         };
         integrator.check().map_err(|e| ctx.invalid(e))?;
 
