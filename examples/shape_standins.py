@@ -1,0 +1,186 @@
+#!/usr/bin/env python3
+"""Shape recognition on a whisker array that is not the estimator's own.
+
+Takes the runs that `vibrissa experiment e3 --export DIR` wrote (one scenario file per run and
+`truth.csv`), re-simulates each on a stand-in whisker (the whisker, chain and sensors of a
+`standin.toml` that `target/release/examples/standin` drew: modulus, density and damping 10-25%
+off, a taper and/or a compliant follicle, the seed paper's chain at 50 segments, sensor gains up to
+5% off), adds Gaussian noise of a fraction of each column's range, and scores the class posterior
+that `vibrissa estimate --shapes` gives on them (trained on the nominal e3 only).
+
+    target/release/examples/standin --seed 11 --out /tmp/si11 --off-grid 0
+    target/release/vibrissa experiment e3 --runs 50 --export /tmp/e3x --out /tmp/e3x-out
+    python3 examples/shape_standins.py --exported /tmp/e3x --standin /tmp/si11/standin.toml \
+        --out /tmp/e3-si11 --method shape-esn --method shape-krr [--noise 0.03] [--randomise]
+
+Prints accuracy, log loss and expected calibration error (10 bins of the top probability) per
+method and whisker set, and writes `scores.json` into --out.
+"""
+
+import argparse
+import csv
+import json
+import math
+import os
+import subprocess
+import sys
+import tomllib
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+
+CHANNELS = ["theta01", "theta12", "m0", "fx", "fy"]
+
+
+def overrides(standin):
+    """`--set` pairs that put the stand-in's whisker, chain and sensors into a run."""
+    doc = tomllib.load(open(standin, "rb"))
+    sets = []
+    for key in ("segments", "discretisation", "dt"):
+        if key in doc:
+            sets.append(f"{key}={doc[key]}")
+    whisker = doc.get("whisker", {})
+    # Kinds first: a follicle's or a damping's other keys depend on its kind.
+    for table in ("follicle", "damping"):
+        sub = whisker.get(table)
+        if isinstance(sub, dict):
+            if "kind" in sub:
+                sets.append(f"whisker.{table}.kind={sub['kind']}")
+            for k, v in sub.items():
+                if k != "kind":
+                    sets.append(f"whisker.{table}.{k}={v!r}")
+    for k, v in whisker.items():
+        if k in ("preset", "follicle", "damping"):
+            continue
+        sets.append(f"whisker.{k}={v!r}")
+    for ch, sub in doc.get("sensors", {}).items():
+        for k, v in sub.items():
+            sets.append(f"sensors.{ch}.{k}={v!r}")
+    return sets
+
+
+def simulate(vibrissa, scenario, sets, out):
+    cmd = [vibrissa, "simulate", scenario, "--out", out]
+    for s in sets:
+        cmd += ["--set", s]
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode != 0:
+        sys.exit(f"simulating {scenario} failed:\n{r.stderr}")
+
+
+def read_csv(path):
+    with open(path) as f:
+        rows = list(csv.reader(f))
+    head = rows[0]
+    data = np.array([[float(x) if x != "" else math.nan for x in r] for r in rows[1:]])
+    return head, data
+
+
+def write_csv(path, head, data):
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(head)
+        for row in data:
+            w.writerow([repr(float(x)) for x in row])
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--exported", required=True)
+    ap.add_argument("--standin", help="standin.toml; without it the nominal e3 whisker is kept")
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--noise", type=float, default=0.03)
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--method", action="append", default=None)
+    ap.add_argument("--whiskers", action="append", default=None,
+                    help="whisker sets to score, e.g. c3 or c1+c2+c3+c4+c5 (default: c3 and all)")
+    ap.add_argument("--randomise", action="store_true")
+    ap.add_argument("--training", type=int, default=None)
+    ap.add_argument("--vibrissa", default="target/release/vibrissa")
+    ap.add_argument("--estimate-arg", action="append", default=[],
+                    help="passed on to `vibrissa estimate` (repeat for each word)")
+    args = ap.parse_args()
+    methods = args.method or ["shape-esn", "shape-krr"]
+    subsets = args.whiskers or ["c3", "c1+c2+c3+c4+c5"]
+
+    with open(os.path.join(args.exported, "truth.csv")) as f:
+        truth = list(csv.DictReader(f))
+    rec = os.path.join(args.out, "recordings")
+    os.makedirs(rec, exist_ok=True)
+    sets = overrides(args.standin) if args.standin else []
+    clean = {}
+
+    def one(row):
+        name = os.path.splitext(row["file"])[0] + ".csv"
+        path = os.path.join(rec, "clean-" + name)
+        if not os.path.exists(path):
+            simulate(args.vibrissa, os.path.join(args.exported, row["file"]), sets, path)
+        return name, path
+
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        for name, path in pool.map(one, truth):
+            clean[name] = read_csv(path)
+
+    # Noise of a fraction of each observed column's range over all runs.
+    head = next(iter(clean.values()))[0]
+    observed = [i for i, h in enumerate(head) if h.split(".")[-1] in CHANNELS]
+    lo = np.full(len(head), np.inf)
+    hi = np.full(len(head), -np.inf)
+    for _, data in clean.values():
+        lo = np.minimum(lo, np.nanmin(data, axis=0))
+        hi = np.maximum(hi, np.nanmax(data, axis=0))
+    rng = np.random.default_rng(args.seed)
+    files = []
+    for row in truth:
+        name = os.path.splitext(row["file"])[0] + ".csv"
+        h, data = clean[name]
+        noisy = data.copy()
+        for i in observed:
+            noisy[:, i] += args.noise * (hi[i] - lo[i]) * rng.standard_normal(len(data))
+        path = os.path.join(rec, name)
+        write_csv(path, h, noisy)
+        files.append((path, row["class"]))
+
+    scores = {}
+    for method in methods:
+        for subset in subsets:
+            cmd = [args.vibrissa, "estimate", "--shapes", "e3", "--method", method,
+                   "--whiskers", subset, "--json", "--obs"] + [p for p, _ in files]
+            if args.randomise:
+                cmd.append("--randomise")
+            if args.training:
+                cmd += ["--training", str(args.training)]
+            cmd += args.estimate_arg
+            r = subprocess.run(cmd, capture_output=True, text=True)
+            if r.returncode != 0:
+                sys.exit(f"estimate failed:\n{r.stderr}")
+            rows = [json.loads(line) for line in r.stdout.splitlines() if line.strip()]
+            top, right, loss = [], [], []
+            for est, (_, cls) in zip(rows, files):
+                probs = est["class"]
+                best = max(probs, key=probs.get)
+                top.append(probs[best])
+                right.append(best == cls)
+                loss.append(-math.log(max(probs.get(cls, 0.0), 1e-12)))
+            top, right = np.array(top), np.array(right, dtype=float)
+            ece = 0.0
+            for b in range(10):
+                sel = (top > b / 10) & (top <= (b + 1) / 10)
+                if sel.any():
+                    ece += sel.mean() * abs(right[sel].mean() - top[sel].mean())
+            key = f"{method} {subset}"
+            scores[key] = {
+                "accuracy": right.mean(),
+                "log_loss": float(np.mean(loss)),
+                "ece": ece,
+                "runs": len(files),
+            }
+            print(f"{key:32} accuracy {100 * right.mean():5.1f}%  log loss {np.mean(loss):.3f}  "
+                  f"ECE {ece:.3f}  ({len(files)} runs)", flush=True)
+    with open(os.path.join(args.out, "scores.json"), "w") as f:
+        json.dump({"standin": args.standin, "noise": args.noise, "randomise": args.randomise,
+                   "scores": scores}, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()
