@@ -53,7 +53,6 @@ def estimate(
     seed: int = 1,
     randomise: bool = False,
     particles: int | None = None,
-    check: bool = False,
     whisker: str | None = None,
     overrides: Mapping[str, Value] | None = None,
     verbose: bool = False,
@@ -68,6 +67,7 @@ def estimate_shapes(
     noise: Union[str, Mapping[str, float], None] = "auto",
     seed: int = 1,
     randomise: bool = False,
+    method: str = "shape-krr",
     verbose: bool = False,
 ) -> Union[dict[str, Any], list[dict[str, Any]]]: ...
 def simulate(
