@@ -53,6 +53,7 @@ def estimate(
     seed: int = 1,
     randomise: bool = False,
     particles: int | None = None,
+    check: bool = False,
     whisker: str | None = None,
     overrides: Mapping[str, Value] | None = None,
     verbose: bool = False,
