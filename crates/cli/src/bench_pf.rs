@@ -36,11 +36,27 @@ struct Row {
     v: f64,
 }
 
+/// The filter's transition model: the chain it steps each particle on.
+#[derive(Debug, Clone, Serialize)]
+struct TransitionModel {
+    /// Segments of the filter's chain.
+    segments: usize,
+    /// Segments of the chain that made the recording (where the angles are read).
+    observed_segments: usize,
+    /// Stiffness rule of the filter's chain.
+    discretisation: &'static str,
+    /// Time step, s.
+    dt: f64,
+    /// Geometric iterations per step.
+    max_iterations: usize,
+}
+
 /// The report.
 #[derive(Debug, Clone, Serialize)]
 struct Report {
     threads: usize,
     truth: [f64; 2],
+    model: TransitionModel,
     rows: Vec<Row>,
 }
 
@@ -52,6 +68,17 @@ impl Render for Report {
             self.truth[0] * 1e3,
             self.truth[1],
             self.threads
+        )?;
+        let m = &self.model;
+        writeln!(
+            out,
+            "transition model: {} segments ({} rule; the recording's chain has {}), time step {} \
+             ms, {} geometric iteration(s) per step",
+            m.segments,
+            m.discretisation,
+            m.observed_segments,
+            sig(m.dt * 1e3, 3),
+            m.max_iterations
         )?;
         let mut t = Table::new(&[
             ("particles", Align::Right),
@@ -93,6 +120,7 @@ pub fn run(particles: &[usize], quick: bool, format: &FormatArgs) -> Result<()> 
     let obs = Observations::at_rate(run.series, e2.sample_rate());
     let data_seconds = obs.t[obs.t.len() - 1] - obs.t[0];
     let mut rows = Vec::new();
+    let mut model = None;
     for &n in particles {
         let temper = pf::temper_for(n);
         let sigma = pf::observation_sigma(
@@ -101,6 +129,13 @@ pub fn run(particles: &[usize], quick: bool, format: &FormatArgs) -> Result<()> 
             temper,
         );
         let config = Config::e2(sigma, n, 1);
+        model.get_or_insert_with(|| TransitionModel {
+            segments: config.segments,
+            observed_segments: config.observed_segments,
+            discretisation: config.model_discretisation().name(),
+            dt: config.dt,
+            max_iterations: config.max_iterations,
+        });
         // Fastest of a few repetitions (one for the largest counts).
         let reps = if quick || n >= 5000 { 1 } else { 3 };
         let mut best = f64::INFINITY;
@@ -129,6 +164,7 @@ pub fn run(particles: &[usize], quick: bool, format: &FormatArgs) -> Result<()> 
     format.format().print(&Report {
         threads: rayon::current_num_threads(),
         truth,
+        model: model.expect("at least one particle count"),
         rows,
     })?;
     Ok(())

@@ -590,6 +590,15 @@ fn bench_pf_reports_the_real_time_factor_per_particle_count() {
         let rtf = row["real_time_factor"].as_f64().unwrap();
         assert!((rtf * wall - data).abs() < 1e-9 * data.max(1.0), "{row}");
     }
+    // The transition model is named: e2's recording chain has 20 segments, the filter's fewer.
+    let model = &report["model"];
+    assert_eq!(model["observed_segments"], 20, "{model}");
+    let segments = model["segments"].as_u64().expect("segments");
+    assert!((2..=20).contains(&segments), "{model}");
+    assert!(model["dt"]
+        .as_f64()
+        .is_some_and(|dt| dt > 0.0 && dt <= 1e-3));
+    assert!(model["discretisation"].is_string());
     let bad = vibrissa(&["bench", "--pf", "--particles", "0"]);
     assert!(!bad.status.success());
     assert!(stderr(&bad).contains("at least 1"), "{}", stderr(&bad));
