@@ -144,11 +144,7 @@ fn halves<F: Forcing + ?Sized>(
 ) -> Result<()> {
     let half = Integrator {
         dt: 0.5 * st.dt,
-        rho_inf: st.rho_inf,
-        tolerance: st.tolerance,
-        max_iterations: st.max_iterations,
-        contact_substeps: st.contact_substeps,
-        fit_first_mode: st.fit_first_mode,
+        ..st.integrator()
     }
     .check()?;
     let (b0, b1) = (state.base, inputs.base);
