@@ -349,22 +349,22 @@ fn simulate_writes_npz_and_json_summary() {
 
 #[test]
 fn simulate_lists_every_contact_interval() {
-    // At d = 20 mm in e2 the whisker strikes the box, leaves it and strikes it again: samples
-    // 2–23 and 25–51 are in contact.
+    // At d = 30 mm in e2 the box strikes the whisker's tip, which bounces off it and is caught
+    // again: samples 2–4 and 9–22 are in contact (as at a step of 1 µs).
     let dir = Scratch::new("simulate-intervals");
-    let args = ["simulate", "e2", "--set", "d=0.02", "--out", "x.csv"];
+    let args = ["simulate", "e2", "--set", "d=0.03", "--out", "x.csv"];
     let out = vibrissa_in(dir.path(), &args);
     assert!(out.status.success(), "stderr:\n{}", stderr(&out));
     let text = stdout(&out);
     assert!(
-        text.contains("contact          2–23 ms, 25–51 ms (49 samples)"),
+        text.contains("contact          2–4 ms, 9–22 ms (17 samples)"),
         "{text}"
     );
 
     // The file has the same two intervals.
     let (_, rows) = csv_rows(&dir.path().join("x.csv"));
     let touching: Vec<usize> = (0..rows.len()).filter(|&k| rows[k][6] == 1.0).collect();
-    let expected: Vec<usize> = (2..=23).chain(25..=51).collect();
+    let expected: Vec<usize> = (2..=4).chain(9..=22).collect();
     assert_eq!(touching, expected);
 
     // JSON: the first and last contact and the sample count as before, and every interval.
@@ -372,13 +372,13 @@ fn simulate_lists_every_contact_interval() {
     assert!(out.status.success(), "stderr:\n{}", stderr(&out));
     let contact = &json(&out)["contact"];
     let close = |v: &Value, x: f64| (v.as_f64().unwrap() - x).abs() < 1e-12;
-    assert!(close(&contact["start"], 0.002) && close(&contact["end"], 0.051));
-    assert_eq!(contact["samples"], 49);
+    assert!(close(&contact["start"], 0.002) && close(&contact["end"], 0.022));
+    assert_eq!(contact["samples"], 17);
     let intervals = contact["intervals"]
         .as_array()
         .expect("a list of intervals");
     assert_eq!(intervals.len(), 2, "{contact}");
-    for (interval, [a, b]) in intervals.iter().zip([[0.002, 0.023], [0.025, 0.051]]) {
+    for (interval, [a, b]) in intervals.iter().zip([[0.002, 0.004], [0.009, 0.022]]) {
         assert!(
             close(&interval[0], a) && close(&interval[1], b),
             "{contact}"

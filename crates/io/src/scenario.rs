@@ -22,6 +22,8 @@
 //! sample_rate = 1000         # Hz, output samples (t = 0, 1/rate, … up to duration)
 //! dt = 1e-4                  # s, integrator step
 //! rho_inf = 0.99             # integrator: high-frequency spectral radius, [0.5, 1]
+//! contact_rho_inf = 0.8      # integrator: the same for steps that begin in lasting contact
+//!                            # (docs/contact.md, "The force of a tip held against a face")
 //! tolerance = 1e-5           # integrator: geometric tolerance, rad
 //! max_iterations = 6         # integrator: most geometric iterations per step, 1..=20
 //! contact_substeps = 1       # integrator: substeps of a step near contact, 1..=1000 (1: none;

@@ -94,6 +94,10 @@ pub(crate) struct StepStart<'a> {
     pub a: &'a [f64],
     /// Objects that carried contact force in the previous step (bit k for object k).
     pub touching: u64,
+    /// How far the base turns between the evaluation point's time and the end of the step, rad.
+    pub base_turn: f64,
+    /// The base's angular rate at the end of the step, rad/s.
+    pub base_rate: f64,
 }
 
 /// Generalised force of a unit world force `f` at world point `p` of segment `seg`:
@@ -433,10 +437,16 @@ pub(crate) fn solve(
             vn += jn[i] * v_end;
             vt += jt[i] * v_end;
         }
+        // The base's own rotation: its turn over the rest of the step moves the point, and its
+        // rate at the end adds to the point's velocity (the joint angles are relative to it).
         let c = &mut sc.cand[k];
-        c.c_n += dn;
-        c.c_t += vt;
-        c.c_v += vn;
+        let o = ws.node[0];
+        let arm = [-(c.point[1] - o[1]), c.point[0] - o[0]];
+        let along = |d: [f64; 2]| d[0] * arm[0] + d[1] * arm[1];
+        let (an, at) = (along(c.n), along(c.t));
+        c.c_n += dn + start.base_turn * an;
+        c.c_t += vt + start.base_rate * at;
+        c.c_v += vn + start.base_rate * an;
         // Active when the step would end in penetration without a contact force; the normal row is
         // then the end-of-step normal velocity (an inelastic contact: v ≥ 0).
         c.active = c.c_n <= 0.0;

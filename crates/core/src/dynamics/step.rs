@@ -179,6 +179,15 @@ fn step_once<F: Forcing + ?Sized>(
 ) -> Result<()> {
     let n = model.n;
     check_inputs(model, inputs)?;
+    // A step that begins in lasting contact damps the stiff motion the contact adds
+    // (`Integrator::contact_rho_inf`).
+    let held;
+    let st = if state.touching != 0 && st.contact_rho_inf != st.rho_inf {
+        held = st.in_contact();
+        &held
+    } else {
+        st
+    };
     let h = st.dt;
     let t_next = state.t + h;
     let (am, af, beta, gamma) = (st.alpha_m, st.alpha_f, st.beta, st.gamma);
@@ -234,7 +243,14 @@ fn step_once<F: Forcing + ?Sized>(
             ws.solve(model, &base);
             // Stage: contact forces that keep the whisker out of the objects at the end of the step.
             if !inputs.objects.is_empty() {
-                let start = contact::StepStart { q, v, a, touching };
+                let start = contact::StepStart {
+                    q,
+                    v,
+                    a,
+                    touching,
+                    base_turn: b1.angle - base.angle,
+                    base_rate: b1.rate,
+                };
                 contact::solve(model, st, ws, inputs, &start, state.t)?;
             }
             if ws.iterations >= st.max_iterations {

@@ -31,6 +31,7 @@ pub(super) struct FileTable {
     duration: Option<f64>,
     dt: Option<f64>,
     rho_inf: Option<f64>,
+    contact_rho_inf: Option<f64>,
     tolerance: Option<f64>,
     max_iterations: Option<usize>,
     contact_substeps: Option<usize>,
@@ -284,6 +285,9 @@ impl FileTable {
             fit_first_mode: self
                 .fit_first_mode
                 .unwrap_or(defaults.integrator.fit_first_mode),
+            contact_rho_inf: self
+                .contact_rho_inf
+                .unwrap_or(defaults.integrator.contact_rho_inf),
         };
         integrator.check().map_err(|e| ctx.invalid(e))?;
 
