@@ -7,6 +7,7 @@ use crate::error::{Error, Result};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
+use vibrissa_core::rng::Rng;
 use vibrissa_core::sim::{self, Response, Scenario};
 
 /// Number of observed channels (theta01, theta12, m0, fx, fy).
@@ -680,14 +681,24 @@ pub(super) fn fit(
     })
 }
 
+/// Seed of the points at which the roughness is sampled (fixed: a calibration is repeatable).
+const ROUGHNESS_SEED: u64 = 0x0C0F;
+
 /// Standard errors and degeneracy at a solution, from the Gauss–Newton Hessian.
 pub(super) struct Covariance {
     /// Covariance of the free parameters, then the free gains, then every channel's offset
-    /// (a pseudo-inverse where the Jacobian is rank-deficient).
+    /// (a pseudo-inverse where the Jacobian is rank-deficient); with the roughness once
+    /// [`add_roughness`] has run.
     pub cov: DMatrix<f64>,
     /// Singular values of the column-normalised Jacobian, relative to the largest, with the
     /// index of the column that dominates each one's right singular vector.
     pub weak: Vec<(f64, usize)>,
+    /// The Jacobian of the weighted residuals at the solution.
+    jac: DMatrix<f64>,
+    /// The weighted residuals at the solution.
+    e: DVector<f64>,
+    /// `(JᵀJ)⁻¹` (pseudo-inverse).
+    inv: DMatrix<f64>,
 }
 
 /// The covariance `s²·(JᵀJ)⁻¹` at `sol`, with the Jacobian in [`Setup::jacobian_full`]'s order.
@@ -740,7 +751,7 @@ pub(super) fn covariance(setup: &Setup, sol: &Solution, count: &AtomicUsize) -> 
     let jtj = scaled.transpose() * &scaled;
     let eig = jtj.symmetric_eigen();
     let lmax = eig.eigenvalues.max().max(f64::MIN_POSITIVE);
-    let mut inv = DMatrix::zeros(p, p);
+    let mut inv: DMatrix<f64> = DMatrix::zeros(p, p);
     for k in 0..p {
         let l = eig.eigenvalues[k];
         if l > 1e-14 * lmax {
@@ -748,20 +759,42 @@ pub(super) fn covariance(setup: &Setup, sol: &Solution, count: &AtomicUsize) -> 
             inv += (v * v.transpose()) / l;
         }
     }
-    let mut cov = inv * s2;
+    // Back to the unscaled coordinates.
     for a in 0..p {
         for b in 0..p {
             let d = norms[a] * norms[b];
-            cov[(a, b)] = if d > 0.0 { cov[(a, b)] / d } else { 0.0 };
+            inv[(a, b)] = if d > 0.0 { inv[(a, b)] / d } else { 0.0 };
         }
     }
+    let mut cov = &inv * s2;
     // A zero column's parameter has no information: infinite variance.
     for (j, &nj) in norms.iter().enumerate() {
         if nj == 0.0 {
             cov[(j, j)] = f64::INFINITY;
         }
     }
-    Ok(Covariance { cov, weak })
+    Ok(Covariance {
+        cov,
+        weak,
+        jac,
+        e,
+        inv,
+    })
+}
+
+/// Adds to `cov` (computed at `sol` by [`covariance`]) what the simulations' roughness adds to
+/// the fitted values' covariance: `(JᵀJ)⁻¹ M (JᵀJ)⁻¹` with `M` from [`roughness`].
+pub(super) fn add_roughness(
+    setup: &Setup,
+    sol: &Solution,
+    cov: &mut Covariance,
+    count: &AtomicUsize,
+) -> Result<()> {
+    let m = roughness(setup, sol, &cov.jac, &cov.e, count)
+        .ok_or_else(|| Error::Calibration("a simulation failed next to the solution".into()))?;
+    let extra = &cov.inv * m * &cov.inv;
+    cov.cov += extra;
+    Ok(())
 }
 
 /// Lag-1 autocorrelation of `e` (consecutive entries; the joins between recordings and channels
@@ -773,4 +806,58 @@ fn lag1_autocorrelation(e: &[f64]) -> f64 {
     }
     let lag: f64 = e.windows(2).map(|w| w[0] * w[1]).sum();
     lag / ss
+}
+
+/// Points next to the solution at which the simulations' roughness is sampled.
+const ROUGHNESS_SAMPLES: usize = 32;
+
+/// What the simulations' roughness adds to the fitted values' covariance, as the matrix
+/// `M = Σ_k (Jᵀd_k)(Jᵀd_k)ᵀ / (2K)` of the covariance `(JᵀJ)⁻¹ M (JᵀJ)⁻¹`.
+///
+/// The simulated channels are not smooth in the parameters: a contact event falls on one time
+/// step or the next, and the residual changes by a step of its own. At a solution the fit
+/// therefore sees, besides the recordings' noise, a residual that a small change of the
+/// parameters redraws. `d_k` is what the linear model `e + J·δ_k` misses of the weighted
+/// residuals at `K` points `z + δ_k` next to the solution (every free parameter stepped by
+/// ± half its finite-difference step, the signs at random from a fixed seed; gains and offsets
+/// held); the difference of two draws has twice the variance of one, hence the 2. `None` when
+/// a simulation fails.
+fn roughness(
+    setup: &Setup,
+    sol: &Solution,
+    jac: &DMatrix<f64>,
+    e: &DVector<f64>,
+    count: &AtomicUsize,
+) -> Option<DMatrix<f64>> {
+    let free = setup.free_indices();
+    let q = free.len();
+    let p = jac.ncols();
+    if q == 0 {
+        return Some(DMatrix::zeros(p, p));
+    }
+    let mut rng = Rng::stream(ROUGHNESS_SEED, 0);
+    let points: Vec<Vec<f64>> = (0..ROUGHNESS_SAMPLES)
+        .map(|_| {
+            free.iter()
+                .zip(&sol.z)
+                .map(|(&i, &z)| {
+                    let sign = if rng.uniform() < 0.5 { -1.0 } else { 1.0 };
+                    let (lo, hi) = bounds(setup.params[i].kind);
+                    (z + 0.5 * sign * setup.params[i].step).clamp(lo, hi)
+                })
+                .collect()
+        })
+        .collect();
+    let sims: Vec<Option<Sims>> = points
+        .par_iter()
+        .map(|z| setup.simulate(&setup.full_x(z), count))
+        .collect();
+    let mut m = DMatrix::zeros(p, p);
+    for (z, sims) in points.iter().zip(&sims) {
+        let dz = DVector::from_iterator(q, z.iter().zip(&sol.z).map(|(a, b)| a - b));
+        let d = setup.residual(sims.as_ref()?, &sol.resp) - e - jac.columns(0, q) * dz;
+        let g = jac.transpose() * d;
+        m += &g * g.transpose();
+    }
+    Some(m / (2.0 * ROUGHNESS_SAMPLES as f64))
 }

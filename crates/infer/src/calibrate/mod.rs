@@ -74,9 +74,15 @@
 //! residuals with respect to every fitted quantity (whisker parameters, free gains, offsets) and
 //! `s²` the residual variance per degree of freedom, times `(1 + r)/(1 − r)` with `r` the
 //! residuals' lag-1 autocorrelation (correlated residuals, as a model that is slightly off
-//! leaves them, carry less information than as many independent ones); errors of the physical values follow by the
-//! delta method. A parameter is not determined when a singular value of the column-normalised
-//! Jacobian below 1e-6 of the largest is dominated by it, or when its relative standard error
+//! leaves them, carry less information than as many independent ones). The reported errors
+//! add what the simulations' roughness adds: `(JᵀJ)⁻¹ M (JᵀJ)⁻¹`, with `M` measured from what
+//! the linear model misses of the residuals at 32 points next to the final solution (contact
+//! events fall on time steps, so a small change of the parameters redraws part of the
+//! residual; see `fit::roughness`). Errors of the physical values follow by the delta method.
+//! Whether the recordings determine a parameter is judged without the roughness term (it asks
+//! what the recordings resolve, not how far the search may end from the best fit): a parameter
+//! is not determined when a singular value of the column-normalised Jacobian below 1e-6 of the
+//! largest is dominated by it, or when its relative standard error
 //! exceeds [`Settings::threshold`] (for the follicle, its compliance; for the taper, the amount
 //! of taper 1 − tip/base; for the time offset, a sample period). The worst such parameter is
 //! held at its nominal value and the fit is repeated without it, until every fitted parameter is
@@ -381,9 +387,12 @@ pub fn calibrate(
             &mut iterations,
             progress,
         )?;
-        let cov = fit::covariance(&setup, &sol, &count)?;
+        let mut cov = fit::covariance(&setup, &sol, &count)?;
         match worst_undetermined(&setup, &sol, &cov, settings, &reference) {
-            None => break (sol, cov),
+            None => {
+                fit::add_roughness(&setup, &sol, &mut cov, &count)?;
+                break (sol, cov);
+            }
             Some((Held::Param(i), note)) => {
                 let x = setup.full_x(&sol.z);
                 setup.free[i] = false;
