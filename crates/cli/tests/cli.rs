@@ -350,21 +350,21 @@ fn simulate_writes_npz_and_json_summary() {
 #[test]
 fn simulate_lists_every_contact_interval() {
     // At d = 30 mm in e2 the box strikes the whisker's tip, which bounces off it and is caught
-    // again: samples 2–4 and 9–22 are in contact (as at a step of 1 µs).
+    // again: the sample periods ending at 2–6 and 9–23 ms hold contact (as at a step of 2 µs).
     let dir = Scratch::new("simulate-intervals");
     let args = ["simulate", "e2", "--set", "d=0.03", "--out", "x.csv"];
     let out = vibrissa_in(dir.path(), &args);
     assert!(out.status.success(), "stderr:\n{}", stderr(&out));
     let text = stdout(&out);
     assert!(
-        text.contains("contact          2–4 ms, 9–22 ms (17 samples)"),
+        text.contains("contact          2–6 ms, 9–23 ms (20 samples)"),
         "{text}"
     );
 
     // The file has the same two intervals.
     let (_, rows) = csv_rows(&dir.path().join("x.csv"));
     let touching: Vec<usize> = (0..rows.len()).filter(|&k| rows[k][6] == 1.0).collect();
-    let expected: Vec<usize> = (2..=4).chain(9..=22).collect();
+    let expected: Vec<usize> = (2..=6).chain(9..=23).collect();
     assert_eq!(touching, expected);
 
     // JSON: the first and last contact and the sample count as before, and every interval.
@@ -372,13 +372,13 @@ fn simulate_lists_every_contact_interval() {
     assert!(out.status.success(), "stderr:\n{}", stderr(&out));
     let contact = &json(&out)["contact"];
     let close = |v: &Value, x: f64| (v.as_f64().unwrap() - x).abs() < 1e-12;
-    assert!(close(&contact["start"], 0.002) && close(&contact["end"], 0.022));
-    assert_eq!(contact["samples"], 17);
+    assert!(close(&contact["start"], 0.002) && close(&contact["end"], 0.023));
+    assert_eq!(contact["samples"], 20);
     let intervals = contact["intervals"]
         .as_array()
         .expect("a list of intervals");
     assert_eq!(intervals.len(), 2, "{contact}");
-    for (interval, [a, b]) in intervals.iter().zip([[0.002, 0.004], [0.009, 0.022]]) {
+    for (interval, [a, b]) in intervals.iter().zip([[0.002, 0.006], [0.009, 0.023]]) {
         assert!(
             close(&interval[0], a) && close(&interval[1], b),
             "{contact}"

@@ -2,6 +2,7 @@
 //! the contract's time series.
 
 use crate::chain::{Discretisation, Model};
+use crate::contact::ContactReport;
 use crate::dynamics::{initialize, step, BaseMotion, Inputs, Integrator, State, Workspace};
 use crate::error::{check_finite, check_non_negative, check_positive, Error, Result};
 use crate::objects::closest;
@@ -547,6 +548,10 @@ pub fn run_observed(
     let mut steps = 0;
     let mut shape = observe.as_ref().map(|_| Workspace::new(&model));
     for k in 0..samples {
+        // The last contact of the steps since the previous sample: a contact held through the
+        // sample period can carry no force in the very step that ends it (the method's force
+        // then rests on the steps before), and is still a contact.
+        let mut touched = None;
         if k > 0 {
             for j in 1..=per_sample {
                 let t = ((k - 1) * per_sample + j) as f64 * stepper.dt;
@@ -562,6 +567,7 @@ pub fn run_observed(
                 if state.contact.is_some() {
                     let p = penetration(&model, &state, &mut ws, &scenario.objects);
                     max_penetration = max_penetration.max(p);
+                    touched = state.contact;
                 }
             }
         }
@@ -575,6 +581,7 @@ pub fn run_observed(
         }
         rows.push(sample(
             &state,
+            state.contact.or(touched),
             k as f64 * period,
             &scenario.sensor_noise,
             &scenario.sensor_response,
@@ -595,9 +602,10 @@ pub fn run_observed(
 }
 
 /// The contract's row for `state` at sample time `t`, through the sensors' gains and offsets,
-/// with sensor noise.
+/// with sensor noise; `contact` is the last contact since the previous sample.
 fn sample(
     state: &State,
+    contact: Option<ContactReport>,
     t: f64,
     noise: &SensorNoise,
     response: &SensorResponse,
@@ -622,7 +630,7 @@ fn sample(
         add(s.fx, &r.fx, noise.fx),
         add(s.fy, &r.fy, noise.fy),
     );
-    let (contact, cx, cy, arc) = match state.contact {
+    let (contact, cx, cy, arc) = match contact {
         Some(c) => {
             // The contact point in the (possibly rotated) base frame.
             let (sn, cs) = state.base.angle.sin_cos();

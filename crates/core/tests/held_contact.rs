@@ -21,13 +21,16 @@ fn e2(d: f64, v: f64, integrator: Integrator) -> sim::Output {
 }
 
 /// The largest violation of the moment balance `m0 = cx·fy − cy·fx`, relative to |m0|, over the
-/// samples from `after` (s) on whose contact is at the tip (arc length `length`); and how many
-/// such samples there were.
+/// samples from `after` (s) on whose contact is at the tip (arc length `length`) and stays there
+/// through the next sample period (the contact point of a period in which the tip slips off is
+/// where it last touched, the wrench the sample's own); and how many such samples there were.
 fn worst_balance(run: &sim::Output, after: f64, length: f64) -> (f64, usize) {
+    let at_tip = |r: &[f64; 10]| (r[9] - length).abs() < 1e-9;
     let held: Vec<f64> = run
         .rows
-        .iter()
-        .filter(|r| r[0] >= after && (r[9] - length).abs() < 1e-9)
+        .windows(2)
+        .filter(|w| w[0][0] >= after && at_tip(&w[0]) && at_tip(&w[1]))
+        .map(|w| &w[0])
         .map(|r| {
             let [m0, fx, fy, cx, cy] = [r[3], r[4], r[5], r[7], r[8]];
             (m0 - (cx * fy - cy * fx)).abs() / m0.abs()
