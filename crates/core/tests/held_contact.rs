@@ -6,19 +6,11 @@
 //! once broke that balance by half (it alternated from step to step about the holding force, and
 //! every sample caught the same phase).
 
-use vibrissa_core::dynamics::Integrator;
-use vibrissa_core::scenes::e2_box;
-use vibrissa_core::sim::{self, Scenario};
+mod common;
 
-/// The `e2` run at (d, v) with the integrator `integrator`.
-fn e2(d: f64, v: f64, integrator: Integrator) -> sim::Output {
-    let scenario = Scenario {
-        objects: vec![e2_box(d, v)],
-        integrator,
-        ..Scenario::default()
-    };
-    sim::run(&scenario, &mut |_| {}).unwrap()
-}
+use common::e2;
+use vibrissa_core::dynamics::Integrator;
+use vibrissa_core::sim::{self, Scenario};
 
 /// The largest violation of the moment balance `m0 = cx·fy − cy·fx`, relative to |m0|, over the
 /// samples from `after` (s) on whose contact is at the tip (arc length `length`) and stays there

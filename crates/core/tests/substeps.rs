@@ -2,19 +2,12 @@
 //! (`Integrator::contact_substeps`, `Integrator::fit_first_mode`): `e2` strikes at 1 ms against a
 //! 0.01 ms reference, and the default path unchanged.
 
+mod common;
+
+use common::e2;
 use vibrissa_core::dynamics::Integrator;
 use vibrissa_core::scenes::e2_box;
 use vibrissa_core::sim::{self, Scenario};
-
-/// The `e2` run at (d, v) with the integrator `integrator`.
-fn e2(d: f64, v: f64, integrator: Integrator) -> sim::Output {
-    let scenario = Scenario {
-        objects: vec![e2_box(d, v)],
-        integrator,
-        ..Scenario::default()
-    };
-    sim::run(&scenario, &mut |_| {}).unwrap()
-}
 
 /// Per channel (theta01, theta12, m0, fx, fy): RMS of `run - reference` over the reference's
 /// range, %.
