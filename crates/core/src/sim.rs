@@ -478,15 +478,57 @@ fn explain_divergence(e: Error, scenario: &Scenario, dt: f64) -> Error {
              (2e-5); lower it",
             crate::error::readable(scenario.process_noise)
         ),
-        _ => format!(
-            "the time step dt = {} s may be too long for this whisker: try a shorter one",
-            crate::error::readable(dt)
-        ),
+        _ => match step_that_runs(scenario, t, dt) {
+            Some(works) => format!(
+                "the time step dt = {} s is too long for this run; the longest of its halves, \
+                 quarters, … that runs to t = {} s is dt = {} s (`--set dt={}`)",
+                crate::error::readable(dt),
+                crate::error::readable(probe_end(scenario, t)),
+                crate::error::readable(works),
+                works
+            ),
+            None => format!(
+                "the time step dt = {} s may be too long for this whisker, but no step down to \
+                 {} s runs past t = {} s either: look at the objects' motion and the base's",
+                crate::error::readable(dt),
+                crate::error::readable(dt / (1u64 << PROBE_HALVINGS) as f64),
+                crate::error::readable(probe_end(scenario, t))
+            ),
+        },
     };
     Error::Diverged {
         t,
         detail: format!("{detail}; likely cause: {cause}"),
     }
+}
+
+/// How many times [`step_that_runs`] halves a step that diverged.
+const PROBE_HALVINGS: u32 = 6;
+
+/// Most steps [`step_that_runs`] spends on one probe: beyond it the search stops (an error's
+/// explanation must not take minutes).
+const PROBE_MAX_STEPS: f64 = 5e6;
+
+/// Where a probe of a run that diverged at `t` ends: half as far again past the failure and at
+/// least 10 ms past it, within the run.
+fn probe_end(scenario: &Scenario, t: f64) -> f64 {
+    (1.5 * t).max(t + 0.01).min(scenario.duration)
+}
+
+/// The longest of `dt/2`, `dt/4`, … (down to `dt/2^PROBE_HALVINGS`) at which `scenario` runs
+/// without diverging past [`probe_end`] of the time `t` at which `dt` diverged, if any: what a
+/// refused step is told to use instead.
+fn step_that_runs(scenario: &Scenario, t: f64, dt: f64) -> Option<f64> {
+    let end = probe_end(scenario, t);
+    (1..=PROBE_HALVINGS)
+        .map(|k| dt / (1u64 << k) as f64)
+        .take_while(|h| end / h <= PROBE_MAX_STEPS)
+        .find(|&h| {
+            let mut probe = scenario.clone();
+            probe.duration = end;
+            probe.integrator.dt = h;
+            run_steps(&probe, &mut |_| {}, None, false).is_ok()
+        })
 }
 
 /// Runs `scenario`, calling `progress` with the fraction done now and then.
@@ -511,7 +553,18 @@ pub struct Snapshot<'a> {
 pub fn run_observed(
     scenario: &Scenario,
     progress: &mut dyn FnMut(f64),
+    observe: Option<&mut dyn FnMut(Snapshot<'_>)>,
+) -> Result<Output> {
+    run_steps(scenario, progress, observe, true)
+}
+
+/// [`run_observed`]; with `explain`, a divergence is returned with its likely cause, and a step
+/// that was too long with the longest shorter one that runs ([`step_that_runs`]).
+fn run_steps(
+    scenario: &Scenario,
+    progress: &mut dyn FnMut(f64),
     mut observe: Option<&mut dyn FnMut(Snapshot<'_>)>,
+    explain: bool,
 ) -> Result<Output> {
     scenario.check()?;
     let whisker = scenario.whisker.check()?;
@@ -557,8 +610,13 @@ pub fn run_observed(
                 let t = ((k - 1) * per_sample + j) as f64 * stepper.dt;
                 inputs.base = scenario.base.at(t);
                 let entering = entering(&scenario.objects, state.t, t);
-                step(&model, &stepper, &mut state, &inputs, &mut ws)
-                    .map_err(|e| explain_divergence(e, scenario, stepper.dt))?;
+                step(&model, &stepper, &mut state, &inputs, &mut ws).map_err(|e| {
+                    if explain {
+                        explain_divergence(e, scenario, stepper.dt)
+                    } else {
+                        e
+                    }
+                })?;
                 steps += 1;
                 if entering {
                     ws.evaluate(&model, &state);
