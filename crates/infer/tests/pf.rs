@@ -279,3 +279,31 @@ fn on_a_randomised_family_the_filter_learns_the_sensors_and_stays_honest() {
         "randomised: {rough_inside} of 4 intervals hold d"
     );
 }
+
+#[test]
+fn a_recording_below_a_kilohertz_is_filtered() {
+    // The strike of the first test, every other sample: 500 Hz, whose period is longer than the
+    // longest step the physics takes (the ringing model then steps twice per period).
+    let full = run_of(0.022, 0.9);
+    let obs = Observations {
+        t: full.t.iter().step_by(2).copied().collect(),
+        values: full
+            .values
+            .iter()
+            .map(|v| v.iter().step_by(2).copied().collect())
+            .collect(),
+    };
+    assert_eq!(obs.t.len(), 76);
+    let config = Config::e2(SIGMA, 200, 5);
+    let post = pf::run(&config, &obs, &mut |_| {}).unwrap();
+    assert_eq!(post.trace.len(), 76);
+    let last = post.last();
+    assert!(
+        (last[0].mean - 0.022).abs() < 1.5e-3,
+        "d = {}",
+        last[0].mean
+    );
+    assert!((last[1].mean - 0.9).abs() < 0.1, "v = {}", last[1].mean);
+    // Some particles' boxes left for good, and their whiskers rang on the free model.
+    assert!(post.ringing_share > 0.0, "{}", post.ringing_share);
+}

@@ -5,7 +5,7 @@
 use super::config::Config;
 use crate::error::{Error, Result};
 use vibrissa_core::chain::Model;
-use vibrissa_core::dynamics::{initialize, step, Inputs, Integrator, State, Workspace};
+use vibrissa_core::dynamics::{initialize, step, Inputs, Integrator, State, Workspace, MAX_DT};
 use vibrissa_core::objects::{Motion, Object, Shape};
 use vibrissa_core::whisker::{Follicle, WhiskerParams};
 
@@ -48,13 +48,16 @@ pub(super) fn param(o: &ObjState, k: usize, gap: f64) -> f64 {
 }
 
 /// The whisker's model once a particle's box has gone for good: the same chain stepped once per
-/// sample period, its stiffness raised so that the first mode keeps its frequency at that step
-/// (the implicit method's period elongation, `Ω_num = 2·atan(Ω/2)` with `Ω = ω·h`, is undone by
+/// sample period (or in equal parts of it no longer than [`MAX_DT`], for sample rates below
+/// 1 kHz), its stiffness raised so that the first mode keeps its frequency at that step (the
+/// implicit method's period elongation, `Ω_num = 2·atan(Ω/2)` with `Ω = ω·h`, is undone by
 /// `ω_model = (2/h)·tan(ω·h/2)`). Higher modes, whose frequencies it gets wrong, are damped away
 /// within a few milliseconds of the slip-off.
 pub(super) struct FreeModel {
     model: Model,
     stepper: vibrissa_core::dynamics::Stepper,
+    /// Steps per sample period.
+    substeps: usize,
     /// Tip deflection per √energy, m/√J: √(2·C) with C the tip's compliance, L³/(3·EI_min)
     /// (the cantilever's least stiffness) plus L²/k_f for a follicle spring k_f.
     reach_per_root_energy: f64,
@@ -73,7 +76,9 @@ impl FreeModel {
             .modes()
             .map_err(|e| Error::Observation(format!("filter free model: {e}")))?
             .frequencies[0];
-        let omega_h = 2.0 * std::f64::consts::PI * f1 * period;
+        let substeps = ((period / MAX_DT) * (1.0 - 1e-9)).ceil().max(1.0) as usize;
+        let h = period / substeps as f64;
+        let omega_h = 2.0 * std::f64::consts::PI * f1 * h;
         let warp = ((0.5 * omega_h).tan() / (0.5 * omega_h)).powi(2);
         // Every stiffness scaled by one factor scales every frequency by its square root: the
         // whisker's and the follicle's spring alike.
@@ -91,7 +96,7 @@ impl FreeModel {
         let free = Model::new(&stiffer, config.segments, config.model_discretisation())
             .map_err(|e| Error::Observation(format!("filter free model: {e}")))?;
         let stepper = Integrator {
-            dt: period,
+            dt: h,
             max_iterations: config.max_iterations,
             ..Integrator::default()
         }
@@ -118,6 +123,7 @@ impl FreeModel {
         Ok(FreeModel {
             model: free,
             stepper,
+            substeps,
             reach_per_root_energy: (2.0 * tip_compliance).sqrt(),
             clearance: y_rest + rmax + 2e-4,
         })
@@ -230,14 +236,14 @@ pub(super) fn advance(
 ) -> std::result::Result<(), ()> {
     let ringing = chain.ringing;
     if *gone {
-        // Free ringing: one step per period of the free model.
+        // Free ringing: the free model's steps of each period.
         let inputs = Inputs {
             base: Default::default(),
             loads: &[],
             noise,
             objects: &[],
         };
-        for _ in 0..periods {
+        for _ in 0..periods * ringing.substeps {
             step(&ringing.model, &ringing.stepper, s, &inputs, ws).map_err(|_| ())?;
         }
         return Ok(());
@@ -312,16 +318,21 @@ mod tests {
         let w = config.whisker.check().unwrap();
         let model = Model::new(&w, 8, Discretisation::default()).unwrap();
         config.segments = 8;
-        let period = 1e-3;
-        let free = FreeModel::new(&config, &config.whisker, &model, period).unwrap();
         let f1 = model.modes().unwrap().frequencies[0];
-        let raised = free.model.modes().unwrap().frequencies[0];
-        // The implicit step at `period` elongates the raised mode's period back to the true one.
-        let omega_h = 2.0 * std::f64::consts::PI * raised * period;
-        let numerical = 2.0 * (0.5 * omega_h).atan() / (2.0 * std::f64::consts::PI * period);
-        assert!(
-            (numerical / f1 - 1.0).abs() < 1e-9,
-            "{numerical} Hz vs {f1} Hz"
-        );
+        // 1 kHz, 10 kHz, and 500 Hz and 300 Hz, whose periods are longer than a step may be.
+        for (period, substeps) in [(1e-3, 1), (1e-4, 1), (2e-3, 2), (1.0 / 300.0, 4)] {
+            let free = FreeModel::new(&config, &config.whisker, &model, period).unwrap();
+            assert_eq!(free.substeps, substeps, "period {period}");
+            let h = free.stepper.dt;
+            assert!((h * substeps as f64 - period).abs() < 1e-15 && h <= MAX_DT);
+            let raised = free.model.modes().unwrap().frequencies[0];
+            // The implicit step h elongates the raised mode's period back to the true one.
+            let omega_h = 2.0 * std::f64::consts::PI * raised * h;
+            let numerical = 2.0 * (0.5 * omega_h).atan() / (2.0 * std::f64::consts::PI * h);
+            assert!(
+                (numerical / f1 - 1.0).abs() < 1e-9,
+                "{numerical} Hz vs {f1} Hz"
+            );
+        }
     }
 }
