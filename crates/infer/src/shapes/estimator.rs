@@ -20,7 +20,7 @@ use crate::error::{Error, Result};
 use crate::experiment::CHANNELS;
 use crate::features::dist2;
 use crate::method::Estimate;
-use crate::methods::kernel_ridge::{median_distance, Pca, Regression, HOLD, RIDGES};
+use crate::methods::kernel_ridge::{median_distance, Pca, Regression, Spread, HOLD, RIDGES};
 use nalgebra::DMatrix;
 use rayon::prelude::*;
 
@@ -512,7 +512,7 @@ impl ShapeKrr {
                     .map(|i| y.iter().all(|t| (0.0..=1.0).contains(&t[i])))
                     .collect();
                 let settings = Regression::choose(&zc, &y, &inside, &fail)?;
-                Regression::finish(zc, &y, &inside, &settings, ranges, &fail)
+                Regression::finish(zc, &y, &inside, &settings, ranges, Spread::Constant, &fail)
             })
             .collect::<Result<Vec<_>>>()?;
         Ok(m)
