@@ -307,3 +307,46 @@ fn a_recording_below_a_kilohertz_is_filtered() {
     // Some particles' boxes left for good, and their whiskers rang on the free model.
     assert!(post.ringing_share > 0.0, "{}", post.ringing_share);
 }
+
+#[test]
+fn a_faster_recording_says_what_its_decimation_says() {
+    // One strike recorded at 2 kHz and the same recording at 1 kHz (every other sample): the
+    // filter weighs evidence per millisecond, so the faster recording's posterior is no narrower
+    // than the slower one's (counting every sample as at 1 kHz made the distance's √2 narrower:
+    // 0.32 against 0.45 mm).
+    let e2 = Family::builtin("e2")
+        .unwrap()
+        .with_timing(2000.0, 301)
+        .unwrap();
+    let s = e2.simulate(&[0.024, 0.6], &Noise::NONE, 7).unwrap();
+    let fast = Observations::at_rate(s.series, 2000.0);
+    let slow = Observations {
+        t: fast.t.iter().step_by(2).copied().collect(),
+        values: fast
+            .values
+            .iter()
+            .map(|v| v.iter().step_by(2).copied().collect())
+            .collect(),
+    };
+    let config = Config::e2(SIGMA, 400, 5);
+    let post_fast = pf::run(&config, &fast, &mut |_| {}).unwrap();
+    let post_slow = pf::run(&config, &slow, &mut |_| {}).unwrap();
+    assert!((post_fast.rate_widening - 2f64.sqrt()).abs() < 1e-12);
+    assert_eq!(post_slow.rate_widening, 1.0);
+    for (u, (f, s)) in post_fast.last().iter().zip(post_slow.last()).enumerate() {
+        let ratio = f.std / s.std;
+        assert!(
+            ratio > 0.8 && ratio < 1.6,
+            "unknown {u}: std {} vs {}",
+            f.std,
+            s.std
+        );
+        assert!(
+            (f.mean - s.mean).abs() < 1.645 * s.std,
+            "unknown {u}: {} vs {} ± {}",
+            f.mean,
+            s.mean,
+            s.std
+        );
+    }
+}

@@ -4,6 +4,7 @@
 
 use super::config::{Config, PARAMS};
 use super::draws::{draw_initial, redraw_waiting};
+use super::likelihood::per_time_factor;
 use super::posterior::{summarise, Observations, Posterior, TraceRow};
 use super::sampling::{systematic, LiuWest};
 use super::sensors::SensorBelief;
@@ -118,6 +119,11 @@ impl Filter {
                 "the sample period must be a positive number of seconds, got {period}"
             )));
         }
+        // Evidence weighed per millisecond (see `per_time_factor`).
+        let widening = per_time_factor(period);
+        let mut config = config.clone();
+        config.sigma = config.sigma.map(|s| s * widening);
+        let config = &config;
         let np = config.particles;
         let per_sample = ((period / config.dt) * (1.0 - 1e-9)).ceil().max(1.0) as usize;
         let stepper = Integrator {
@@ -158,7 +164,10 @@ impl Filter {
         let reach_zone = clearance + 1e-4;
         Ok(Filter {
             config: config.clone(),
-            post: Posterior::empty(config.unknowns()),
+            post: Posterior {
+                rate_widening: widening,
+                ..Posterior::empty(config.unknowns())
+            },
             hyps,
             stepper,
             spare_hyp: hyp.clone(),

@@ -81,6 +81,21 @@ impl TransitionModel {
     }
 }
 
+/// Sample period at which the likelihood's tempering was chosen ([`temper_for`] and the
+/// filter's other tempering constants), s: 1 kHz.
+pub const TEMPERED_PERIOD: f64 = 1e-3;
+
+/// Widening of the observation noise for samples `period` seconds apart: √(1 ms / period) above
+/// 1 kHz, 1 at and below it. The tempering stands for errors of the transition model (and of a
+/// whisker that is not the filter's) that are correlated over milliseconds, and it was chosen at
+/// 1 kHz: sampled faster, the same error would count once per sample and the posterior would
+/// narrow with the sample rate although the recording says no more about the object. So the
+/// filter weighs evidence per millisecond, as at 1 kHz. Below 1 kHz it keeps the 1 kHz noise
+/// (fewer samples, each weighed as at 1 kHz: wider posteriors, not narrower).
+pub fn per_time_factor(period: f64) -> f64 {
+    (TEMPERED_PERIOD / period).max(1.0).sqrt()
+}
+
 /// Observation noise from the sensor noise `sensor`, the model error `model` and tempering.
 pub fn observation_sigma(sensor: [f64; 5], model: [f64; 5], temper: f64) -> [f64; 5] {
     std::array::from_fn(|c| temper * sensor[c].hypot(model[c]))
@@ -111,6 +126,14 @@ pub fn noise_from_series(samples: &[&[Vec<f64>]]) -> [f64; 5] {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn evidence_is_weighed_per_millisecond_above_a_kilohertz() {
+        assert_eq!(per_time_factor(1e-3), 1.0);
+        assert_eq!(per_time_factor(2e-3), 1.0);
+        assert!((per_time_factor(0.5e-3) - 2f64.sqrt()).abs() < 1e-12);
+        assert!((per_time_factor(1e-4) - 10f64.sqrt()).abs() < 1e-12);
+    }
 
     #[test]
     fn tempering_follows_the_calibrated_points() {

@@ -248,7 +248,7 @@ impl Pf {
     /// before tempering. About 1 or less when the model explains the recording.
     pub fn misfit(&self, post: &Posterior, channels: usize) -> f64 {
         let n = (post.trace.len() * channels).max(1) as f64;
-        -2.0 * post.log_evidence / n * self.effective_temper().powi(2)
+        -2.0 * post.log_evidence / n * (self.effective_temper() * post.rate_widening).powi(2)
     }
 
     /// The observation noise found by [`crate::Method::fit`], if fitted.

@@ -44,8 +44,8 @@ mod transition;
 pub use config::{coarse_segments, Config, Injection, Prior, PARAMS};
 pub use filter::{run, Filter, Particles};
 pub use likelihood::{
-    noise_from_series, observation_sigma, temper_for, TransitionModel, FINE_TEMPER, MODEL_ERROR,
-    TRANSITION_MODELS, UNKNOWN_START_TEMPER,
+    noise_from_series, observation_sigma, per_time_factor, temper_for, TransitionModel,
+    FINE_TEMPER, MODEL_ERROR, TEMPERED_PERIOD, TRANSITION_MODELS, UNKNOWN_START_TEMPER,
 };
 pub use method::{
     alternative_whiskers, default_particles, Pf, ALTERNATIVES, CALIBRATED_TEMPER,

@@ -59,6 +59,9 @@ pub struct Posterior {
     /// that depends only on the noise levels: the sum over samples of the log mean weight
     /// update. Compares priors or models on the same series.
     pub log_evidence: f64,
+    /// Factor by which the filter widened its observation noise for the recording's sample rate
+    /// ([`super::per_time_factor`]; 1 at 1 kHz and below).
+    pub rate_widening: f64,
     /// The sensors' gains and offsets after the last sample, per channel of
     /// [`crate::experiment::CHANNELS`], when the filter was not told them exactly
     /// ([`super::Config::sensor_spread`]).
@@ -88,6 +91,7 @@ impl Posterior {
             steps: 0,
             ringing_share: 0.0,
             log_evidence: 0.0,
+            rate_widening: 1.0,
             sensors: None,
         }
     }
