@@ -28,6 +28,18 @@ fn fitted(family: &Family, noise: Noise, particles: usize) -> Pf {
     filter
 }
 
+/// Every other sample of `obs` (the recording at half its rate).
+fn every_other(obs: &Observations) -> Observations {
+    Observations {
+        t: obs.t.iter().step_by(2).copied().collect(),
+        values: obs
+            .values
+            .iter()
+            .map(|v| v.iter().step_by(2).copied().collect())
+            .collect(),
+    }
+}
+
 fn run_of(d: f64, v: f64) -> Observations {
     let e2 = Family::builtin("e2").unwrap();
     let s = e2.simulate(&[d, v], &Noise::NONE, 3).unwrap();
@@ -285,14 +297,7 @@ fn a_recording_below_a_kilohertz_is_filtered() {
     // The strike of the first test, every other sample: 500 Hz, whose period is longer than the
     // longest step the physics takes (the ringing model then steps twice per period).
     let full = run_of(0.022, 0.9);
-    let obs = Observations {
-        t: full.t.iter().step_by(2).copied().collect(),
-        values: full
-            .values
-            .iter()
-            .map(|v| v.iter().step_by(2).copied().collect())
-            .collect(),
-    };
+    let obs = every_other(&full);
     assert_eq!(obs.t.len(), 76);
     let config = Config::e2(SIGMA, 200, 5);
     let post = pf::run(&config, &obs, &mut |_| {}).unwrap();
@@ -320,14 +325,7 @@ fn a_faster_recording_says_what_its_decimation_says() {
         .unwrap();
     let s = e2.simulate(&[0.024, 0.6], &Noise::NONE, 7).unwrap();
     let fast = Observations::at_rate(s.series, 2000.0);
-    let slow = Observations {
-        t: fast.t.iter().step_by(2).copied().collect(),
-        values: fast
-            .values
-            .iter()
-            .map(|v| v.iter().step_by(2).copied().collect())
-            .collect(),
-    };
+    let slow = every_other(&fast);
     let config = Config::e2(SIGMA, 400, 5);
     let post_fast = pf::run(&config, &fast, &mut |_| {}).unwrap();
     let post_slow = pf::run(&config, &slow, &mut |_| {}).unwrap();
