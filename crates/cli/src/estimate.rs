@@ -15,6 +15,7 @@ use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use vibrissa_infer::check::{self, Check};
+use vibrissa_infer::lead_in;
 use vibrissa_infer::{
     methods, Estimate, Family, Method, Reader, Recording, Trained, Variant, CHANNELS,
 };
@@ -95,8 +96,10 @@ pub struct Args {
     /// size) at every sample to this CSV, and its plot beside it (same name, .png). One file only.
     #[arg(long, value_name = "FILE.csv")]
     pub(crate) trace: Option<PathBuf>,
-    /// pf: the recording may start up to this many seconds before the approach (the start delay
-    /// `t0` becomes an unknown, uniform on [0, MAX]).
+    /// The recordings may start up to this many seconds before the approach. pf: the start delay
+    /// `t0` becomes an unknown, uniform on [0, MAX]; other methods read series aligned at the
+    /// contact's onset. Without it, a recording whose contact begins later than any run of the
+    /// scenario makes contact is read so, with a warning.
     #[arg(long, value_name = "SECONDS", default_value_t = 0.0)]
     pub(crate) max_delay: f64,
     /// pf: transition model, `coarse` (5 segments at 1/3 ms, real time with 1000 particles) or
@@ -289,15 +292,16 @@ pub fn run(args: &Args) -> Result<()> {
         })
         .collect::<Result<Vec<_>>>()?;
 
-    // The sensor noise of every recording, then training once per distinct timing and noise
-    // level, on the family's runs at that rate and length with that noise.
+    // The sensor noise of every recording, then training once per distinct timing, noise
+    // level and lead-in, on the family's runs at that rate and length with that noise.
     let levels = noise_levels(&args.obs, &recordings, &needs, &stated)?;
+    let leads = lead_ins(args.max_delay, &family, &args.obs, &recordings, &levels)?;
     let mut trained = Trained::default();
     let mut rows = Vec::new();
     let mut checks = Vec::new();
     let mut figure = None;
-    for ((file, rec), level) in args.obs.iter().zip(&recordings).zip(&levels) {
-        let method = trained_for(&mut trained, &family, rec, level, name, args.seed)?;
+    for (((file, rec), level), &lead) in args.obs.iter().zip(&recordings).zip(&levels).zip(&leads) {
+        let method = trained_for(&mut trained, &family, rec, level, name, args.seed, lead)?;
         let t = Instant::now();
         let est = method
             .predict(&rec.values)
@@ -534,8 +538,31 @@ pub(crate) fn trained_for<'a>(
     noise: &[f64; 5],
     name: &str,
     seed: u64,
+    lead: usize,
 ) -> Result<&'a dyn Method> {
-    Ok(trained.get(family, rec, noise, name, seed, &mut |m| eprintln!("{m}"))?)
+    Ok(trained.get(family, rec, noise, name, seed, lead, &mut |m| {
+        eprintln!("{m}")
+    })?)
+}
+
+/// Per recording, the lead-in its method allows ([`lead_in::batch_leads`]), with warnings on
+/// standard error.
+pub(crate) fn lead_ins(
+    max_delay: f64,
+    family: &Family,
+    files: &[PathBuf],
+    recordings: &[Recording],
+    noise: &[[f64; 5]],
+) -> Result<Vec<usize>> {
+    let names: Vec<String> = files.iter().map(|f| f.display().to_string()).collect();
+    Ok(lead_in::batch_leads(
+        max_delay,
+        family,
+        &names,
+        recordings,
+        noise,
+        &mut |w| eprintln!("warning: {w}"),
+    )?)
 }
 
 /// Reads one recording (see [`Recording::from_series`]), with its sidecar's metadata where

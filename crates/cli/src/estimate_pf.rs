@@ -6,8 +6,8 @@
 //! sample size fell below 1% of the particles gets a warning: its posterior may be too narrow.
 
 use crate::estimate::{
-    check_recording, draw_check, named_noise, noise_levels, print_json_rows, read_recording,
-    render_checks, trained_for, Args, FileEstimate,
+    check_recording, draw_check, lead_ins, named_noise, noise_levels, print_json_rows,
+    read_recording, render_checks, trained_for, Args, FileEstimate,
 };
 use crate::files;
 use crate::plot::{render_series, Axis, Curve, Panel};
@@ -47,9 +47,15 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
 
     // The sensor noise of every recording (the filter is fitted to each level: no runs).
     let levels = noise_levels(&args.obs, &recordings, &channels, stated)?;
+    let leads = lead_ins(args.max_delay, family, &args.obs, &recordings, &levels)?;
     let mut options = pf::recording::Options::new(particles);
     options.seed = args.seed;
-    options.max_delay = args.max_delay;
+    // A lead-in that the recordings show, unless one is stated: the start delay is then unknown.
+    options.max_delay = leads
+        .iter()
+        .zip(&recordings)
+        .map(|(&l, r)| l as f64 / r.rate)
+        .fold(args.max_delay, f64::max);
     options.model = TransitionModel::from_name(&args.pf_model)
         .map_err(|e| anyhow::anyhow!("--pf-model: {e}"))?;
     options.channels = channels.clone();
@@ -68,7 +74,7 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
     let mut checks = Vec::new();
     let mut figure = None;
     let mut fitted: Option<([f64; 5], pf::Pf)> = None;
-    for ((file, rec), level) in args.obs.iter().zip(&recordings).zip(&levels) {
+    for (((file, rec), level), &lead) in args.obs.iter().zip(&recordings).zip(&levels).zip(&leads) {
         if fitted.as_ref().map(|f| f.0) != Some(*level) {
             let filter = pf::recording::fitted(family, level, &options)?;
             let sigma = filter.sigma().context("the filter was not fitted")?;
@@ -86,7 +92,7 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
         let filter = &fitted.as_ref().expect("fitted above").1;
         options.inject = match &args.inject {
             Some(name) => {
-                let m = trained_for(&mut inject, family, rec, level, name, args.seed)?;
+                let m = trained_for(&mut inject, family, rec, level, name, args.seed, lead)?;
                 Some(m.predict(&rec.values).with_context(|| {
                     format!(
                         "--inject {}: cannot estimate from `{}`",

@@ -614,6 +614,104 @@ fn a_recording_at_2_khz_gives_the_estimate_of_its_1_khz_decimation() {
     assert!((est[0]["d"]["mean"].as_f64().unwrap() - 0.0215).abs() < 2e-3);
 }
 
+/// `csv` with `rows` samples of rest (sensor noise [`SIGMA_3PC`] about 0, drawn from a fixed
+/// sequence) before its first, written to `late`.
+fn with_lead_in(csv: &Path, late: &Path, rows: usize) {
+    let text = std::fs::read_to_string(csv).unwrap();
+    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
+    let header = lines.next().unwrap();
+    let data: Vec<&str> = lines.collect();
+    let step: f64 = {
+        let t = |l: &str| l.split(',').next().unwrap().parse::<f64>().unwrap();
+        t(data[1]) - t(data[0])
+    };
+    let mut state: u64 = 0x2545_f491_4f6c_dd1d;
+    let mut normal = || {
+        // Sum of twelve uniforms less six: about standard normal.
+        (0..12)
+            .map(|_| {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                (state >> 11) as f64 / (1u64 << 53) as f64
+            })
+            .sum::<f64>()
+            - 6.0
+    };
+    let mut out = format!("{header}\n");
+    for k in 0..rows {
+        let values: Vec<String> = SIGMA_3PC
+            .iter()
+            .map(|s| (s * normal()).to_string())
+            .collect();
+        out.push_str(&format!(
+            "{},{},0,NaN,NaN,NaN\n",
+            k as f64 * step,
+            values.join(",")
+        ));
+    }
+    for line in data {
+        let (t, rest) = line.split_once(',').unwrap();
+        let t: f64 = t.parse().unwrap();
+        out.push_str(&format!("{},{rest}\n", t + rows as f64 * step));
+    }
+    std::fs::write(late, out).unwrap();
+}
+
+#[test]
+fn a_recording_that_starts_before_the_approach_is_read_aligned_at_contact() {
+    let dir = temp("lead-in");
+    let (on_time, late) = (dir.join("on_time.csv"), dir.join("late.csv"));
+    noisy_e2_strike(&on_time, &[]);
+    with_lead_in(&on_time, &late, 30);
+    let run = |file: &Path, extra: &[&str]| {
+        vibrissa()
+            .args([
+                "estimate",
+                "--experiment",
+                "e2",
+                "--method",
+                "knn",
+                "--json",
+            ])
+            .args(extra)
+            .arg("--obs")
+            .arg(file)
+            .output()
+            .unwrap()
+    };
+    let out = run(&on_time, &[]);
+    assert!(out.status.success());
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("before the approach"));
+    // 30 ms of rest first: seen, said, and read at the contact.
+    let out = run(&late, &[]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("late.csv") && err.contains("seems to start before the approach"),
+        "{err}"
+    );
+    assert!(err.contains("aligned at the contact's onset"), "{err}");
+    let est: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let (d, v) = (
+        est["d"]["mean"].as_f64().unwrap(),
+        est["v"]["mean"].as_f64().unwrap(),
+    );
+    assert!(
+        (d - 0.021).abs() < 1.5e-3 && (v - 0.7).abs() < 0.2,
+        "{d} {v}"
+    );
+    // Stated: no warning. Too long a lead-in for the recording, or a negative one: refused.
+    let out = run(&late, &["--max-delay", "0.04"]);
+    assert!(out.status.success());
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("seems to start"));
+    for (bad, says) in [("0.2", "lead-in of 200 samples"), ("-0.01", "max_delay")] {
+        let out = run(&late, &[&format!("--max-delay={bad}")]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains(says), "{bad}: {err}");
+    }
+}
+
 #[test]
 fn a_scenario_file_names_its_unknowns_in_the_estimate() {
     let dir = temp("family");

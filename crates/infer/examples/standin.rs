@@ -3,12 +3,13 @@
 //! ```sh
 //! cargo run --release -p vibrissa-infer --example standin -- --seed 3 --out DIR \
 //!     [--nominal e2|FILE.toml] [--segments 50] [--discretisation seed] [--off-grid 20] \
-//!     [--calib-noise 0] [--eval-noise 0.03] [--nominal-whisker]
+//!     [--calib-noise 0] [--eval-noise 0.03] [--nominal-whisker] [--max-lead 0.04]
 //! ```
 //!
 //! DIR receives `calib/` (9 template strikes, clean unless `--calib-noise`), `eval/` (off-grid
 //! noisy strikes), `nominal.toml`, `standin.toml` (the truth as a scenario) and `truth.json`.
-//! `--nominal-whisker` leaves the whisker and sensors as the nominal says (with `--segments 20
+//! `--max-lead S` records each off-grid strike from a random time up to S before its approach
+//! (every file S longer; `leads.csv` gives each one's lead-in). `--nominal-whisker` leaves the whisker and sensors as the nominal says (with `--segments 20
 //! --discretisation gregory`: recordings of our own simulator, the reference to compare with).
 
 use std::path::PathBuf;
@@ -39,6 +40,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
             "--calib-noise" => options.calib_noise = value()?.parse()?,
             "--eval-noise" => options.eval_noise = value()?.parse()?,
             "--nominal-whisker" => options.perturb = false,
+            "--max-lead" => options.max_lead = value()?.parse()?,
             _ => return Err(format!("unknown option {flag}").into()),
         }
     }

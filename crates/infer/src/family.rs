@@ -44,7 +44,14 @@ pub struct Family {
     /// The file's `[[whiskers]]` kept (empty: the one whisker of `base`, at the origin), each
     /// with its place in the file's array (which seeds its random streams).
     mounts: Vec<(usize, Mount)>,
+    /// Longest random start of a run before its approach, s: each run is recorded from a time
+    /// drawn uniformly in [0, start_jitter) before it (its length unchanged), so that the contact
+    /// falls anywhere between samples, as in a recording with an unknown lead-in (0: never).
+    start_jitter: f64,
 }
+
+/// Stream of a run's random start (see the field `start_jitter`), apart from its other streams.
+const STREAM_JITTER: u64 = 0x5717_0000;
 
 /// A small cache of values computed once per family (by digest): the noisy variant's levels.
 fn noise_cache() -> &'static Mutex<HashMap<u64, [f64; 5]>> {
@@ -92,6 +99,7 @@ impl Family {
             randomised: None,
             calibrated: loaded.calibration.is_some(),
             mounts: loaded.whiskers.into_iter().enumerate().collect(),
+            start_jitter: 0.0,
         })
     }
 
@@ -400,7 +408,19 @@ impl Family {
         for (k, _) in &self.mounts {
             h = (h ^ (*k as u64 + 1)).wrapping_mul(0x0000_0100_0000_01b3);
         }
+        if self.start_jitter > 0.0 {
+            h = (h ^ 0x5717 ^ self.start_jitter.to_bits()).wrapping_mul(0x0000_0100_0000_01b3);
+        }
         (h ^ self.base.segments as u64).wrapping_mul(0x0000_0100_0000_01b3)
+    }
+
+    /// The same family with every run started a random time in [0, `seconds`) before its
+    /// approach, its length unchanged (see the field `start_jitter`): training runs for series
+    /// aligned at the contact, whose recordings start at any time.
+    pub fn with_start_jitter(&self, seconds: f64) -> Family {
+        let mut f = self.clone();
+        f.start_jitter = seconds.max(0.0);
+        f
     }
 
     /// The scenario of the run at `p` (one value per unknown), with this family's timing.
@@ -446,11 +466,19 @@ impl Family {
         noise: &Noise,
         seed: u64,
     ) -> Result<Sample> {
-        let s = self.recording_scenario(p, delay, noise, seed)?;
+        let jitter = if self.start_jitter > 0.0 {
+            self.start_jitter * Rng::stream(seed, STREAM_JITTER).uniform()
+        } else {
+            0.0
+        };
+        let s = self.recording_scenario(p, delay + jitter, noise, seed)?;
         let out = sim::run(&s, &mut |_| {}).map_err(|source| self.run_error(p, source))?;
+        // As long as the run without the jitter.
+        let kept =
+            ((self.base.duration + delay) * self.base.sample_rate + 1e-9).floor() as usize + 1;
         // Columns 1..=5 of the contract's rows are the observed channels.
         let series = (0..CHANNELS.len())
-            .map(|c| out.rows.iter().map(|r| r[c + 1]).collect())
+            .map(|c| out.rows.iter().take(kept).map(|r| r[c + 1]).collect())
             .collect();
         Ok(Sample {
             series,

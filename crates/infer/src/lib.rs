@@ -20,6 +20,7 @@ pub mod evaluate;
 pub mod experiment;
 pub mod family;
 pub mod features;
+pub mod lead_in;
 pub mod method;
 pub mod methods;
 pub mod noise;

@@ -52,6 +52,10 @@ pub struct Options {
     /// Whether the whisker and sensors are perturbed; without, the stand-in is the nominal
     /// scenario itself (segments and discretisation as given here), a reference to compare with.
     pub perturb: bool,
+    /// Longest lead-in of the off-grid strikes, s: each is recorded from a time drawn uniformly
+    /// in [0, max_lead] before its approach, and every recording is `max_lead` longer than the
+    /// nominal run (0: they start at the approach).
+    pub max_lead: f64,
 }
 
 impl Default for Options {
@@ -63,6 +67,7 @@ impl Default for Options {
             eval_noise: 0.03,
             calib_noise: 0.0,
             perturb: true,
+            max_lead: 0.0,
         }
     }
 }
@@ -183,6 +188,10 @@ struct Strike {
     file: String,
     d: f64,
     v: f64,
+    /// Time recorded before the approach, s.
+    lead: f64,
+    /// Time recorded in all, beyond the nominal run's, s.
+    extra: f64,
 }
 
 impl Standin {
@@ -207,6 +216,8 @@ impl Standin {
                     file: format!("d{:02.0}_v{:04.0}.csv", d * 1e3, v * 1e3),
                     d,
                     v,
+                    lead: 0.0,
+                    extra: 0.0,
                 });
             }
         }
@@ -214,8 +225,9 @@ impl Standin {
     }
 
     /// The off-grid strikes of `eval/`.
-    fn off_grid(&self, n: usize) -> Vec<Strike> {
+    fn off_grid(&self, n: usize, max_lead: f64) -> Vec<Strike> {
         let mut rng = Rng::stream(self.seed, 0xE7A1);
+        let mut leads = Rng::stream(self.seed, 0x1EAD);
         (0..n)
             .map(|k| {
                 // A tenth of a millimetre and 10 mm/s, like the files' names say.
@@ -226,6 +238,8 @@ impl Standin {
                     file: format!("e{k:02}_d{name}_v{:04.0}.csv", v * 1e3),
                     d,
                     v,
+                    lead: max_lead * leads.uniform(),
+                    extra: max_lead,
                 }
             })
             .collect()
@@ -238,6 +252,14 @@ impl Standin {
             .par_iter()
             .map(|s| {
                 let mut sc = self.strike_scenario(s.d, s.v)?;
+                // A lead-in: the box starts where it was `lead` earlier on its path.
+                for o in &mut sc.objects {
+                    if let vibrissa_core::objects::Motion::Constant { velocity, .. } = o.motion {
+                        o.position[0] -= velocity[0] * s.lead;
+                        o.position[1] -= velocity[1] * s.lead;
+                    }
+                }
+                sc.duration += s.extra;
                 let mut resp = sc.sensor_response.to_array();
                 for c in 0..5 {
                     resp[c].offset = offsets[c];
@@ -313,7 +335,11 @@ impl Standin {
         let mut rng = Rng::stream(self.seed, 0x0015E);
         for (folder, strikes, noise) in [
             ("calib", Self::templates(), options.calib_noise),
-            ("eval", self.off_grid(options.off_grid), options.eval_noise),
+            (
+                "eval",
+                self.off_grid(options.off_grid, options.max_lead),
+                options.eval_noise,
+            ),
         ] {
             if strikes.is_empty() {
                 continue;
@@ -352,6 +378,14 @@ impl Standin {
             }
             let path = sub.join("truth.csv");
             std::fs::write(&path, truth).map_err(|e| io(e, &path))?;
+            if options.max_lead > 0.0 && folder == "eval" {
+                let mut leads = String::from("file,lead\n");
+                for strike in &strikes {
+                    leads.push_str(&format!("{},{:?}\n", strike.file, strike.lead));
+                }
+                let path = dir.join("leads.csv");
+                std::fs::write(&path, leads).map_err(|e| io(e, &path))?;
+            }
         }
 
         // What the user believes, the truth as a scenario, and the true values.

@@ -11,9 +11,10 @@ use crate::recording::Recording;
 use crate::{methods, Family, Result};
 use std::time::Instant;
 
-/// What a fitted method is kept by: sample rate (Hz), samples, sensor noise per channel, and
-/// the segments of the recording's chain (when its metadata says).
-type Key = (f64, usize, [f64; 5], Option<usize>);
+/// What a fitted method is kept by: sample rate (Hz), samples, sensor noise per channel, the
+/// segments of the recording's chain (when its metadata says), and the lead-in allowed
+/// (samples; 0: the recordings start at the approach).
+type Key = (f64, usize, [f64; 5], Option<usize>, usize);
 
 /// Methods trained per timing (sample rate and length) and noise level of the recordings.
 #[derive(Default)]
@@ -57,7 +58,10 @@ impl std::fmt::Display for Short {
 impl Trained {
     /// The method `name` fitted on `family`'s runs at `rec`'s timing (and chain, when its
     /// metadata gives its segments) with the sensor noise `noise` (trained on first use; `log`
-    /// hears what is trained and how long it took).
+    /// hears what is trained and how long it took). With `lead` above 0 it reads series aligned
+    /// at the contact's onset, for recordings that start up to `lead` samples before the
+    /// approach ([`methods::Aligned`]).
+    #[allow(clippy::too_many_arguments)]
     pub fn get(
         &mut self,
         family: &Family,
@@ -65,12 +69,17 @@ impl Trained {
         noise: &[f64; 5],
         name: &str,
         seed: u64,
+        lead: usize,
         log: &mut dyn FnMut(String),
     ) -> Result<&dyn Method> {
         let (rate, samples) = (rec.rate, rec.t.len());
-        let key = (rate, samples, *noise, rec.segments);
+        let key = (rate, samples, *noise, rec.segments, lead);
         let found = self.fitted.iter().position(|(k, _)| {
-            (k.0 - key.0).abs() <= 1e-9 * key.0 && k.1 == key.1 && k.2 == key.2 && k.3 == key.3
+            (k.0 - key.0).abs() <= 1e-9 * key.0
+                && k.1 == key.1
+                && k.2 == key.2
+                && k.3 == key.3
+                && k.4 == key.4
         });
         let k = match found {
             Some(k) => k,
@@ -82,10 +91,26 @@ impl Trained {
                     ));
                 }
                 let mut method = methods::by_name(name)?;
+                // Aligned series: training runs that start up to the lead-in before the
+                // approach, as the recordings may (rest before the contact, which falls
+                // anywhere between samples).
+                let timed = if lead > 0 {
+                    method = Box::new(methods::Aligned::new(method, lead));
+                    timed.with_start_jitter(lead as f64 / rate)
+                } else {
+                    timed
+                };
                 let t0 = Instant::now();
+                let aligned = if lead > 0 {
+                    format!(
+                        ", aligned at the contact's onset for a lead-in of up to {lead} samples"
+                    )
+                } else {
+                    String::new()
+                };
                 log(format!(
                     "training {} ({} budget) on {samples}-sample runs at {} Hz with sensor noise \
-                     {}…",
+                     {}{aligned}…",
                     method.name(),
                     method.budget().name(),
                     Short(rate),

@@ -53,6 +53,7 @@ fn check(name: &str, perturb: bool, segments: usize, discretisation: Discretisat
             eval_noise: level,
             calib_noise: 0.0,
             perturb,
+            max_lead: 0.0,
         };
         let dir = temp(&format!("{name}-{level}"));
         make(&nominal, 11, &options)

@@ -295,7 +295,7 @@ enum Input<'py> {
 /// `vibrissa estimate --json` does; returns one estimate object per recording as JSON text,
 /// and the messages the command line prints on standard error (warnings, what is trained).
 #[pyfunction]
-#[pyo3(signature = (scenario, scenario_json, sets, inputs, method, noise, seed, randomise, particles, check, whisker=None))]
+#[pyo3(signature = (scenario, scenario_json, sets, inputs, method, noise, seed, randomise, particles, check, whisker=None, max_delay=0.0))]
 #[allow(clippy::too_many_arguments)]
 fn estimate(
     py: Python<'_>,
@@ -310,6 +310,7 @@ fn estimate(
     particles: Option<usize>,
     check: bool,
     whisker: Option<&str>,
+    max_delay: f64,
 ) -> PyResult<(Vec<String>, Vec<String>)> {
     let pf = method == "pf";
     let family = family(scenario, scenario_json, &sets)?
@@ -366,16 +367,33 @@ fn estimate(
         let noise = batch_noise(&names, &recordings, &needs, &stated, "noise={...}")?;
         messages.extend(noise.warnings.iter().map(|w| format!("warning: {w}")));
         messages.push(noise.summary.clone());
+        // Recordings that start before the approach (stated, or evident in the batch).
+        let leads = vibrissa_infer::lead_in::batch_leads(
+            max_delay,
+            &family,
+            &names,
+            &recordings,
+            &noise.levels,
+            &mut |w| messages.push(format!("warning: {w}")),
+        )?;
         let mut trained = Trained::default();
         let options = recording::Options {
             seed,
+            // The filter's start delay is unknown up to the lead-in allowed.
+            max_delay: leads
+                .iter()
+                .zip(&recordings)
+                .map(|(&l, r)| l as f64 / r.rate)
+                .fold(max_delay, f64::max),
             ..recording::Options::new(
                 particles.unwrap_or_else(|| vibrissa_infer::pf::default_particles(&family)),
             )
         };
         let mut filtered: Option<([f64; 5], Pf)> = None;
         let mut rows = Vec::new();
-        for ((name, rec), level) in names.iter().zip(&recordings).zip(&noise.levels) {
+        for (((name, rec), level), &lead) in
+            names.iter().zip(&recordings).zip(&noise.levels).zip(&leads)
+        {
             let (estimates, seconds, filter, sensor) = if pf {
                 // The filter is fitted once per noise level, as on the command line.
                 if filtered.as_ref().map(|f| f.0) != Some(*level) {
@@ -390,8 +408,9 @@ fn estimate(
                 );
                 (est.named(), est.seconds, est.counts(), est.sensor)
             } else {
-                let m =
-                    trained.get(&family, rec, level, method, seed, &mut |m| messages.push(m))?;
+                let m = trained.get(&family, rec, level, method, seed, lead, &mut |m| {
+                    messages.push(m)
+                })?;
                 let start = std::time::Instant::now();
                 let est = family.named(m.predict(&rec.values)?);
                 (est, start.elapsed().as_secs_f64(), Vec::new(), *level)

@@ -13,6 +13,7 @@
 //! | `shift` | free | nearest neighbours on series aligned at the contact's onset |
 //! | `pf` | free | particle filter with the whisker physics as its transition model ([`crate::pf`]) |
 
+mod aligned;
 mod interp;
 pub(crate) mod kernel_ridge;
 mod knn;
@@ -21,6 +22,7 @@ mod local;
 mod template;
 mod warp;
 
+pub use aligned::Aligned;
 pub use interp::Interp;
 pub use knn::Knn;
 pub use krr::Krr;

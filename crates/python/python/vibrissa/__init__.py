@@ -247,6 +247,7 @@ def estimate(
     particles=None,
     check=False,
     whisker=None,
+    max_delay=0.0,
     overrides=None,
     verbose=False,
     **keys,
@@ -288,6 +289,11 @@ def estimate(
         columns are read. Required when the scenario itself holds ``[[whiskers]]``: the methods
         then train on that whisker where the array mounts it (``"pf"`` only on one at the
         origin).
+    max_delay : float
+        The recordings may start up to this many seconds before the approach: the
+        discriminative methods read them aligned at the contact's onset, the filter takes the
+        start delay ``t0`` as an unknown. With 0 (the default), a batch in which a recording
+        leaves rest later than any run of the scenario is read so, with a warning.
     verbose : bool
         Print what is trained and every warning (they are also attached as ``"warnings"``).
     overrides, **keys
@@ -312,6 +318,7 @@ def estimate(
     seed = _count("seed", seed, 0)
     if particles is not None:
         particles = _count("particles", particles, 1)
+    max_delay = _seconds("max_delay", max_delay)
     name, text = _scenario_args(scenario)
     rows, messages = _vibrissa.estimate(
         name,
@@ -325,6 +332,7 @@ def estimate(
         particles,
         bool(check),
         whisker,
+        max_delay,
     )
     if verbose:
         import sys
@@ -540,6 +548,14 @@ def _number(name, x):
     if isinstance(x, bool) or not isinstance(x, Real):
         raise TypeError(f"{name}: expected a number, not {type(x).__name__}")
     return float(x)
+
+
+def _seconds(name, x):
+    """A duration in [0, 1] s."""
+    x = _number(name, x)
+    if not (0.0 <= x <= 1.0):
+        raise ValueError(f"{name} = {x}: expected seconds between 0 and 1")
+    return x
 
 
 class Filter:

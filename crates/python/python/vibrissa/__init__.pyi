@@ -55,6 +55,7 @@ def estimate(
     particles: int | None = None,
     check: bool = False,
     whisker: str | None = None,
+    max_delay: float = 0.0,
     overrides: Mapping[str, Value] | None = None,
     verbose: bool = False,
     **keys: Value,

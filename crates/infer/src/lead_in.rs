@@ -1,0 +1,318 @@
+//! Recordings that start some time before the approach (a lead-in of rest before contact).
+//!
+//! A method trained on runs that start at the approach reads the time from the start to contact
+//! as evidence about the object: a recording with a lead-in of rest looks like a much slower or
+//! farther object, and the kernel regressors then go far wrong. This module finds the contact's
+//! onset in a series ([`contact_onset`]), tells when a recording's contact comes later than any
+//! run of its scenario makes contact ([`evident_lead`]), and aligns series at the onset
+//! ([`onset_time`], [`align`]) so that [`crate::methods::Aligned`] can read them whatever their lead-in.
+
+use crate::error::{Error, Result};
+use crate::experiment::Noise;
+use crate::family::Family;
+use crate::recording::Recording;
+
+/// The onset threshold, as a share of the series' own peak deviation of theta12 from its first
+/// sample: relative, so that a whisker or chain whose joint angles are larger or smaller than
+/// the scenario's (another segment count, another stiffness) crosses it at the same stage of
+/// its rise; high above a sensor noise of a few percent of the range, low enough to be crossed
+/// early in the rise.
+pub const ONSET_SHARE: f64 = 0.2;
+
+/// A departure from rest that counts, in sensor noise standard deviations (the departure from
+/// the first sample, itself noisy, has about 1.4 of them).
+pub const DEPART_Z: f64 = 5.0;
+
+/// Without sensor noise, a departure that counts as a share of a channel's median peak
+/// deviation over the scenario's runs.
+pub const CLEAN_SHARE: f64 = 0.02;
+
+/// Slack before a recording's departure from rest counts as later than its scenario's, s: a
+/// whisker other than the scenario's may leave rest a little later (a softer whisker in a
+/// softer follicle rises more slowly through the noise).
+pub const ONSET_SLACK: f64 = 0.004;
+
+/// Further slack, as a share of the scenario's latest departure.
+pub const SLACK_SHARE: f64 = 1.0;
+
+/// Fewest slack samples (at low sample rates).
+const MIN_SLACK_SAMPLES: usize = 2;
+
+/// Largest share of a recording that a lead-in may take: the rest must hold the strike.
+pub const MAX_LEAD_SHARE: f64 = 0.5;
+
+/// The largest deviation of `x` from its first sample.
+pub fn peak_deviation(x: &[f64]) -> f64 {
+    let base = x.first().copied().unwrap_or(0.0);
+    x.iter().map(|v| (v - base).abs()).fold(0.0, f64::max)
+}
+
+/// The onset threshold of a theta12 series: [`ONSET_SHARE`] of its peak deviation.
+pub fn own_threshold(theta12: &[f64]) -> f64 {
+    ONSET_SHARE * peak_deviation(theta12)
+}
+
+/// The contact's onset in a theta12 series: the first sample that, with the next one, deviates
+/// from the first sample by more than `threshold` (two samples, so that one noise spike does
+/// not count); `None` when there is none.
+pub fn contact_onset(theta12: &[f64], threshold: f64) -> Option<usize> {
+    let base = *theta12.first()?;
+    let above = |k: usize| (theta12[k] - base).abs() > threshold;
+    (1..theta12.len()).find(|&k| above(k) && (k + 1 == theta12.len() || above(k + 1)))
+}
+
+/// The contact's onset to a fraction of a sample: where the deviation from the first sample
+/// crosses `threshold` between the sample before [`contact_onset`]'s and that one (linearly
+/// interpolated), in samples from the first.
+pub fn onset_time(theta12: &[f64], threshold: f64) -> Option<f64> {
+    if threshold <= 0.0 {
+        return None;
+    }
+    let k = contact_onset(theta12, threshold)?;
+    let base = theta12[0];
+    let (a, b) = ((theta12[k - 1] - base).abs(), (theta12[k] - base).abs());
+    let share = if b > a {
+        ((threshold - a) / (b - a)).clamp(0.0, 1.0)
+    } else {
+        1.0
+    };
+    Some((k - 1) as f64 + share)
+}
+
+/// `window` samples of every channel of `series` shifted so that the time `onset` (in samples,
+/// fractional) lands on sample `pre`, linearly interpolated between samples: before the
+/// series' start each channel holds its first value, past its end its last. Empty channels stay
+/// empty.
+pub fn align(series: &[Vec<f64>], onset: f64, pre: usize, window: usize) -> Vec<Vec<f64>> {
+    series
+        .iter()
+        .map(|ch| {
+            if ch.is_empty() {
+                return Vec::new();
+            }
+            let last = ch.len() - 1;
+            (0..window)
+                .map(|k| {
+                    let at = k as f64 + onset - pre as f64;
+                    if at <= 0.0 {
+                        ch[0]
+                    } else if at >= last as f64 {
+                        ch[last]
+                    } else {
+                        let (i, f) = (at.floor() as usize, at.fract());
+                        ch[i] * (1.0 - f) + ch[i + 1] * f
+                    }
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// The first sample at which any channel with a threshold above 0 leaves its first value by
+/// more than its threshold, and stays beyond it at the next sample; `None` when none does.
+pub fn departure(series: &[Vec<f64>], thresholds: &[f64; 5]) -> Option<usize> {
+    let samples = series.iter().map(Vec::len).max().unwrap_or(0);
+    (1..samples).find(|&k| {
+        series.iter().zip(thresholds).any(|(x, &thr)| {
+            let beyond = |i: usize| x.get(i).is_some_and(|v| (v - x[0]).abs() > thr);
+            thr > 0.0 && !x.is_empty() && beyond(k) && (k + 1 == x.len() || beyond(k + 1))
+        })
+    })
+}
+
+/// When the runs of a scenario leave rest, as seen through a recording's sensor noise.
+#[derive(Debug, Clone)]
+pub struct OnsetRange {
+    /// Sample rate, Hz, samples of the runs, and the noise.
+    timing: (f64, usize, [f64; 5]),
+    /// Per channel, the departure that counts (0: the channel is not looked at), SI.
+    pub thresholds: [f64; 5],
+    /// Earliest and latest departure among the runs, samples.
+    pub earliest: usize,
+    /// See `earliest`.
+    pub latest: usize,
+}
+
+impl OnsetRange {
+    /// The departures from rest of `family`'s noise-free runs at the corners and the centre of
+    /// its unknowns' ranges, at `rec`'s timing (the family's nominal whisker, never a randomised
+    /// one). A channel counts where it leaves rest by [`DEPART_Z`] times its sensor noise
+    /// `noise`; when every channel is clean, by [`CLEAN_SHARE`] of its median peak over the runs.
+    pub fn of(family: &Family, rec: &Recording, noise: &[f64; 5]) -> Result<OnsetRange> {
+        let timed = family.nominal().for_recording(rec)?;
+        let ranges = timed.ranges();
+        let corners = 1usize << ranges.len();
+        let mut points: Vec<Vec<f64>> = (0..corners)
+            .map(|c| {
+                ranges
+                    .iter()
+                    .enumerate()
+                    .map(|(u, r)| r[(c >> u) & 1])
+                    .collect()
+            })
+            .collect();
+        points.push(ranges.iter().map(|r| 0.5 * (r[0] + r[1])).collect());
+        let runs = points
+            .iter()
+            .map(|p| timed.simulate(p, &Noise::NONE, 0).map(|s| s.series))
+            .collect::<Result<Vec<_>>>()?;
+        let present = |c: usize| !rec.values[c].is_empty();
+        let thresholds: [f64; 5] = if noise.iter().any(|&s| s > 0.0) {
+            std::array::from_fn(|c| if present(c) { DEPART_Z * noise[c] } else { 0.0 })
+        } else {
+            std::array::from_fn(|c| {
+                let mut peaks: Vec<f64> = runs.iter().map(|r| peak_deviation(&r[c])).collect();
+                peaks.sort_by(f64::total_cmp);
+                if present(c) {
+                    CLEAN_SHARE * peaks[peaks.len() / 2]
+                } else {
+                    0.0
+                }
+            })
+        };
+        let onsets: Vec<usize> = runs
+            .iter()
+            .filter_map(|r| departure(r, &thresholds))
+            .collect();
+        Ok(OnsetRange {
+            timing: (rec.rate, rec.t.len(), *noise),
+            thresholds,
+            earliest: onsets.iter().copied().min().unwrap_or(0),
+            latest: onsets.iter().copied().max().unwrap_or(0),
+        })
+    }
+
+    /// Whether this range was found for `rec`'s timing and `noise`.
+    pub fn fits(&self, rec: &Recording, noise: &[f64; 5]) -> bool {
+        (self.timing.0 - rec.rate).abs() <= 1e-9 * rec.rate
+            && self.timing.1 == rec.t.len()
+            && self.timing.2 == *noise
+    }
+}
+
+/// A recording's evident lead-in, in samples: when it leaves rest later than every run of the
+/// scenario does (by more than [`ONSET_SLACK`] and [`SLACK_SHARE`] of the latest), the most
+/// samples of rest it can start with (its departure less the scenario's earliest); `None`
+/// otherwise, or when it never leaves rest. Capped at [`MAX_LEAD_SHARE`] of the recording.
+pub fn evident_lead(range: &OnsetRange, rec: &Recording) -> Option<usize> {
+    let onset = departure(&rec.values, &range.thresholds)?;
+    let slack = ((ONSET_SLACK * rec.rate).ceil() as usize).max(MIN_SLACK_SAMPLES)
+        + (SLACK_SHARE * range.latest as f64).ceil() as usize;
+    (onset > range.latest + slack).then(|| {
+        (onset - range.earliest).min((MAX_LEAD_SHARE * rec.t.len() as f64).floor() as usize)
+    })
+}
+
+/// Per recording, the lead-in (samples of rest before the approach) that a method should allow:
+/// `max_delay` (s, in [0, 1]) for every recording when it is above 0; otherwise the lead-in
+/// that the batch's recordings of its timing show ([`evident_lead`] through each one's sensor
+/// noise `noise`, estimated from the recording for the channels where it is 0; a warning to
+/// `warn` for each): the largest of them, for every recording of that timing (a short lead-in does not
+/// show, and they train once), and 0 when none shows one. `names` name the recordings in
+/// messages.
+pub fn batch_leads(
+    max_delay: f64,
+    family: &Family,
+    names: &[String],
+    recordings: &[Recording],
+    noise: &[[f64; 5]],
+    warn: &mut dyn FnMut(String),
+) -> Result<Vec<usize>> {
+    if !(max_delay.is_finite() && (0.0..=1.0).contains(&max_delay)) {
+        return Err(Error::Setting(format!(
+            "max_delay: expected a lead-in between 0 and 1 s, got {max_delay}"
+        )));
+    }
+    if max_delay > 0.0 {
+        return Ok(recordings
+            .iter()
+            .map(|r| (max_delay * r.rate - 1e-6).ceil().max(1.0) as usize)
+            .collect());
+    }
+    let mut ranges: Vec<OnsetRange> = Vec::new();
+    let mut evident = Vec::with_capacity(recordings.len());
+    for ((name, rec), given) in names.iter().zip(recordings).zip(noise) {
+        // Every channel the recording holds is looked at: one alone (theta12 of another chain)
+        // may rise later than the scenario's through the same noise.
+        let mut level = *given;
+        for (c, sigma) in level.iter_mut().enumerate() {
+            if *sigma == 0.0 && !rec.values[c].is_empty() {
+                *sigma = crate::noise::estimate(&rec.values, &[c]).map_or(0.0, |l| l[c]);
+            }
+        }
+        let level = &level;
+        let k = match ranges.iter().position(|r| r.fits(rec, level)) {
+            Some(k) => k,
+            None => {
+                ranges.push(OnsetRange::of(family, rec, level)?);
+                ranges.len() - 1
+            }
+        };
+        let range = &ranges[k];
+        let lead = evident_lead(range, rec);
+        if let Some(lead) = lead {
+            let ms = |samples: usize| samples as f64 / rec.rate * 1e3;
+            warn(format!(
+                "`{name}`: the whisker leaves rest {:.1} ms into the recording, later than in any \
+                 run of the scenario (by {:.1} ms, seen through the same noise): it seems to start before the approach, so \
+                 it is read as starting up to {:.1} ms before it (say so with a maximum delay, \
+                 --max-delay SECONDS; the time to contact then tells nothing)",
+                ms(lead + range.earliest),
+                ms(range.latest),
+                ms(lead)
+            ));
+        }
+        evident.push(lead);
+    }
+    let same_timing = |a: &Recording, b: &Recording| {
+        (a.rate - b.rate).abs() <= 1e-9 * a.rate && a.t.len() == b.t.len()
+    };
+    // Recordings of one timing come from one rig and protocol: when one shows a lead-in, each
+    // may have one (a short one does not show), so all are read alike.
+    Ok(recordings
+        .iter()
+        .map(|rec| {
+            recordings
+                .iter()
+                .zip(&evident)
+                .filter(|(other, _)| same_timing(rec, other))
+                .filter_map(|(_, l)| *l)
+                .max()
+                .unwrap_or(0)
+        })
+        .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_onset_ignores_one_spike_and_a_constant_offset() {
+        let mut x = vec![0.3; 40];
+        x[5] = 0.9; // one spike
+        for (k, v) in x.iter_mut().enumerate().skip(20) {
+            *v = 0.3 + 0.05 * (k - 19) as f64;
+        }
+        assert_eq!(contact_onset(&x, 0.12), Some(22));
+        assert_eq!(contact_onset(&[0.3; 10], 0.1), None);
+        assert_eq!(contact_onset(&[], 0.1), None);
+        // Deviations 0.1 then 0.15 about the crossing at 0.12: two fifths of the way.
+        assert!((onset_time(&x, 0.12).unwrap() - 21.4).abs() < 1e-9);
+    }
+
+    #[test]
+    fn alignment_moves_the_onset_and_pads_with_the_ends() {
+        let s = vec![vec![1.0, 2.0, 3.0, 4.0, 5.0], Vec::new()];
+        // Onset 1 to sample 3: two samples of the first value in front.
+        assert_eq!(align(&s, 1.0, 3, 5)[0], vec![1.0, 1.0, 1.0, 2.0, 3.0]);
+        // Onset 3 to sample 1: the start dropped, the last value repeated.
+        assert_eq!(align(&s, 3.0, 1, 5)[0], vec![3.0, 4.0, 5.0, 5.0, 5.0]);
+        assert!(align(&s, 3.0, 1, 5)[1].is_empty());
+        // Between samples: interpolated.
+        assert_eq!(align(&s, 1.5, 1, 3)[0], vec![1.5, 2.5, 3.5]);
+        // A series and the same with a lead-in of rest align alike.
+        let late = vec![vec![1.0, 1.0, 1.0, 1.0, 2.0, 3.0, 4.0, 5.0]];
+        assert_eq!(align(&late, 4.0, 2, 5)[0], align(&s, 1.0, 2, 5)[0]);
+    }
+}
