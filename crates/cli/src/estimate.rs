@@ -309,7 +309,7 @@ pub fn run(args: &Args) -> Result<()> {
         let secs = t.elapsed().as_secs_f64();
         if args.check {
             let point: Vec<f64> = est.iter().map(|e| e.mean).collect();
-            let c = check_recording(&family.nominal(), file, rec, &point, level, &needs);
+            let c = check_recording(&family.nominal(), file, rec, &point, level, &needs, lead);
             if let (Some(c), Some(png)) = (&c, &args.check_plot) {
                 figure = Some(draw_check(png, file, rec, c)?);
             }
@@ -583,9 +583,9 @@ pub(crate) fn read_recording(
     Ok(Recording::from_series(&series, &name, needs, reader)?)
 }
 
-/// The model check of one recording at `point` (see [`vibrissa_infer::check`]), with a warning
-/// on standard error when the scenario does not explain it; `None` (with a warning) when the
-/// scenario cannot be simulated at the estimate.
+/// The model check of one recording at `point` (see [`vibrissa_infer::check`]; `lead`: the
+/// samples of lead-in allowed), with a warning on standard error when the scenario does not
+/// explain it; `None` (with a warning) when the scenario cannot be simulated at the estimate.
 pub(crate) fn check_recording(
     family: &Family,
     file: &Path,
@@ -593,10 +593,11 @@ pub(crate) fn check_recording(
     point: &[f64],
     noise: &[f64; 5],
     channels: &[usize],
+    lead: usize,
 ) -> Option<Check> {
     let result = family
         .for_recording(rec)
-        .and_then(|timed| check::check(&timed, &rec.values, point, noise, channels));
+        .and_then(|timed| check::check(&timed, &rec.values, point, noise, channels, lead));
     match result {
         Ok(c) => {
             if let (false, Some(w)) = (c.explained, c.worst()) {

@@ -114,7 +114,7 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
             // unknowns (a start delay, the box's size or friction) are not simulated.
             let c = match est.scenario_point(family) {
                 Some(p) => {
-                    check_recording(&family.nominal(), file, rec, &p, &est.sensor, &channels)
+                    check_recording(&family.nominal(), file, rec, &p, &est.sensor, &channels, 0)
                 }
                 None => {
                     eprintln!(

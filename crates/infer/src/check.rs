@@ -54,9 +54,14 @@ pub struct Check {
     pub channels: Vec<ChannelCheck>,
     /// Whether every channel is explained.
     pub explained: bool,
-    /// The simulation at the estimate, channel-major over [`CHANNELS`] (for figures).
+    /// The simulation at the estimate, channel-major over [`CHANNELS`] (for figures), started
+    /// at the lead-in that fits best when one is allowed.
     #[serde(skip)]
     pub simulated: Vec<Vec<f64>>,
+    /// The lead-in before the approach at which the simulation fits the recording best, s, when
+    /// one is allowed (see [`check`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lead_in: Option<f64>,
 }
 
 impl Check {
@@ -70,13 +75,17 @@ impl Check {
 
 /// Checks `recording` (channel-major over [`CHANNELS`], at `family`'s timing: see
 /// [`Family::with_timing`]) against `family` simulated at `estimate` (one value per unknown),
-/// on `channels`, with the sensor noise `noise` (SI, per channel of [`CHANNELS`]).
+/// on `channels`, with the sensor noise `noise` (SI, per channel of [`CHANNELS`]). With `lead`
+/// above 0 the recording may start up to `lead` samples before the approach: the simulation is
+/// started at the whole number of samples in [0, lead] that fits the recording best (at rest
+/// before it).
 pub fn check(
     family: &Family,
     recording: &[Vec<f64>],
     estimate: &[f64],
     noise: &[f64; 5],
     channels: &[usize],
+    lead: usize,
 ) -> Result<Check> {
     if let Some(bad) = estimate.iter().find(|x| !x.is_finite()) {
         return Err(Error::Observation(format!(
@@ -84,6 +93,15 @@ pub fn check(
         )));
     }
     let simulated = family.simulate(estimate, &Noise::NONE, 0)?.series;
+    let (simulated, lead_in) = if lead > 0 {
+        let shift = best_shift(recording, &simulated, noise, channels, lead);
+        (
+            delayed(&simulated, shift),
+            Some(shift as f64 / family.sample_rate()),
+        )
+    } else {
+        (simulated, None)
+    };
     let mut out = Vec::with_capacity(channels.len());
     for &c in channels {
         let (Some(y), Some(s)) = (recording.get(c), simulated.get(c)) else {
@@ -143,7 +161,66 @@ pub fn check(
         channels: out,
         explained,
         simulated,
+        lead_in,
     })
+}
+
+/// `series` started `shift` samples later, at its first value before, as long as it was.
+fn delayed(series: &[Vec<f64>], shift: usize) -> Vec<Vec<f64>> {
+    series
+        .iter()
+        .map(|x| {
+            (0..x.len())
+                .map(|k| if k < shift { x[0] } else { x[k - shift] })
+                .collect()
+        })
+        .collect()
+}
+
+/// The shift in [0, lead] samples of `simulated` that leaves the least squared residual against
+/// `recording` on `channels`, each weighed by its noise (by its range where the noise is 0).
+fn best_shift(
+    recording: &[Vec<f64>],
+    simulated: &[Vec<f64>],
+    noise: &[f64; 5],
+    channels: &[usize],
+    lead: usize,
+) -> usize {
+    let weight: Vec<(usize, f64)> = channels
+        .iter()
+        .filter(|&&c| recording.get(c).is_some_and(|y| !y.is_empty()) && c < simulated.len())
+        .map(|&c| {
+            let range = simulated[c].iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let scale = if noise[c] > 0.0 {
+                noise[c]
+            } else {
+                range.max(1e-300)
+            };
+            (c, 1.0 / (scale * scale))
+        })
+        .collect();
+    let cost = |shift: usize| -> f64 {
+        weight
+            .iter()
+            .map(|&(c, w)| {
+                let (y, s) = (&recording[c], &simulated[c]);
+                (0..y.len().min(s.len()))
+                    .map(|k| {
+                        let sim = if k < shift { s[0] } else { s[k - shift] };
+                        let e = y[k] - sim;
+                        if e.is_finite() {
+                            w * e * e
+                        } else {
+                            0.0
+                        }
+                    })
+                    .sum::<f64>()
+            })
+            .sum()
+    };
+    (0..=lead)
+        .min_by(|&a, &b| cost(a).total_cmp(&cost(b)))
+        .unwrap_or(0)
 }
 
 /// Lag-1 autocorrelation of `e` about its mean (0 for a constant series).
@@ -188,6 +265,23 @@ mod tests {
     }
 
     #[test]
+    fn a_recording_with_a_lead_in_is_explained_when_one_is_allowed() {
+        let f = family();
+        let truth = [0.021, 0.7];
+        let clean = f.simulate(&truth, &Noise::NONE, 0).expect("sim").series;
+        let r = ranges(&clean);
+        let sigma: [f64; 5] = std::array::from_fn(|c| 0.03 * r[c]);
+        // 20 samples of rest first, as long as the run.
+        let late = noisy(&delayed(&clean, 20), &sigma, 4);
+        let all: Vec<usize> = (0..5).collect();
+        let c = check(&f, &late, &truth, &sigma, &all, 30).expect("check");
+        assert!(c.explained, "{:?}", c.channels);
+        assert!((c.lead_in.unwrap() - 0.020).abs() < 1e-9, "{:?}", c.lead_in);
+        let c = check(&f, &late, &truth, &sigma, &all, 0).expect("check");
+        assert!(!c.explained && c.lead_in.is_none());
+    }
+
+    #[test]
     fn a_recording_of_the_scenario_is_explained_at_its_truth() {
         let f = family();
         let truth = [0.021, 0.7];
@@ -196,7 +290,7 @@ mod tests {
         let sigma: [f64; 5] = std::array::from_fn(|c| 0.03 * r[c]);
         let rec = noisy(&clean, &sigma, 3);
         let all: Vec<usize> = (0..5).collect();
-        let c = check(&f, &rec, &truth, &sigma, &all).expect("check");
+        let c = check(&f, &rec, &truth, &sigma, &all, 0).expect("check");
         assert!(c.explained, "{:?}", c.channels);
         for ch in &c.channels {
             assert!((ch.ratio - 1.0).abs() < 0.2, "{ch:?}");
@@ -215,7 +309,7 @@ mod tests {
         let sigma: [f64; 5] = std::array::from_fn(|c| 0.03 * r[c]);
         let rec = noisy(&clean, &sigma, 4);
         let all: Vec<usize> = (0..5).collect();
-        let c = check(&f, &rec, &truth, &sigma, &all).expect("check");
+        let c = check(&f, &rec, &truth, &sigma, &all, 0).expect("check");
         assert!(!c.explained, "{:?}", c.channels);
         let worst = c.worst().expect("channels");
         assert!(worst.ratio > LIMIT && worst.lag1 > 0.5, "{worst:?}");
@@ -226,7 +320,7 @@ mod tests {
         let f = family();
         let truth = [0.021, 0.7];
         let clean = f.simulate(&truth, &Noise::NONE, 0).expect("sim").series;
-        let c = check(&f, &clean, &[0.0211, 0.7], &[0.0; 5], &[0, 1]).expect("check");
+        let c = check(&f, &clean, &[0.0211, 0.7], &[0.0; 5], &[0, 1], 0).expect("check");
         for ch in &c.channels {
             assert!(ch.noise > 0.0 && ch.ratio.is_finite(), "{ch:?}");
         }
@@ -236,7 +330,7 @@ mod tests {
     fn a_non_finite_estimate_is_refused() {
         let f = family();
         let rec = vec![vec![0.0; 151]; 5];
-        let e = check(&f, &rec, &[f64::NAN, 0.7], &[1e-3; 5], &[0]).unwrap_err();
+        let e = check(&f, &rec, &[f64::NAN, 0.7], &[1e-3; 5], &[0], 0).unwrap_err();
         assert!(e.to_string().contains("non-finite"), "{e}");
     }
 }

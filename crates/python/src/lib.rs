@@ -418,7 +418,14 @@ fn estimate(
             let check = if check {
                 let point: Vec<f64> = estimates.iter().map(|(_, e)| e.mean).collect();
                 let checked = family.nominal().for_recording(rec).and_then(|timed| {
-                    vibrissa_infer::check::check(&timed, &rec.values, &point, &sensor, &needs)
+                    vibrissa_infer::check::check(
+                        &timed,
+                        &rec.values,
+                        &point,
+                        &sensor,
+                        &needs,
+                        if pf { 0 } else { lead },
+                    )
                 });
                 match checked {
                     Ok(c) => Some(c),

@@ -6,8 +6,8 @@ use crate::experiment::{Sample, CHANNELS, THETA12};
 use crate::features::{aligned, channel_scales, coverage_factor, dist2, flatten, onset};
 use crate::method::{Budget, Estimate, Method, Training, Z90};
 
-/// Samples kept after the onset by `shift`.
-const WINDOW: usize = 100;
+/// Time kept after the onset by `shift`, s.
+const WINDOW: f64 = 0.1;
 /// Onset threshold of `shift`, as a fraction of the training runs' theta12 standard deviation.
 const ONSET_FRACTION: f64 = 0.5;
 /// Neighbour counts tried; the one with the least held-out error is kept.
@@ -25,6 +25,8 @@ pub struct Knn {
     scales: Vec<f64>,
     /// Onset threshold on |theta12|, rad.
     threshold: f64,
+    /// Samples kept after the onset by `shift` ([`WINDOW`] at the training runs' rate).
+    window: usize,
     /// Training features `[runs][features]`.
     features: Vec<Vec<f64>>,
     /// Training parameters `[runs][unknowns]`.
@@ -51,6 +53,7 @@ impl Knn {
             shifted,
             scales: Vec::new(),
             threshold: 0.0,
+            window: 0,
             features: Vec::new(),
             params: Vec::new(),
             k: 5,
@@ -65,7 +68,7 @@ impl Knn {
             return Ok(x);
         }
         let start = onset(obs, self.threshold);
-        Ok(aligned(obs, &channels, &self.scales, start, WINDOW))
+        Ok(aligned(obs, &channels, &self.scales, start, self.window))
     }
 
     fn learn(&mut self, samples: &[Sample]) -> Result<()> {
@@ -129,6 +132,7 @@ impl Method for Knn {
         let channels: Vec<usize> = (0..CHANNELS.len()).collect();
         self.scales = channel_scales(s, &channels);
         self.threshold = ONSET_FRACTION * self.scales[THETA12];
+        self.window = ((WINDOW * training.family.sample_rate()).round() as usize).max(1);
         // Hold out the last fifth to choose k and calibrate the std.
         let cut = s.len() * 4 / 5;
         let (fit, held) = s.split_at(cut);
