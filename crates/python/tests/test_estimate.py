@@ -110,6 +110,25 @@ def test_a_recording_at_another_rate(recordings):
     assert abs(est["d"]["mean"] - 0.024) < 5e-4
 
 
+def test_a_recording_that_starts_before_the_approach(recordings):
+    # 30 ms of rest (noise only) before the strike: seen, said, and read at the contact, as on the
+    # command line.
+    run = noisy_run(0.021, 0.7, 5)
+    rng = np.random.default_rng(9)
+    late = {"t": np.arange(len(run["t"]) + 30) * 1e-3}
+    for c, s in SIGMA.items():
+        late[c] = np.concatenate([rng.normal(0.0, s, 30), run[c]])
+    est = vibrissa.estimate(late, method="knn")
+    assert any("seems to start before the approach" in w for w in est["warnings"]), est
+    assert abs(est["d"]["mean"] - 0.021) < 1.5e-3 and abs(est["v"]["mean"] - 0.7) < 0.2, est
+    stated = vibrissa.estimate(late, method="knn", max_delay=0.04)
+    assert not any("seems to start" in w for w in stated["warnings"]), stated
+    with pytest.raises(ValueError, match="max_delay"):
+        vibrissa.estimate(late, method="knn", max_delay=-1.0)
+    with pytest.raises(ValueError, match="max_delay"):
+        vibrissa.estimate(late, method="knn", max_delay=0.2)
+
+
 def test_bad_input_raises_naming_what_is_wrong(recordings):
     run = noisy_run(0.021, 0.7, 0)
     with pytest.raises(ValueError, match="unknown method `nope`"):
