@@ -73,8 +73,13 @@ pub struct Args {
     /// and carries the sensors' gains and offsets as unknowns, reported as
     /// `sensors.<channel>.gain` and `.offset` (angle gains sd 0.5, the base wrench's common
     /// scale and each wrench sensor sd 5%, offsets sd 5 noise levels).
+    /// On a calibrated scenario (a file written by `vibrissa calibrate`) this is the default.
     #[arg(long)]
     pub(crate) randomise: bool,
+    /// Train on the scenario's whisker alone, even for a calibrated scenario (whose methods
+    /// otherwise train over what its calibration leaves uncertain).
+    #[arg(long, conflicts_with = "randomise")]
+    pub(crate) no_randomise: bool,
     /// For recordings of an array of whiskers (columns `c1.theta01`, ...): the whisker whose
     /// columns are read. Required when the scenario holds `[[whiskers]]`: the methods then train
     /// on that whisker where the array mounts it (pf only on one at the origin).
@@ -261,7 +266,16 @@ pub fn run(args: &Args) -> Result<()> {
         );
     }
     let stated = stated_noise(&family, &args.noise)?;
-    let family = family.randomised_if(args.randomise)?;
+    // A fitted whisker is known only as well as its fit: on a calibrated scenario every method
+    // trains over what the calibration leaves uncertain, unless told not to.
+    let randomise = args.randomise || (family.is_calibrated() && !args.no_randomise);
+    if randomise && !args.randomise {
+        eprintln!(
+            "the scenario is calibrated: training over what its calibration leaves uncertain \
+             (--no-randomise: on the fitted whisker alone)"
+        );
+    }
+    let family = family.randomised_if(randomise)?;
     if args.method.as_deref() == Some("pf") {
         check_arguments(args)?;
         return crate::estimate_pf::run(args, &family, &stated);

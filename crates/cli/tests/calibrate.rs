@@ -154,6 +154,36 @@ fn a_perturbed_whisker_is_fitted_and_its_scenario_written() {
         "the fitted file simulates: {}",
         stderr(&run)
     );
+    // Estimates on it train over what the calibration leaves uncertain, unless told not to.
+    let again = scratch.arg("again.csv");
+    let estimate = |extra: &[&str]| {
+        let mut args = vec![
+            "estimate",
+            "--scenario",
+            &fitted,
+            "--method",
+            "knn",
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        args.extend_from_slice(&["--noise", "none", "--obs", &again]);
+        vibrissa(&args)
+    };
+    for (extra, randomised) in [(&[][..], true), (&["--no-randomise"][..], false)] {
+        let out = estimate(extra);
+        assert!(out.status.success(), "{}", stderr(&out));
+        assert_eq!(
+            stderr(&out).contains("the scenario is calibrated: training over"),
+            randomised,
+            "{extra:?}: {}",
+            stderr(&out)
+        );
+        let est: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let d = est["d"]["mean"].as_f64().unwrap();
+        assert!((d - 0.02).abs() < 1.5e-3, "{extra:?}: {d}");
+    }
+    let out = estimate(&["--no-randomise", "--randomise"]);
+    assert!(!out.status.success());
 }
 
 #[test]

@@ -306,7 +306,7 @@ fn estimate(
     method: &str,
     noise: &str,
     seed: u64,
-    randomise: bool,
+    randomise: Option<bool>,
     particles: Option<usize>,
     check: bool,
     whisker: Option<&str>,
@@ -361,6 +361,20 @@ fn estimate(
         names.push(name);
         recordings.push(rec.map_err(value_error)?);
     }
+    // A calibrated scenario trains over what its calibration leaves uncertain unless told not to.
+    let randomise = match randomise {
+        Some(r) => r,
+        None => {
+            if family.is_calibrated() {
+                messages.push(
+                    "the scenario is calibrated: training over what its calibration leaves \
+                     uncertain (randomise=False: on the fitted whisker alone)"
+                        .into(),
+                );
+            }
+            family.is_calibrated()
+        }
+    };
     let family = family.randomised_if(randomise).map_err(value_error)?;
     let several = names.len() > 1;
     let rows = py.detach(|| -> vibrissa_infer::Result<Vec<String>> {

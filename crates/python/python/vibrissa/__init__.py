@@ -243,7 +243,7 @@ def estimate(
     *,
     noise="auto",
     seed=1,
-    randomise=False,
+    randomise=None,
     particles=None,
     check=False,
     whisker=None,
@@ -276,10 +276,12 @@ def estimate(
         (standard deviation, SI; channels left out are estimated).
     seed : int
         Seed of the training runs (and of the filter).
-    randomise : bool
+    randomise : bool, optional
         The whisker is known only roughly: the discriminative methods train on whiskers drawn
         around the scenario's; the filter (``"pf"``) entertains such whiskers and carries the
         sensors' gains and offsets as unknowns (reported as ``"sensors.<channel>.gain"``...).
+        Default (None): on a calibrated scenario (written by ``vibrissa calibrate``), over what
+        its calibration leaves uncertain; otherwise not.
     particles : int, optional
         Particles of ``method="pf"`` (default 1000, or 4000 with ``randomise=True``).
     check : bool
@@ -328,7 +330,7 @@ def estimate(
         method,
         _noise_statement(noise),
         seed,
-        bool(randomise),
+        None if randomise is None else bool(randomise),
         particles,
         bool(check),
         whisker,

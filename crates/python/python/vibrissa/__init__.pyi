@@ -51,7 +51,7 @@ def estimate(
     *,
     noise: Union[str, Mapping[str, float], None] = "auto",
     seed: int = 1,
-    randomise: bool = False,
+    randomise: bool | None = None,
     particles: int | None = None,
     check: bool = False,
     whisker: str | None = None,
