@@ -362,6 +362,7 @@ fn estimate(
         recordings.push(rec.map_err(value_error)?);
     }
     // A calibrated scenario trains over what its calibration leaves uncertain unless told not to.
+    let auto = randomise.is_none();
     let randomise = match randomise {
         Some(r) => r,
         None => {
@@ -403,6 +404,65 @@ fn estimate(
                 particles.unwrap_or_else(|| vibrissa_infer::pf::default_particles(&family)),
             )
         };
+        // The discriminative methods' estimates first: a scenario that is neither calibrated nor
+        // randomised, which most of the recordings defy at their estimates, is not their
+        // whisker, and they estimate again on whiskers drawn around it (as on the command line).
+        let estimate_each =
+            |family: &Family,
+             trained: &mut Trained,
+             messages: &mut Vec<String>|
+             -> vibrissa_infer::Result<Vec<(Vec<vibrissa_infer::Estimate>, f64)>> {
+                let mut out = Vec::new();
+                for ((rec, level), &lead) in recordings.iter().zip(&noise.levels).zip(&leads) {
+                    let m = trained.get(family, rec, level, method, seed, lead, &mut |m| {
+                        messages.push(m)
+                    })?;
+                    let start = std::time::Instant::now();
+                    let est = m.predict(&rec.values)?;
+                    out.push((est, start.elapsed().as_secs_f64()));
+                }
+                Ok(out)
+            };
+        let mut family = family.clone();
+        let mut discriminative = if pf {
+            Vec::new()
+        } else {
+            estimate_each(&family, &mut trained, &mut messages)?
+        };
+        if auto
+            && !pf
+            && family.randomisation().is_none()
+            && probe.budget() == vibrissa_infer::Budget::Free
+        {
+            let points: Vec<Vec<f64>> = discriminative
+                .iter()
+                .map(|(e, _)| e.iter().map(|x| x.mean).collect())
+                .collect();
+            let recs: Vec<&Recording> = recordings.iter().collect();
+            let defied = vibrissa_infer::check::unexplained(
+                &family.nominal(),
+                &recs,
+                &points,
+                &noise.levels,
+                &needs,
+                &leads,
+            );
+            if defied as f64 > vibrissa_infer::check::MISMATCH_SHARE * recordings.len() as f64 {
+                messages.push(format!(
+                    "warning: the scenario does not explain {defied} of the {} recordings at \
+                     their estimates (check=True says where): their whisker is not the \
+                     scenario's, and estimates that trust it would be wrong with narrow \
+                     intervals; estimating again on whiskers drawn around it, as randomise=True \
+                     does (calibrate on labelled strikes for better estimates; randomise=False \
+                     keeps the scenario's whisker)",
+                    recordings.len()
+                ));
+                family = family.randomised_if(true)?;
+                let mut again = Trained::default();
+                discriminative = estimate_each(&family, &mut again, &mut messages)?;
+            }
+        }
+        let mut discriminative = discriminative.into_iter();
         let mut filtered: Option<([f64; 5], Pf)> = None;
         let mut rows = Vec::new();
         for (((name, rec), level), &lead) in
@@ -422,12 +482,8 @@ fn estimate(
                 );
                 (est.named(), est.seconds, est.counts(), est.sensor)
             } else {
-                let m = trained.get(&family, rec, level, method, seed, lead, &mut |m| {
-                    messages.push(m)
-                })?;
-                let start = std::time::Instant::now();
-                let est = family.named(m.predict(&rec.values)?);
-                (est, start.elapsed().as_secs_f64(), Vec::new(), *level)
+                let (est, seconds) = discriminative.next().expect("one estimate per recording");
+                (family.named(est), seconds, Vec::new(), *level)
             };
             let check = if check {
                 let point: Vec<f64> = estimates.iter().map(|(_, e)| e.mean).collect();

@@ -129,6 +129,22 @@ def test_a_recording_that_starts_before_the_approach(recordings):
         vibrissa.estimate(late, method="knn", max_delay=0.2)
 
 
+def test_a_scenario_the_recording_defies_is_randomised_unless_told_not_to():
+    # Another chain and material than the scenario's: the method estimates again on whiskers
+    # drawn around the scenario's, and says so.
+    rng = np.random.default_rng(3)
+    run = vibrissa.simulate("e2", d=0.021, v=0.7, segments=50, discretisation="seed",
+                            overrides={"whisker.youngs_modulus": 3.6e9})
+    for c, s in SIGMA.items():
+        run[c] = run[c] + rng.normal(0.0, 3 * s, len(run[c]))
+    said = "estimating again on whiskers drawn around it"
+    est = vibrissa.estimate(run, method="knn")
+    assert any(said in w for w in est["warnings"]), est["warnings"]
+    kept = vibrissa.estimate(run, method="knn", randomise=False)
+    assert not any(said in w for w in kept["warnings"]), kept["warnings"]
+    assert est["d"]["std"] > kept["d"]["std"]
+
+
 def test_bad_input_raises_naming_what_is_wrong(recordings):
     run = noisy_run(0.021, 0.7, 0)
     with pytest.raises(ValueError, match="unknown method `nope`"):
