@@ -22,10 +22,7 @@ const UNOBSERVABLE: [&str; 4] = ["contact", "cx", "cy", "s"];
 
 /// Runs the filter on every `--obs` file and prints the contract's estimates.
 pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()> {
-    let particles = args
-        .particles
-        .unwrap_or_else(|| pf::default_particles(family));
-    if particles == 0 {
+    if args.particles == Some(0) {
         bail!("--particles must be at least 1 (got 0)");
     }
     if !(args.max_delay.is_finite() && (0.0..=1.0).contains(&args.max_delay)) {
@@ -48,6 +45,35 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
     // The sensor noise of every recording (the filter is fitted to each level: no runs).
     let levels = noise_levels(&args.obs, &recordings, &channels, stated)?;
     let leads = lead_ins(args.max_delay, family, &args.obs, &recordings, &levels)?;
+    // A scenario that is neither calibrated nor randomised, which most of the recordings defy
+    // (at `krr`'s estimates and near them), is not their whisker: the filter then entertains
+    // whiskers drawn around it, as --randomise asks.
+    let mut family = family.clone();
+    if !args.randomise && !args.no_randomise && family.randomisation().is_none() {
+        eprintln!("checking that the scenario explains the recordings, at krr's estimates…");
+        let (defied, looked) = vibrissa_infer::trained::defied_by(
+            &family,
+            &recordings,
+            &levels,
+            &leads,
+            args.seed,
+            &mut |m| eprintln!("{m}"),
+        )?;
+        if looked > 0 && defied as f64 > vibrissa_infer::check::MISMATCH_SHARE * looked as f64 {
+            eprintln!(
+                "warning: the scenario does not explain {defied} of the {looked} recordings \
+                 (vibrissa estimate --check says where): their whisker is not the scenario's, \
+                 and a filter that trusts it would be wrong with narrow intervals; it entertains \
+                 whiskers drawn around it instead, as --randomise does (calibrate on labelled \
+                 strikes for better estimates; --no-randomise keeps the scenario's whisker)"
+            );
+            family = family.randomised_if(true)?;
+        }
+    }
+    let family = &family;
+    let particles = args
+        .particles
+        .unwrap_or_else(|| pf::default_particles(family));
     let mut options = pf::recording::Options::new(particles);
     options.seed = args.seed;
     // A lead-in that the recordings show, unless one is stated: the start delay is then unknown.

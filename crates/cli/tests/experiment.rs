@@ -758,6 +758,21 @@ fn recordings_the_scenario_does_not_explain_are_estimated_on_randomised_whiskers
         "{err}"
     );
     assert!(!run(&other, &["--no-randomise"]).contains(SAID));
+    // The filter, likewise, entertains whiskers drawn around the scenario.
+    let pf = ["--method", "pf", "--particles", "200"];
+    let err = |file: &Path, extra: &[&str]| {
+        let out = vibrissa()
+            .args(["estimate", "--experiment", "e2", "--json"])
+            .args(extra)
+            .arg("--obs")
+            .arg(file)
+            .output()
+            .unwrap();
+        assert!(out.status.success());
+        String::from_utf8_lossy(&out.stderr).to_string()
+    };
+    assert!(err(&other, &pf).contains("it entertains whiskers drawn around it"));
+    assert!(!err(&own, &pf).contains("entertains whiskers"));
 }
 
 #[test]

@@ -132,6 +132,44 @@ impl Trained {
     }
 }
 
+/// How many of `recordings` (with their sensor noise and allowed lead-in) the scenario `family`
+/// explains neither at `krr`'s estimates nor near them ([`crate::check::unexplained`]), and how
+/// many were looked at: what tells the particle filter, before it runs, that the recordings
+/// defy the scenario. `krr` trains on the scenario's own whisker (`family`'s nominal); a
+/// recording that lacks a channel it reads is not looked at.
+pub fn defied_by(
+    family: &Family,
+    recordings: &[Recording],
+    noise: &[[f64; 5]],
+    leads: &[usize],
+    seed: u64,
+    log: &mut dyn FnMut(String),
+) -> Result<(usize, usize)> {
+    let nominal = family.nominal();
+    let channels = methods::by_name("krr")?.channels();
+    let mut trained = Trained::default();
+    let (mut recs, mut points, mut levels, mut allowed) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for ((rec, level), &lead) in recordings.iter().zip(noise).zip(leads) {
+        if channels.iter().any(|&c| rec.values[c].is_empty()) {
+            continue;
+        }
+        let method = trained.get(&nominal, rec, level, "krr", seed, lead, log)?;
+        points.push(
+            method
+                .predict(&rec.values)?
+                .iter()
+                .map(|e| e.mean)
+                .collect(),
+        );
+        recs.push(rec);
+        levels.push(*level);
+        allowed.push(lead);
+    }
+    let defied = crate::check::unexplained(&nominal, &recs, &points, &levels, &channels, &allowed);
+    Ok((defied, recs.len()))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

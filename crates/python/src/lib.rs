@@ -392,6 +392,30 @@ fn estimate(
             &mut |w| messages.push(format!("warning: {w}")),
         )?;
         let mut trained = Trained::default();
+        // The filter, likewise, entertains whiskers drawn around a scenario that most of the
+        // recordings defy (at `krr`'s estimates and near them).
+        let mut family = family.clone();
+        if auto && pf && family.randomisation().is_none() {
+            let (defied, looked) = vibrissa_infer::trained::defied_by(
+                &family,
+                &recordings,
+                &noise.levels,
+                &leads,
+                seed,
+                &mut |m| messages.push(m),
+            )?;
+            if looked > 0 && defied as f64 > vibrissa_infer::check::MISMATCH_SHARE * looked as f64 {
+                messages.push(format!(
+                    "warning: the scenario does not explain {defied} of the {looked} \
+                     recordings (check=True says where): their whisker is not the scenario's, \
+                     and a filter that trusts it would be wrong with narrow intervals; it \
+                     entertains whiskers drawn around it instead, as randomise=True does \
+                     (calibrate on labelled strikes for better estimates; randomise=False keeps \
+                     the scenario's whisker)"
+                ));
+                family = family.randomised_if(true)?;
+            }
+        }
         let options = recording::Options {
             seed,
             // The filter's start delay is unknown up to the lead-in allowed.
@@ -423,7 +447,6 @@ fn estimate(
                 }
                 Ok(out)
             };
-        let mut family = family.clone();
         let mut discriminative = if pf {
             Vec::new()
         } else {
