@@ -2,10 +2,11 @@
 //!
 //! A method trained on runs that start at the approach reads the time from the start to contact
 //! as evidence about the object: a recording with a lead-in of rest looks like a much slower or
-//! farther object, and the kernel regressors then go far wrong. This module finds the contact's
-//! onset in a series ([`contact_onset`]), tells when a recording's contact comes later than any
-//! run of its scenario makes contact ([`evident_lead`]), and aligns series at the onset
-//! ([`onset_time`], [`align`]) so that [`crate::methods::Aligned`] can read them whatever their lead-in.
+//! farther object, and the kernel regressors then go far wrong. This module tells when a
+//! recording leaves rest later than any run of its scenario does, seen through the same sensor
+//! noise ([`departure`], [`evident_lead`], [`batch_leads`]), and aligns series at the contact's
+//! onset ([`contact_onset`], [`onset_time`], [`align`]) so that [`crate::methods::Aligned`] can
+//! read them whatever their lead-in.
 
 use crate::error::{Error, Result};
 use crate::experiment::Noise;
@@ -32,7 +33,9 @@ pub const CLEAN_SHARE: f64 = 0.02;
 /// softer follicle rises more slowly through the noise).
 pub const ONSET_SLACK: f64 = 0.004;
 
-/// Further slack, as a share of the scenario's latest departure.
+/// Further slack, as a share of the scenario's latest departure: a slow strike of a softer
+/// whisker rises through the noise later in proportion (one of stand-in 14's strikes, recorded
+/// from its approach, left rest at 24 ms where the scenario's latest run did at 11 ms).
 pub const SLACK_SHARE: f64 = 1.0;
 
 /// Fewest slack samples (at low sample rates).
