@@ -113,6 +113,20 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
                     .collect::<Vec<_>>()
                     .join(", ")
             );
+            if !filter.interval_scale.is_empty() {
+                eprintln!(
+                    "pf: intervals widened ({}) to hold {:.0}% of the errors on {} held-out runs \
+                     of whiskers drawn around the scenario",
+                    filter
+                        .interval_scale
+                        .iter()
+                        .map(|(k, f)| format!("{k} ×{f:.2}"))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    pf::recording::INTERVAL_QUANTILE * 100.0,
+                    options.interval_runs
+                );
+            }
             fitted = Some((*level, filter));
         }
         let filter = &fitted.as_ref().expect("fitted above").1;

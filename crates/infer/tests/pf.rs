@@ -348,3 +348,56 @@ fn a_faster_recording_says_what_its_decimation_says() {
         );
     }
 }
+
+#[test]
+fn a_randomised_filter_widens_its_intervals_to_hold_on_held_out_whiskers() {
+    use vibrissa_infer::pf::recording::{estimate, fitted, Options};
+    use vibrissa_infer::randomise::Randomisation;
+    let family = Family::builtin("e2")
+        .unwrap()
+        .randomised(Randomisation::default())
+        .unwrap();
+    let level = [2e-3, 5e-3, 8e-7, 5e-5, 4e-5];
+    let mut options = Options::new(100);
+    options.alternatives = 7;
+    options.interval_runs = 6;
+    let widened = fitted(&family, &level, &options).unwrap();
+    let names: Vec<&str> = widened
+        .interval_scale
+        .iter()
+        .map(|(k, _)| k.as_str())
+        .collect();
+    assert_eq!(names, ["d", "v"]);
+    assert!(widened.interval_scale.iter().all(|(_, f)| *f >= 1.0));
+    // The same filter without the held-out runs: the estimate is the same, its spread narrower
+    // by the factors.
+    options.interval_runs = 0;
+    let plain = fitted(&family, &level, &options).unwrap();
+    assert!(plain.interval_scale.is_empty());
+    let s = family.simulate(&[0.022, 0.8], &Noise::NONE, 3).unwrap();
+    let t: Vec<f64> = (0..s.series[0].len()).map(|k| k as f64 * 1e-3).collect();
+    let rec = vibrissa_infer::Recording::from_columns(
+        "strike",
+        t,
+        s.series.into_iter().map(Some).collect(),
+        None,
+        &options.channels,
+        vibrissa_infer::Reader::Filter,
+    )
+    .unwrap();
+    let (a, b) = (
+        estimate(&widened, &family, &rec, &options).unwrap(),
+        estimate(&plain, &family, &rec, &options).unwrap(),
+    );
+    for (u, (_, f)) in widened.interval_scale.iter().enumerate() {
+        let (w, p) = (a.posterior.last()[u], b.posterior.last()[u]);
+        assert_eq!(w.mean, p.mean);
+        assert!(
+            (w.std - f * p.std).abs() <= 1e-12 * w.std.max(1e-300),
+            "{w:?} {p:?}"
+        );
+    }
+    // A nominal family's filter is not widened.
+    let nominal = fitted(&Family::builtin("e2").unwrap(), &level, &Options::new(50)).unwrap();
+    assert!(nominal.interval_scale.is_empty());
+}

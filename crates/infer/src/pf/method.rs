@@ -56,6 +56,10 @@ pub struct Pf {
     /// Whiskers besides the scenario's that the filter entertains on a randomised family
     /// ([`Config::alternatives`], drawn from the family's randomisation).
     pub alternatives: usize,
+    /// Unknowns (by name) whose posterior intervals are widened, and the factor of each (empty:
+    /// none): set by [`super::recording::fitted`] from held-out runs of a randomised family, so
+    /// that they hold on whiskers it has not seen.
+    pub interval_scale: Vec<(String, f64)>,
     /// Whether the family it was fitted to is randomised.
     randomised: bool,
     /// Whether the family it was fitted to was written by calibration.
@@ -192,6 +196,7 @@ impl Pf {
             model: TransitionModel::Coarse,
             sensor_spread: None,
             alternatives: ALTERNATIVES,
+            interval_scale: Vec::new(),
             randomised: false,
             calibrated: false,
             sigma: None,

@@ -96,6 +96,20 @@ impl Posterior {
         }
     }
 
+    /// Every row's summary of the first `factors.len()` unknowns widened about its mean: the
+    /// std and the interval's distances from the mean times each one's factor.
+    pub fn widen(&mut self, factors: &[f64]) {
+        for row in &mut self.trace {
+            for (e, &f) in row.estimates.iter_mut().zip(factors) {
+                e.std *= f;
+                e.ci90 = [
+                    e.mean - f * (e.mean - e.ci90[0]),
+                    e.mean + f * (e.ci90[1] - e.mean),
+                ];
+            }
+        }
+    }
+
     /// The posterior at the last sample.
     pub fn last(&self) -> &[Estimate] {
         self.trace.last().map(|r| &r.estimates[..]).unwrap_or(&[])
@@ -160,6 +174,26 @@ mod tests {
             row(0.003, 50.0),
         ];
         assert_eq!(post.least_ess(), Some((0.001, 3.0)));
+    }
+
+    #[test]
+    fn widening_scales_the_std_and_the_interval_about_the_mean() {
+        let mut post = Posterior::empty(vec!["d", "v"]);
+        let e = |mean: f64, std: f64, lo: f64, hi: f64| Estimate {
+            mean,
+            std,
+            ci90: [lo, hi],
+        };
+        post.trace = vec![TraceRow {
+            t: 0.0,
+            ess: 10.0,
+            estimates: vec![e(2.0, 0.5, 1.0, 4.0), e(1.0, 0.1, 0.9, 1.1)],
+        }];
+        post.widen(&[2.0]);
+        let last = post.last();
+        assert_eq!((last[0].std, last[0].ci90), (1.0, [0.0, 6.0]));
+        // Unknowns past the factors given stay as they were.
+        assert_eq!((last[1].std, last[1].ci90), (0.1, [0.9, 1.1]));
     }
 
     #[test]

@@ -24,6 +24,13 @@ pub const EDGE: f64 = 0.05;
 /// stand-in, 3% noise), another whisker described by the nominal 1.5–54.
 pub const MISFIT_LIMIT: f64 = 2.0;
 
+/// Held-out runs of a randomised family on which the filter's intervals are calibrated
+/// ([`fitted`]).
+pub const INTERVAL_RUNS: usize = 24;
+
+/// Share of the held-out runs' errors that the widened 90% intervals hold.
+pub const INTERVAL_QUANTILE: f64 = 0.9;
+
 /// How the filter is run on a recording.
 #[derive(Debug, Clone)]
 pub struct Options {
@@ -45,6 +52,8 @@ pub struct Options {
     /// Whiskers entertained besides the scenario's on a randomised family
     /// ([`Pf::alternatives`]).
     pub alternatives: usize,
+    /// Held-out runs that calibrate the intervals on a randomised family ([`fitted`]; 0: none).
+    pub interval_runs: usize,
 }
 
 impl Options {
@@ -59,6 +68,7 @@ impl Options {
             priors: Vec::new(),
             inject: None,
             alternatives: super::ALTERNATIVES,
+            interval_runs: INTERVAL_RUNS,
         }
     }
 }
@@ -194,20 +204,84 @@ impl Estimate {
 
 /// The filter fitted to the sensor noise `level` (per channel, SI) for `family`: its settings
 /// follow `options` (particles, seed, model; priors and channels are applied per recording).
+///
+/// On a randomised family that calibration did not write (a whisker known only roughly), the
+/// filter is then run on [`INTERVAL_RUNS`] held-out runs of the family, each with its own whisker
+/// and sensors drawn from the prior and the noise `level`, and each unknown's intervals are
+/// widened by the factor that makes them hold [`INTERVAL_QUANTILE`] of those runs' errors (never
+/// narrowed): entertaining a few dozen whiskers, the filter alone is too sure of itself.
 pub fn fitted(family: &Family, level: &[f64; 5], options: &Options) -> Result<Pf> {
     let mut filter = Pf::new(options.particles);
     filter.set_model(options.model);
     filter.seed = options.seed;
     filter.max_delay = options.max_delay;
     filter.alternatives = options.alternatives;
-    let training = training_for(
-        family,
-        &family.training_noise(*level),
-        &filter,
-        options.seed,
-    )?;
+    let noise = family.training_noise(*level);
+    let training = training_for(family, &noise, &filter, options.seed)?;
     filter.fit(&training)?;
+    if family.randomisation().is_some() && !family.is_calibrated() && options.interval_runs > 0 {
+        filter.interval_scale = interval_scale(&filter, family, &noise, options)?;
+    }
     Ok(filter)
+}
+
+/// Per unknown of `family` (by name), the factor (at least 1) that widens `filter`'s 90%
+/// intervals to hold [`INTERVAL_QUANTILE`] of its errors on `options.interval_runs` held-out runs
+/// of `family` with `noise`.
+fn interval_scale(
+    filter: &Pf,
+    family: &Family,
+    noise: &crate::experiment::Noise,
+    options: &Options,
+) -> Result<Vec<(String, f64)>> {
+    use rayon::prelude::*;
+    let seed = options.seed ^ 0x1a7e_2f11;
+    let params = family.random_params(options.interval_runs, seed);
+    let runs = family.simulate_all(&params, noise, seed, &|| {})?;
+    let rate = family.sample_rate();
+    let names: Vec<String> = family.unknowns().iter().map(|k| k.to_string()).collect();
+    let pairs: Vec<Vec<(f64, f64)>> = runs
+        .par_iter()
+        .map(|run| -> Result<Vec<(f64, f64)>> {
+            let t: Vec<f64> = (0..run.series[0].len()).map(|k| k as f64 / rate).collect();
+            let columns = run.series.iter().cloned().map(Some).collect();
+            let rec = Recording::from_columns(
+                "a held-out run",
+                t,
+                columns,
+                None,
+                &options.channels,
+                crate::Reader::Filter,
+            )?;
+            let est = estimate(filter, family, &rec, options)?;
+            let post = &est.posterior;
+            names
+                .iter()
+                .zip(&run.params)
+                .map(|(name, truth)| {
+                    let i = post
+                        .unknowns
+                        .iter()
+                        .position(|n| n == name)
+                        .ok_or_else(|| {
+                            crate::Error::Setting(format!("the filter does not estimate {name}"))
+                        })?;
+                    Ok((post.last()[i].mean - truth, post.last()[i].std))
+                })
+                .collect()
+        })
+        .collect::<Result<_>>()?;
+    Ok(names
+        .into_iter()
+        .enumerate()
+        .map(|(u, name)| {
+            let p: Vec<(f64, f64)> = pairs.iter().map(|r| r[u]).collect();
+            (
+                name,
+                crate::features::coverage_factor_at(&p, INTERVAL_QUANTILE).max(1.0),
+            )
+        })
+        .collect())
 }
 
 /// Runs the fitted `filter` (see [`fitted`]) over the recording `rec` of `family`.
@@ -256,8 +330,22 @@ pub fn estimate(
         t: rec.t.iter().map(|t| t - rec.t[0]).collect(),
         values: rec.values.clone(),
     };
-    let posterior = run(&config, &obs, &mut |_| {})?;
+    let mut posterior = run(&config, &obs, &mut |_| {})?;
     let misfit = filter.misfit(&posterior, config.channels.len());
+    if !filter.interval_scale.is_empty() {
+        let factors: Vec<f64> = posterior
+            .unknowns
+            .iter()
+            .map(|n| {
+                filter
+                    .interval_scale
+                    .iter()
+                    .find(|(k, _)| k == n)
+                    .map_or(1.0, |(_, f)| *f)
+            })
+            .collect();
+        posterior.widen(&factors);
+    }
     Ok(Estimate {
         posterior,
         config,
