@@ -101,6 +101,11 @@ impl Trained {
                     timed
                 };
                 let t0 = Instant::now();
+                let drawn = if family.randomisation().is_some() {
+                    ", on whiskers drawn around the scenario's"
+                } else {
+                    ""
+                };
                 let aligned = if lead > 0 {
                     format!(
                         ", aligned at the contact's onset for a lead-in of up to {lead} samples"
@@ -110,7 +115,7 @@ impl Trained {
                 };
                 log(format!(
                     "training {} ({} budget) on {samples}-sample runs at {} Hz with sensor noise \
-                     {}{aligned}…",
+                     {}{drawn}{aligned}…",
                     method.name(),
                     method.budget().name(),
                     Short(rate),
