@@ -35,6 +35,22 @@ pub struct TraceRow {
     pub estimates: Vec<Estimate>,
 }
 
+impl TraceRow {
+    /// The row with the summaries of its first `factors.len()` unknowns widened about their
+    /// means: the std and the interval's distances from the mean times each one's factor.
+    pub fn widened(&self, factors: &[f64]) -> TraceRow {
+        let mut row = self.clone();
+        for (e, &f) in row.estimates.iter_mut().zip(factors) {
+            e.std *= f;
+            e.ci90 = [
+                e.mean - f * (e.mean - e.ci90[0]),
+                e.mean + f * (e.ci90[1] - e.mean),
+            ];
+        }
+        row
+    }
+}
+
 /// What a filter run returns.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Posterior {
@@ -100,13 +116,7 @@ impl Posterior {
     /// std and the interval's distances from the mean times each one's factor.
     pub fn widen(&mut self, factors: &[f64]) {
         for row in &mut self.trace {
-            for (e, &f) in row.estimates.iter_mut().zip(factors) {
-                e.std *= f;
-                e.ci90 = [
-                    e.mean - f * (e.mean - e.ci90[0]),
-                    e.mean + f * (e.ci90[1] - e.mean),
-                ];
-            }
+            *row = row.widened(factors);
         }
     }
 
