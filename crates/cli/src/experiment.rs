@@ -76,9 +76,10 @@ pub struct Args {
     /// noisy variant, 0 for the clean one (the filter takes about 8 s per 71 runs at 1000).
     #[arg(long, value_name = "N")]
     particles: Option<usize>,
-    /// Score only the particle filter, on recordings that start up to S seconds before the
-    /// approach (a whole number of milliseconds, drawn per run), so the start `t0` is a further
-    /// unknown. Default particles: 1000.
+    /// Score the estimators on recordings that start up to S seconds before the approach (a
+    /// whole number of milliseconds, drawn per run): the particle filter with the start `t0` as
+    /// a further unknown (default particles: 1000), every other method reading the recordings,
+    /// cut to the experiment's length, aligned at the contact's onset.
     #[arg(long, value_name = "S")]
     max_delay: Option<f64>,
     /// Transition model of the particle filter: `coarse` (5 segments at 1/3 ms, real time with
@@ -223,8 +224,13 @@ pub fn run(args: &Args) -> Result<()> {
         let particles = args
             .particles
             .unwrap_or(vibrissa_infer::methods::TABLE_PARTICLES);
+        let others: Vec<&str> = vibrissa_infer::methods::NAMES
+            .iter()
+            .copied()
+            .filter(|&n| n != "pf")
+            .collect();
         let ev = evaluate_unknown_start(
-            &family, variant, args.seed, particles, pf_model, max_delay, &progress,
+            &family, variant, args.seed, particles, pf_model, max_delay, &others, &progress,
         )?;
         let json = out.join("results.json");
         crate::files::write_atomic(&json, serde_json::to_string_pretty(&ev)?.as_bytes())?;
@@ -264,6 +270,15 @@ pub fn run(args: &Args) -> Result<()> {
     Ok(())
 }
 
+/// The factor and unit in which an unknown is printed.
+fn scale_unit(name: &str) -> (f64, &'static str) {
+    match name {
+        "d" => (1e3, "mm"),
+        "t0" => (1e3, "ms"),
+        _ => (1.0, "m/s"),
+    }
+}
+
 /// The printed result of the unknown-start mode.
 #[derive(Debug, Serialize)]
 struct StartReport {
@@ -296,11 +311,7 @@ impl Render for StartReport {
             ("90% cover", Align::Right),
         ]);
         for (k, u) in ev.unknowns.iter().enumerate() {
-            let (scale, unit) = match u.as_str() {
-                "d" => (1e3, "mm"),
-                "t0" => (1e3, "ms"),
-                _ => (1.0, "m/s"),
-            };
+            let (scale, unit) = scale_unit(u);
             t.row(vec![
                 u.clone(),
                 format!("{:.4}", ev.mae[k] * scale),
@@ -309,6 +320,44 @@ impl Render for StartReport {
             ]);
         }
         t.write(out, "  ")?;
+        if !ev.methods.is_empty() {
+            writeln!(
+                out,
+                "the other methods, on the same recordings cut to the experiment's length, read \
+                 for a lead-in of up to {} ms:",
+                ev.max_delay * 1e3
+            )?;
+            let mut cols = vec![("method", Align::Left)];
+            let heads: Vec<String> = ev
+                .methods
+                .first()
+                .map(|m| {
+                    (0..m.mae.len())
+                        .flat_map(|k| {
+                            let (_, unit) = scale_unit(&ev.unknowns[k]);
+                            [
+                                format!("MAE {} ({unit})", ev.unknowns[k]),
+                                format!("90% cover {}", ev.unknowns[k]),
+                            ]
+                        })
+                        .collect()
+                })
+                .unwrap_or_default();
+            cols.extend(heads.iter().map(|h| (h.as_str(), Align::Right)));
+            cols.push(("fit (s)", Align::Right));
+            let mut m_table = Table::new(&cols);
+            for m in &ev.methods {
+                let mut row = vec![m.name.clone()];
+                for k in 0..m.mae.len() {
+                    let (scale, _) = scale_unit(&ev.unknowns[k]);
+                    row.push(format!("{:.4}", m.mae[k] * scale));
+                    row.push(format!("{:.0}%", m.coverage[k] * 100.0));
+                }
+                row.push(format!("{:.2}", m.train_seconds));
+                m_table.row(row);
+            }
+            m_table.write(out, "  ")?;
+        }
         writeln!(
             out,
             "filtered {:.2} s of data in {:.2} s: real-time factor {:.2}; wall time {:.2} s; files:",

@@ -523,7 +523,7 @@ fn pf_warns_when_one_particle_takes_the_weight() {
 }
 
 #[test]
-fn unknown_start_scores_the_filter_with_t0_and_refuses_bad_delays() {
+fn unknown_start_scores_the_filter_with_t0_and_the_methods_aligned_and_refuses_bad_delays() {
     let dir = temp("unknown-start");
     let out = dir.join("e1");
     let report = experiment_json(&["e1", "--max-delay", "0.02", "--particles", "100"], &out);
@@ -544,6 +544,18 @@ fn unknown_start_scores_the_filter_with_t0_and_refuses_bad_delays() {
         let t0 = run["truth"][1].as_f64().unwrap();
         assert!((0.0..=0.02).contains(&t0) && (t0 * 1e3 - (t0 * 1e3).round()).abs() < 1e-9);
     }
+    // Every other method is scored on the same recordings, aligned at the onset: the kernel
+    // regression within half a millimetre (clean e1: 0.03 mm).
+    let methods = report["methods"].as_array().unwrap();
+    let names: Vec<&str> = methods
+        .iter()
+        .map(|m| m["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(names.len(), 9, "{names:?}");
+    assert!(!names.contains(&"pf"), "{names:?}");
+    let krr = methods.iter().find(|m| m["name"] == "krr").unwrap();
+    assert!(krr["mae"][0].as_f64().unwrap() < 5e-4, "{krr}");
+    assert_eq!(krr["mae"].as_array().unwrap().len(), 1, "{krr}");
     assert!(out.join("results.json").is_file());
     for bad in ["0", "-0.01", "NaN", "2"] {
         let folder = dir.join(format!("bad-{bad}"));

@@ -1,6 +1,8 @@
-//! The particle filter on recordings that do not start at the approach: each evaluated run of an
+//! Estimators on recordings that do not start at the approach: each evaluated run of an
 //! experiment recorded from a random moment up to `max_delay` before its t = 0, so that the start
-//! of the approach `t0` is a further unknown (`vibrissa experiment --max-delay`).
+//! of the approach `t0` is a further unknown (`vibrissa experiment --max-delay`). The particle
+//! filter carries `t0` as an unknown; the other methods read the recordings as `vibrissa
+//! estimate --max-delay` does, aligned at the contact's onset ([`crate::methods::Aligned`]).
 
 use crate::error::{Error, Result};
 use crate::evaluate::{estimated_noise, training_for};
@@ -9,6 +11,8 @@ use crate::experiment::Variant;
 use crate::family::Family;
 use crate::method::{Estimate, Method};
 use crate::pf::{Pf, TransitionModel};
+use crate::recording::Recording;
+use crate::trained::Trained;
 use serde::Serialize;
 use std::time::Instant;
 use vibrissa_core::rng::Rng;
@@ -25,7 +29,24 @@ pub struct DelayedRun {
     pub estimate: Vec<Estimate>,
 }
 
-/// The particle filter scored on delayed recordings of an experiment's evaluated runs.
+/// A method other than the filter scored on the delayed recordings, each cut to the
+/// experiment's own length (so a recording that starts `delay` early ends `delay` before the
+/// experiment's run does).
+#[derive(Debug, Clone, Serialize)]
+pub struct MethodStart {
+    /// The method's name.
+    pub name: String,
+    /// Mean absolute error per unknown of the experiment (without `t0`), SI.
+    pub mae: Vec<f64>,
+    /// Share of runs whose 90% interval holds the truth, per unknown.
+    pub coverage: Vec<f64>,
+    /// Wall time of its training, s.
+    pub train_seconds: f64,
+    /// Mean wall time of one estimate, s.
+    pub estimate_seconds: f64,
+}
+
+/// Estimators scored on delayed recordings of an experiment's evaluated runs.
 #[derive(Debug, Clone, Serialize)]
 pub struct StartEvaluation {
     /// The family: a built-in's name or a scenario file's path.
@@ -55,6 +76,8 @@ pub struct StartEvaluation {
     pub filter_seconds: f64,
     /// Every run.
     pub runs: Vec<DelayedRun>,
+    /// The other methods scored, in the order asked for.
+    pub methods: Vec<MethodStart>,
 }
 
 impl StartEvaluation {
@@ -67,7 +90,10 @@ impl StartEvaluation {
 /// Scores the particle filter with `particles` particles on `experiment`'s evaluated runs in
 /// `variant`, each recorded from a whole number of milliseconds drawn uniformly from
 /// `[0, max_delay]` before the run's t = 0; the filter's prior on `t0` is `[0, max_delay]`.
-/// `model` is the filter's transition model. `progress(stage, done, total)` reports.
+/// `model` is the filter's transition model. The methods named in `methods` are scored on the
+/// same recordings, cut to the experiment's length, read with a lead-in of up to `max_delay`
+/// (see [`MethodStart`]). `progress(stage, done, total)` reports.
+#[allow(clippy::too_many_arguments)]
 pub fn evaluate_unknown_start(
     family: &Family,
     variant: Variant,
@@ -75,6 +101,7 @@ pub fn evaluate_unknown_start(
     particles: usize,
     model: TransitionModel,
     max_delay: f64,
+    methods: &[&str],
     progress: &(dyn Fn(&str, usize, usize) + Sync),
 ) -> Result<StartEvaluation> {
     if particles == 0 {
@@ -153,6 +180,25 @@ pub fn evaluate_unknown_start(
         runs.push(DelayedRun { truth, estimate });
         progress("filter", k + 1, params.len());
     }
+    let cut: Vec<Recording> = samples
+        .iter()
+        .map(|s| cut_to(family, &s.series))
+        .collect::<Result<_>>()?;
+    let lead = (max_delay * rate - 1e-9).ceil() as usize;
+    let mut scored = Vec::with_capacity(methods.len());
+    for (k, name) in methods.iter().enumerate() {
+        progress("methods", k, methods.len());
+        scored.push(score_method(
+            family,
+            name,
+            &cut,
+            &params,
+            &estimated_noise.sensor,
+            lead,
+            seed,
+        )?);
+    }
+    progress("methods", methods.len(), methods.len());
     let n = runs.len() as f64;
     let mae = (0..unknowns.len())
         .map(|u| {
@@ -184,6 +230,71 @@ pub fn evaluate_unknown_start(
         data_seconds,
         filter_seconds,
         runs,
+        methods: scored,
+    })
+}
+
+/// The first `family.samples()` samples of the delayed series `series`, as a recording.
+fn cut_to(family: &Family, series: &[Vec<f64>]) -> Result<Recording> {
+    let (n, rate) = (family.samples(), family.sample_rate());
+    if series.iter().any(|c| c.len() < n) {
+        return Err(Error::Setting(format!(
+            "a delayed run holds fewer than the experiment's {n} samples"
+        )));
+    }
+    Ok(Recording {
+        t: (0..n).map(|k| k as f64 / rate).collect(),
+        values: series.iter().map(|c| c[..n].to_vec()).collect(),
+        rate,
+        segments: None,
+    })
+}
+
+/// `name` trained on `family` for a lead-in of up to `lead` samples and scored on `recordings`
+/// (true values `params`).
+fn score_method(
+    family: &Family,
+    name: &str,
+    recordings: &[Recording],
+    params: &[Vec<f64>],
+    noise: &[f64; 5],
+    lead: usize,
+    seed: u64,
+) -> Result<MethodStart> {
+    if name == "pf" {
+        return Err(Error::Setting(
+            "methods: the particle filter is scored with its particles, not as a method".into(),
+        ));
+    }
+    let mut trained = Trained::default();
+    let mut estimates = Vec::with_capacity(recordings.len());
+    let mut estimate_seconds = 0.0;
+    for rec in recordings {
+        let method = trained.get(family, rec, noise, name, seed, lead, &mut |_| {})?;
+        let t = Instant::now();
+        estimates.push(method.predict(&rec.values)?);
+        estimate_seconds += t.elapsed().as_secs_f64();
+    }
+    let unknowns = family.unknowns().len();
+    let n = recordings.len().max(1) as f64;
+    let per = |f: &dyn Fn(&Estimate, f64) -> f64| -> Vec<f64> {
+        (0..unknowns)
+            .map(|u| {
+                estimates
+                    .iter()
+                    .zip(params)
+                    .map(|(e, p)| f(&e[u], p[u]))
+                    .sum::<f64>()
+                    / n
+            })
+            .collect()
+    };
+    Ok(MethodStart {
+        name: name.to_string(),
+        mae: per(&|e, truth| (e.mean - truth).abs()),
+        coverage: per(&|e, truth| f64::from(u8::from(e.covers(truth)))),
+        train_seconds: trained.seconds,
+        estimate_seconds: estimate_seconds / n,
     })
 }
 
@@ -201,6 +312,7 @@ mod tests {
             0,
             TransitionModel::Coarse,
             0.05,
+            &[],
             &none,
         );
         assert!(e.unwrap_err().to_string().contains("particles"));
@@ -212,9 +324,21 @@ mod tests {
                 10,
                 TransitionModel::Coarse,
                 bad,
+                &[],
                 &none,
             );
             assert!(e.unwrap_err().to_string().contains("max_delay"), "{bad}");
         }
+    }
+
+    #[test]
+    fn the_filter_is_not_scored_as_a_method_and_short_runs_are_refused() {
+        let e1 = Family::builtin("e1").unwrap();
+        let rec = cut_to(&e1, &vec![vec![0.0; e1.samples()]; 5]).unwrap();
+        assert_eq!(rec.t.len(), e1.samples());
+        let e = score_method(&e1, "pf", &[rec], &[vec![0.02]], &[1e-3; 5], 10, 1);
+        assert!(e.unwrap_err().to_string().contains("particle filter"));
+        let short = cut_to(&e1, &vec![vec![0.0; e1.samples() - 1]; 5]);
+        assert!(short.unwrap_err().to_string().contains("fewer"));
     }
 }
