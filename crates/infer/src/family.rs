@@ -414,6 +414,15 @@ impl Family {
         (h ^ self.base.segments as u64).wrapping_mul(0x0000_0100_0000_01b3)
     }
 
+    /// The same family with the random forces of intensity `intensity` (N·s^½·m^-½) stated, as a
+    /// scenario's `process_noise` states them: what [`Family::training_noise`] passes to
+    /// estimators. The runs simulated with an explicit [`Noise`] are unchanged.
+    pub fn with_process_noise(&self, intensity: f64) -> Family {
+        let mut f = self.clone();
+        f.base.process_noise = intensity.max(0.0);
+        f
+    }
+
     /// The same family with every run started a random time in [0, `seconds`) before its
     /// approach, its length unchanged (see the field `start_jitter`): training runs for series
     /// aligned at the contact, whose recordings start at any time.

@@ -143,7 +143,12 @@ pub fn evaluate_unknown_start(
         .collect::<Result<Vec<_>>>()?;
     progress("recordings", params.len(), params.len());
     let recordings: Vec<&[Vec<f64>]> = samples.iter().map(|s| &s.series[..]).collect();
-    let estimated_noise = estimated_noise(family, &recordings)?;
+    // The sensor noise is what the estimators measure on the recordings; the random forces are
+    // part of the experiment's world, stated as a scenario's `process_noise` would state them
+    // (as `crate::evaluate::evaluate_with` does).
+    let mut estimated_noise = estimated_noise(family, &recordings)?;
+    estimated_noise.process = estimated_noise.process.max(noise.process);
+    let stated = family.with_process_noise(estimated_noise.process);
     let mut filter = Pf::new(particles);
     filter.set_model(model);
     filter.seed = seed;
@@ -189,7 +194,7 @@ pub fn evaluate_unknown_start(
     for (k, name) in methods.iter().enumerate() {
         progress("methods", k, methods.len());
         scored.push(score_method(
-            family,
+            &stated,
             name,
             &cut,
             &params,
@@ -273,6 +278,7 @@ fn score_method(
         let method = trained.get(family, rec, noise, name, seed, lead, &mut |_| {})?;
         let t = Instant::now();
         estimates.push(method.predict(&rec.values)?);
+
         estimate_seconds += t.elapsed().as_secs_f64();
     }
     let unknowns = family.unknowns().len();
@@ -329,6 +335,31 @@ mod tests {
             );
             assert!(e.unwrap_err().to_string().contains("max_delay"), "{bad}");
         }
+    }
+
+    #[test]
+    fn the_methods_are_told_the_experiment_s_random_forces() {
+        let none = |_: &str, _: usize, _: usize| {};
+        let e1 = Family::builtin("e1").unwrap();
+        let ev = evaluate_unknown_start(
+            &e1,
+            Variant::Noisy,
+            1,
+            10,
+            TransitionModel::Coarse,
+            0.01,
+            &["knn"],
+            &none,
+        )
+        .unwrap();
+        assert_eq!(ev.estimated_noise.process, crate::experiment::PROCESS_NOISE);
+        assert_eq!(ev.methods.len(), 1);
+        assert_eq!(ev.methods[0].name, "knn");
+        let stated = e1.with_process_noise(ev.estimated_noise.process);
+        assert_eq!(
+            stated.training_noise([0.0; 5]).process,
+            crate::experiment::PROCESS_NOISE
+        );
     }
 
     #[test]
