@@ -13,11 +13,10 @@ use serde::Serialize;
 use serde_json::{json, Map, Value};
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 use vibrissa_infer::check::{self, Check};
-use vibrissa_infer::lead_in;
+use vibrissa_infer::{batch, lead_in};
 use vibrissa_infer::{
-    methods, Budget, Estimate, Family, Method, Reader, Recording, Trained, Variant, CHANNELS,
+    methods, Estimate, Family, Method, Reader, Recording, Trained, Variant, CHANNELS,
 };
 
 /// Arguments of `vibrissa estimate`.
@@ -310,39 +309,23 @@ pub fn run(args: &Args) -> Result<()> {
     // level and lead-in, on the family's runs at that rate and length with that noise.
     let levels = noise_levels(&args.obs, &recordings, &needs, &stated)?;
     let leads = lead_ins(args.max_delay, &family, &args.obs, &recordings, &levels)?;
-    let mut trained = Trained::default();
-    let mut estimates = estimate_each(args, &family, &recordings, &levels, &leads, &mut trained)?;
     // A scenario that is neither calibrated nor randomised, which most of the recordings defy
     // at their estimates, is not their whisker: estimate again on whiskers drawn around it.
-    let auto = !args.randomise
-        && !args.no_randomise
-        && family.randomisation().is_none()
-        && probe.budget() == Budget::Free;
-    let mut family = family;
-    if auto {
-        let points: Vec<Vec<f64>> = estimates
-            .iter()
-            .map(|(e, _)| e.iter().map(|x| x.mean).collect())
-            .collect();
-        let recs: Vec<&Recording> = recordings.iter().collect();
-        let defied = check::unexplained(&family.nominal(), &recs, &points, &levels, &needs, &leads);
-        if defied as f64 > check::MISMATCH_SHARE * recordings.len() as f64 {
-            eprintln!(
-                "warning: the scenario does not explain {defied} of the {} recordings at their \
-                 estimates (vibrissa estimate --check says where): their whisker is not the \
-                 scenario's, and estimates that trust it would be wrong with narrow intervals; \
-                 estimating again on whiskers drawn around it, as --randomise does (calibrate on \
-                 labelled strikes for better estimates; --no-randomise keeps the scenario's \
-                 whisker)",
-                recordings.len()
-            );
-            family = family.randomised_if(true)?;
-            let mut again = Trained::default();
-            estimates = estimate_each(args, &family, &recordings, &levels, &leads, &mut again)?;
-            trained.seconds += again.seconds;
-            trained.runs += again.runs;
-        }
-    }
+    let names: Vec<String> = args.obs.iter().map(|f| f.display().to_string()).collect();
+    let mut trained = Trained::default();
+    let (family, estimates) = batch::discriminative(
+        &family,
+        &names,
+        &recordings,
+        &levels,
+        &leads,
+        name,
+        args.seed,
+        !args.randomise && !args.no_randomise,
+        &batch::COMMAND_LINE,
+        &mut trained,
+        &mut |m| eprintln!("{m}"),
+    )?;
     let mut rows = Vec::new();
     let mut checks = Vec::new();
     let mut figure = None;
@@ -386,29 +369,6 @@ pub fn run(args: &Args) -> Result<()> {
         eprintln!("wrote {}", png.display());
     }
     Ok(())
-}
-
-/// Every recording's estimate (and the time it took) by the method `args` names, trained on
-/// `family` once per timing, noise level and lead-in (kept in `trained`).
-fn estimate_each(
-    args: &Args,
-    family: &Family,
-    recordings: &[Recording],
-    levels: &[[f64; 5]],
-    leads: &[usize],
-    trained: &mut Trained,
-) -> Result<Vec<(Vec<Estimate>, f64)>> {
-    let name = args.method.as_deref().unwrap_or_default();
-    let mut out = Vec::with_capacity(recordings.len());
-    for (((file, rec), level), &lead) in args.obs.iter().zip(recordings).zip(levels).zip(leads) {
-        let method = trained_for(trained, family, rec, level, name, args.seed, lead)?;
-        let t = Instant::now();
-        let est = method
-            .predict(&rec.values)
-            .with_context(|| format!("estimating from `{}`", file.display()))?;
-        out.push((est, t.elapsed().as_secs_f64()));
-    }
-    Ok(out)
 }
 
 /// The contract's estimate objects: one, or JSON Lines with `"file"` for several files.

@@ -48,28 +48,16 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
     // A scenario that is neither calibrated nor randomised, which most of the recordings defy
     // (at `krr`'s estimates and near them), is not their whisker: the filter then entertains
     // whiskers drawn around it, as --randomise asks.
-    let mut family = family.clone();
-    if !args.randomise && !args.no_randomise && family.randomisation().is_none() {
-        eprintln!("checking that the scenario explains the recordings, at krr's estimates…");
-        let (defied, looked) = vibrissa_infer::trained::defied_by(
-            &family,
-            &recordings,
-            &levels,
-            &leads,
-            args.seed,
-            &mut |m| eprintln!("{m}"),
-        )?;
-        if looked > 0 && defied as f64 > vibrissa_infer::check::MISMATCH_SHARE * looked as f64 {
-            eprintln!(
-                "warning: the scenario does not explain {defied} of the {looked} recordings \
-                 (vibrissa estimate --check says where): their whisker is not the scenario's, \
-                 and a filter that trusts it would be wrong with narrow intervals; it entertains \
-                 whiskers drawn around it instead, as --randomise does (calibrate on labelled \
-                 strikes for better estimates; --no-randomise keeps the scenario's whisker)"
-            );
-            family = family.randomised_if(true)?;
-        }
-    }
+    let family = vibrissa_infer::batch::filter_family(
+        family,
+        &recordings,
+        &levels,
+        &leads,
+        args.seed,
+        !args.randomise && !args.no_randomise,
+        &vibrissa_infer::batch::COMMAND_LINE,
+        &mut |m| eprintln!("{m}"),
+    )?;
     let family = &family;
     let particles = args
         .particles

@@ -12,6 +12,7 @@
 //! makes perturbed "foreign" whiskers and their labelled recordings to check it on.
 #![warn(missing_docs)]
 
+pub mod batch;
 pub mod calibrate;
 pub mod check;
 pub mod contract;

@@ -419,31 +419,22 @@ fn estimate(
             &noise.levels,
             &mut |w| messages.push(format!("warning: {w}")),
         )?;
-        let mut trained = Trained::default();
-        // The filter, likewise, entertains whiskers drawn around a scenario that most of the
-        // recordings defy (at `krr`'s estimates and near them).
-        let mut family = family.clone();
-        if auto && pf && family.randomisation().is_none() {
-            let (defied, looked) = vibrissa_infer::trained::defied_by(
+        // The filter entertains whiskers drawn around a scenario that most of the recordings
+        // defy (at `krr`'s estimates and near them), as on the command line.
+        let family = if pf {
+            vibrissa_infer::batch::filter_family(
                 &family,
                 &recordings,
                 &noise.levels,
                 &leads,
                 seed,
+                auto,
+                &vibrissa_infer::batch::PYTHON,
                 &mut |m| messages.push(m),
-            )?;
-            if looked > 0 && defied as f64 > vibrissa_infer::check::MISMATCH_SHARE * looked as f64 {
-                messages.push(format!(
-                    "warning: the scenario does not explain {defied} of the {looked} \
-                     recordings (check=True says where): their whisker is not the scenario's, \
-                     and a filter that trusts it would be wrong with narrow intervals; it \
-                     entertains whiskers drawn around it instead, as randomise=True does \
-                     (calibrate on labelled strikes for better estimates; randomise=False keeps \
-                     the scenario's whisker)"
-                ));
-                family = family.randomised_if(true)?;
-            }
-        }
+            )?
+        } else {
+            family.clone()
+        };
         let options = recording::Options {
             seed,
             // The filter's start delay is unknown up to the lead-in allowed.
@@ -459,60 +450,23 @@ fn estimate(
         // The discriminative methods' estimates first: a scenario that is neither calibrated nor
         // randomised, which most of the recordings defy at their estimates, is not their
         // whisker, and they estimate again on whiskers drawn around it (as on the command line).
-        let estimate_each =
-            |family: &Family,
-             trained: &mut Trained,
-             messages: &mut Vec<String>|
-             -> vibrissa_infer::Result<Vec<(Vec<vibrissa_infer::Estimate>, f64)>> {
-                let mut out = Vec::new();
-                for ((rec, level), &lead) in recordings.iter().zip(&noise.levels).zip(&leads) {
-                    let m = trained.get(family, rec, level, method, seed, lead, &mut |m| {
-                        messages.push(m)
-                    })?;
-                    let start = std::time::Instant::now();
-                    let est = m.predict(&rec.values)?;
-                    out.push((est, start.elapsed().as_secs_f64()));
-                }
-                Ok(out)
-            };
-        let mut discriminative = if pf {
-            Vec::new()
+        let (family, discriminative) = if pf {
+            (family, Vec::new())
         } else {
-            estimate_each(&family, &mut trained, &mut messages)?
-        };
-        if auto
-            && !pf
-            && family.randomisation().is_none()
-            && probe.budget() == vibrissa_infer::Budget::Free
-        {
-            let points: Vec<Vec<f64>> = discriminative
-                .iter()
-                .map(|(e, _)| e.iter().map(|x| x.mean).collect())
-                .collect();
-            let recs: Vec<&Recording> = recordings.iter().collect();
-            let defied = vibrissa_infer::check::unexplained(
-                &family.nominal(),
-                &recs,
-                &points,
+            vibrissa_infer::batch::discriminative(
+                &family,
+                &names,
+                &recordings,
                 &noise.levels,
-                &needs,
                 &leads,
-            );
-            if defied as f64 > vibrissa_infer::check::MISMATCH_SHARE * recordings.len() as f64 {
-                messages.push(format!(
-                    "warning: the scenario does not explain {defied} of the {} recordings at \
-                     their estimates (check=True says where): their whisker is not the \
-                     scenario's, and estimates that trust it would be wrong with narrow \
-                     intervals; estimating again on whiskers drawn around it, as randomise=True \
-                     does (calibrate on labelled strikes for better estimates; randomise=False \
-                     keeps the scenario's whisker)",
-                    recordings.len()
-                ));
-                family = family.randomised_if(true)?;
-                let mut again = Trained::default();
-                discriminative = estimate_each(&family, &mut again, &mut messages)?;
-            }
-        }
+                method,
+                seed,
+                auto,
+                &vibrissa_infer::batch::PYTHON,
+                &mut Trained::default(),
+                &mut |m| messages.push(m),
+            )?
+        };
         let mut discriminative = discriminative.into_iter();
         let mut filtered: Option<([f64; 5], Pf)> = None;
         let mut rows = Vec::new();

@@ -1,0 +1,274 @@
+//! What `vibrissa estimate` and the Python `vibrissa.estimate` do with a batch of recordings,
+//! written once for both: every recording estimated by a discriminative method (trained once per
+//! timing, noise level and lead-in), and the choice, when the user left it open, to entertain
+//! whiskers drawn around a scenario that most of the recordings defy.
+//!
+//! The front ends read the recordings, measure their noise ([`crate::recording::batch_noise`])
+//! and lead-ins ([`crate::lead_in::batch_leads`]), then call [`discriminative`] or
+//! [`filter_family`]; what they print is passed to `log`.
+
+use crate::check::{unexplained, MISMATCH_SHARE};
+use crate::error::{Error, Result};
+use crate::method::{Budget, Estimate};
+use crate::methods;
+use crate::recording::Recording;
+use crate::trained::{defied_by, Trained};
+use crate::Family;
+use std::time::Instant;
+
+/// How a front end names the switches its messages point to.
+#[derive(Debug, Clone, Copy)]
+pub struct Switches {
+    /// What makes the model check say where (e.g. `--check`).
+    pub check: &'static str,
+    /// What asks for whiskers drawn around the scenario (e.g. `--randomise`).
+    pub randomise: &'static str,
+    /// What keeps the scenario's whisker (e.g. `--no-randomise`).
+    pub keep: &'static str,
+}
+
+/// The command line's switches.
+pub const COMMAND_LINE: Switches = Switches {
+    check: "vibrissa estimate --check",
+    randomise: "--randomise",
+    keep: "--no-randomise",
+};
+
+/// The Python module's arguments.
+pub const PYTHON: Switches = Switches {
+    check: "check=True",
+    randomise: "randomise=True",
+    keep: "randomise=False",
+};
+
+/// Every recording's estimate by the method `name` and the seconds it took, trained on `family`
+/// (by `trained`, once per timing, noise level and lead-in) with each recording's noise
+/// `levels` and lead-in `leads` (samples). `names` name the recordings in errors.
+#[allow(clippy::too_many_arguments)]
+pub fn estimate_each(
+    family: &Family,
+    names: &[String],
+    recordings: &[Recording],
+    levels: &[[f64; 5]],
+    leads: &[usize],
+    name: &str,
+    seed: u64,
+    trained: &mut Trained,
+    log: &mut dyn FnMut(String),
+) -> Result<Vec<(Vec<Estimate>, f64)>> {
+    let mut out = Vec::with_capacity(recordings.len());
+    for (((file, rec), level), &lead) in names.iter().zip(recordings).zip(levels).zip(leads) {
+        let method = trained.get(family, rec, level, name, seed, lead, log)?;
+        let start = Instant::now();
+        let est = method
+            .predict(&rec.values)
+            .map_err(|e| Error::Observation(format!("estimating from `{file}`: {e}")))?;
+        out.push((est, start.elapsed().as_secs_f64()));
+    }
+    Ok(out)
+}
+
+/// The discriminative method `name`'s estimates of a batch ([`estimate_each`]), and the family
+/// they were trained on. With `auto` (the user chose neither to randomise nor to keep the
+/// scenario's whisker), a scenario that is neither calibrated nor randomised and that more than
+/// [`MISMATCH_SHARE`] of the recordings defy at their estimates and near them
+/// ([`unexplained`]) is not their whisker: the batch is estimated again on whiskers drawn around
+/// it, with a warning. `trained` gathers the training of both passes.
+#[allow(clippy::too_many_arguments)]
+pub fn discriminative(
+    family: &Family,
+    names: &[String],
+    recordings: &[Recording],
+    levels: &[[f64; 5]],
+    leads: &[usize],
+    name: &str,
+    seed: u64,
+    auto: bool,
+    switches: &Switches,
+    trained: &mut Trained,
+    log: &mut dyn FnMut(String),
+) -> Result<(Family, Vec<(Vec<Estimate>, f64)>)> {
+    let estimates = estimate_each(
+        family, names, recordings, levels, leads, name, seed, trained, log,
+    )?;
+    let method = methods::by_name(name)?;
+    if !(auto && family.randomisation().is_none() && method.budget() == Budget::Free) {
+        return Ok((family.clone(), estimates));
+    }
+    let points: Vec<Vec<f64>> = estimates
+        .iter()
+        .map(|(e, _)| e.iter().map(|x| x.mean).collect())
+        .collect();
+    let recs: Vec<&Recording> = recordings.iter().collect();
+    let needs = method.channels();
+    let defied = unexplained(&family.nominal(), &recs, &points, levels, &needs, leads);
+    if defied as f64 <= MISMATCH_SHARE * recordings.len() as f64 {
+        return Ok((family.clone(), estimates));
+    }
+    log(format!(
+        "warning: the scenario does not explain {defied} of the {} recordings at their \
+         estimates ({} says where): their whisker is not the scenario's, and estimates that \
+         trust it would be wrong with narrow intervals; estimating again on whiskers drawn \
+         around it, as {} does (calibrate on labelled strikes for better estimates; {} keeps \
+         the scenario's whisker)",
+        recordings.len(),
+        switches.check,
+        switches.randomise,
+        switches.keep
+    ));
+    let randomised = family.clone().randomised_if(true)?;
+    let mut again = Trained::default();
+    let estimates = estimate_each(
+        &randomised,
+        names,
+        recordings,
+        levels,
+        leads,
+        name,
+        seed,
+        &mut again,
+        log,
+    )?;
+    trained.seconds += again.seconds;
+    trained.runs += again.runs;
+    Ok((randomised, estimates))
+}
+
+/// The family the particle filter runs on for a batch. With `auto` (the user chose neither to
+/// randomise nor to keep the scenario's whisker), a scenario that is neither calibrated nor
+/// randomised and that more than [`MISMATCH_SHARE`] of the recordings defy at `krr`'s estimates
+/// and near them ([`defied_by`]) is not their whisker: the filter then entertains whiskers drawn
+/// around it, with a warning.
+#[allow(clippy::too_many_arguments)]
+pub fn filter_family(
+    family: &Family,
+    recordings: &[Recording],
+    levels: &[[f64; 5]],
+    leads: &[usize],
+    seed: u64,
+    auto: bool,
+    switches: &Switches,
+    log: &mut dyn FnMut(String),
+) -> Result<Family> {
+    if !(auto && family.randomisation().is_none()) {
+        return Ok(family.clone());
+    }
+    log("checking that the scenario explains the recordings, at krr's estimates…".into());
+    let (defied, looked) = defied_by(family, recordings, levels, leads, seed, log)?;
+    if looked == 0 || defied as f64 <= MISMATCH_SHARE * looked as f64 {
+        return Ok(family.clone());
+    }
+    log(format!(
+        "warning: the scenario does not explain {defied} of the {looked} recordings ({} says \
+         where): their whisker is not the scenario's, and a filter that trusts it would be wrong \
+         with narrow intervals; it entertains whiskers drawn around it instead, as {} does \
+         (calibrate on labelled strikes for better estimates; {} keeps the scenario's whisker)",
+        switches.check, switches.randomise, switches.keep
+    ));
+    family.clone().randomised_if(true)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::experiment::Noise;
+
+    /// Sensor noise of the test's recordings, per channel.
+    const LEVEL: [f64; 5] = [1e-3, 1e-3, 1e-8, 1e-6, 1e-6];
+
+    /// `e2` runs of `family` at `points` with sensor noise [`LEVEL`], as recordings.
+    fn recordings(family: &Family, points: &[[f64; 2]]) -> Vec<Recording> {
+        let noise = Noise {
+            sensor: LEVEL,
+            process: 0.0,
+        };
+        points
+            .iter()
+            .enumerate()
+            .map(|(k, p)| {
+                let s = family.simulate(p, &noise, k as u64).unwrap();
+                let rate = family.sample_rate();
+                Recording {
+                    t: (0..s.series[0].len()).map(|i| i as f64 / rate).collect(),
+                    values: s.series,
+                    rate,
+                    segments: None,
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_scenario_s_own_recordings_keep_it_and_a_stiffer_whisker_s_defy_it() {
+        let e2 = Family::builtin("e2").unwrap();
+        let points = [[0.018, 0.5], [0.024, 1.1], [0.027, 0.8]];
+        let names: Vec<String> = (0..points.len()).map(|k| format!("r{k}")).collect();
+        let levels = vec![LEVEL; points.len()];
+        let leads = vec![0; points.len()];
+        let mut log = Vec::new();
+        let own = recordings(&e2, &points);
+        let mut trained = Trained::default();
+        let (family, est) = discriminative(
+            &e2,
+            &names,
+            &own,
+            &levels,
+            &leads,
+            "knn",
+            1,
+            true,
+            &COMMAND_LINE,
+            &mut trained,
+            &mut |m| log.push(m),
+        )
+        .unwrap();
+        assert!(family.randomisation().is_none(), "{log:?}");
+        assert_eq!(est.len(), points.len());
+        assert!(!log.iter().any(|m| m.starts_with("warning")), "{log:?}");
+
+        // A whisker half again as stiff, with the angle sensors' gain off by a fifth.
+        let sets = [
+            "whisker.youngs_modulus=4.5e9",
+            "sensors.theta01.gain=0.8",
+            "sensors.theta12.gain=0.8",
+        ]
+        .map(String::from);
+        let stiff = Family::open("e2", &sets).unwrap();
+        let foreign = recordings(&stiff, &points);
+        let (family, est) = discriminative(
+            &e2,
+            &names,
+            &foreign,
+            &levels,
+            &leads,
+            "knn",
+            1,
+            true,
+            &PYTHON,
+            &mut trained,
+            &mut |m| log.push(m),
+        )
+        .unwrap();
+        assert!(family.randomisation().is_some(), "{log:?}");
+        assert_eq!(est.len(), points.len());
+        let warning = log.iter().find(|m| m.starts_with("warning")).unwrap();
+        assert!(warning.contains("randomise=True"), "{warning}");
+
+        // Asked to keep the scenario's whisker: no second pass.
+        let (family, _) = discriminative(
+            &e2,
+            &names,
+            &foreign,
+            &levels,
+            &leads,
+            "knn",
+            1,
+            false,
+            &COMMAND_LINE,
+            &mut trained,
+            &mut |_| {},
+        )
+        .unwrap();
+        assert!(family.randomisation().is_none());
+    }
+}
