@@ -16,6 +16,9 @@ use crate::trained::{defied_by, Trained};
 use crate::Family;
 use std::time::Instant;
 
+/// Each recording's estimates (one per unknown) and the seconds they took.
+pub type Estimates = Vec<(Vec<Estimate>, f64)>;
+
 /// How a front end names the switches its messages point to.
 #[derive(Debug, Clone, Copy)]
 pub struct Switches {
@@ -55,7 +58,7 @@ pub fn estimate_each(
     seed: u64,
     trained: &mut Trained,
     log: &mut dyn FnMut(String),
-) -> Result<Vec<(Vec<Estimate>, f64)>> {
+) -> Result<Estimates> {
     let mut out = Vec::with_capacity(recordings.len());
     for (((file, rec), level), &lead) in names.iter().zip(recordings).zip(levels).zip(leads) {
         let method = trained.get(family, rec, level, name, seed, lead, log)?;
@@ -87,7 +90,7 @@ pub fn discriminative(
     switches: &Switches,
     trained: &mut Trained,
     log: &mut dyn FnMut(String),
-) -> Result<(Family, Vec<(Vec<Estimate>, f64)>)> {
+) -> Result<(Family, Estimates)> {
     let estimates = estimate_each(
         family, names, recordings, levels, leads, name, seed, trained, log,
     )?;
