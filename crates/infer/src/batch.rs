@@ -208,25 +208,30 @@ mod tests {
         let names: Vec<String> = (0..points.len()).map(|k| format!("r{k}")).collect();
         let levels = vec![LEVEL; points.len()];
         let leads = vec![0; points.len()];
-        let mut log = Vec::new();
-        let own = recordings(&e2, &points);
         let mut trained = Trained::default();
-        let (family, est) = discriminative(
-            &e2,
-            &names,
-            &own,
-            &levels,
-            &leads,
-            "knn",
-            1,
-            true,
-            &COMMAND_LINE,
-            &mut trained,
-            &mut |m| log.push(m),
-        )
-        .unwrap();
+        // The batch `recs` estimated by `knn` on `e2`: the family used, the estimates and the
+        // messages.
+        let mut run = |recs: &[Recording], auto: bool, switches: &Switches| {
+            let mut log = Vec::new();
+            let (family, est) = discriminative(
+                &e2,
+                &names,
+                recs,
+                &levels,
+                &leads,
+                "knn",
+                1,
+                auto,
+                switches,
+                &mut trained,
+                &mut |m| log.push(m),
+            )
+            .unwrap();
+            assert_eq!(est.len(), recs.len());
+            (family, log)
+        };
+        let (family, log) = run(&recordings(&e2, &points), true, &COMMAND_LINE);
         assert!(family.randomisation().is_none(), "{log:?}");
-        assert_eq!(est.len(), points.len());
         assert!(!log.iter().any(|m| m.starts_with("warning")), "{log:?}");
 
         // A whisker half again as stiff, with the angle sensors' gain off by a fifth.
@@ -236,42 +241,14 @@ mod tests {
             "sensors.theta12.gain=0.8",
         ]
         .map(String::from);
-        let stiff = Family::open("e2", &sets).unwrap();
-        let foreign = recordings(&stiff, &points);
-        let (family, est) = discriminative(
-            &e2,
-            &names,
-            &foreign,
-            &levels,
-            &leads,
-            "knn",
-            1,
-            true,
-            &PYTHON,
-            &mut trained,
-            &mut |m| log.push(m),
-        )
-        .unwrap();
+        let foreign = recordings(&Family::open("e2", &sets).unwrap(), &points);
+        let (family, log) = run(&foreign, true, &PYTHON);
         assert!(family.randomisation().is_some(), "{log:?}");
-        assert_eq!(est.len(), points.len());
         let warning = log.iter().find(|m| m.starts_with("warning")).unwrap();
         assert!(warning.contains("randomise=True"), "{warning}");
 
         // Asked to keep the scenario's whisker: no second pass.
-        let (family, _) = discriminative(
-            &e2,
-            &names,
-            &foreign,
-            &levels,
-            &leads,
-            "knn",
-            1,
-            false,
-            &COMMAND_LINE,
-            &mut trained,
-            &mut |_| {},
-        )
-        .unwrap();
+        let (family, _) = run(&foreign, false, &COMMAND_LINE);
         assert!(family.randomisation().is_none());
     }
 }

@@ -158,16 +158,7 @@ impl Filter {
         let config = filter.config(&family, sigma).map_err(value_error)?;
         let inner = pf::Filter::new(&config, 1.0 / rate).map_err(value_error)?;
         let unknowns = config.unknowns();
-        let widening = unknowns
-            .iter()
-            .map(|n| {
-                filter
-                    .interval_scale
-                    .iter()
-                    .find(|(k, _)| k == n)
-                    .map_or(1.0, |(_, f)| *f)
-            })
-            .collect();
+        let widening = filter.widening(&unknowns);
         Ok(Filter {
             unknowns,
             inner,

@@ -256,6 +256,20 @@ impl Pf {
         -2.0 * post.log_evidence / n * (self.effective_temper() * post.rate_widening).powi(2)
     }
 
+    /// Per name of `unknowns`, the factor its intervals are widened by
+    /// ([`Pf::interval_scale`]; 1 where none is set).
+    pub fn widening(&self, unknowns: &[&str]) -> Vec<f64> {
+        unknowns
+            .iter()
+            .map(|n| {
+                self.interval_scale
+                    .iter()
+                    .find(|(k, _)| k == n)
+                    .map_or(1.0, |(_, f)| *f)
+            })
+            .collect()
+    }
+
     /// The observation noise found by [`crate::Method::fit`], if fitted.
     pub fn sigma(&self) -> Option<[f64; 5]> {
         self.sigma

@@ -333,18 +333,7 @@ pub fn estimate(
     let mut posterior = run(&config, &obs, &mut |_| {})?;
     let misfit = filter.misfit(&posterior, config.channels.len());
     if !filter.interval_scale.is_empty() {
-        let factors: Vec<f64> = posterior
-            .unknowns
-            .iter()
-            .map(|n| {
-                filter
-                    .interval_scale
-                    .iter()
-                    .find(|(k, _)| k == n)
-                    .map_or(1.0, |(_, f)| *f)
-            })
-            .collect();
-        posterior.widen(&factors);
+        posterior.widen(&filter.widening(&posterior.unknowns));
     }
     Ok(Estimate {
         posterior,
