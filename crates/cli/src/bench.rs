@@ -55,6 +55,10 @@ pub struct Args {
         default_value = "100,1000,10000"
     )]
     particles: Vec<usize>,
+    /// With --pf: the filter for a whisker known only roughly (`estimate --method pf
+    /// --randomise`): 63 alternative whiskers, the sensors' gains and offsets as unknowns.
+    #[arg(long, requires = "pf")]
+    randomise: bool,
 }
 
 /// Segment counts of the single-state measurement, ascending.
@@ -186,7 +190,7 @@ struct BenchReport {
 /// Measures, then prints the figures.
 pub fn run(args: &Args) -> Result<()> {
     if args.pf {
-        return crate::bench_pf::run(&args.particles, args.quick, &args.format);
+        return crate::bench_pf::run(&args.particles, args.quick, args.randomise, &args.format);
     }
     let plan = Plan::new(args.quick);
     let optimised = !cfg!(debug_assertions);

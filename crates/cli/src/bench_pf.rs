@@ -5,6 +5,10 @@
 //! data per wall second (above 1: faster than the data arrive at 1 kHz). The filter's settings
 //! are those of `vibrissa estimate --method pf` (tempering by particle count); no training runs
 //! are simulated: the observation noise is the `noisy` variant's, as the filter's fit finds it.
+//! With `--randomise` the filter is the one for a whisker known only roughly (`vibrissa estimate
+//! --method pf --randomise`): besides the scenario's whisker it entertains the alternative
+//! whiskers and carries the sensors' gains and offsets (the intervals' widening, fitted once per
+//! noise level on held-out runs, is not timed).
 
 use crate::output::{sig, Align, FormatArgs, Render, Table};
 use anyhow::{bail, Result};
@@ -12,8 +16,8 @@ use serde::Serialize;
 use std::io::{self, Write};
 use std::time::Instant;
 use vibrissa_infer::experiment::Variant;
-use vibrissa_infer::pf::{self, Config, Observations, MODEL_ERROR};
-use vibrissa_infer::Family;
+use vibrissa_infer::pf::{self, Config, Observations, Pf, MODEL_ERROR};
+use vibrissa_infer::{Family, Method, Training};
 
 /// One particle count's figures.
 #[derive(Debug, Clone, Serialize)]
@@ -49,6 +53,10 @@ struct TransitionModel {
     dt: f64,
     /// Geometric iterations per step.
     max_iterations: usize,
+    /// Whiskers entertained besides the scenario's (0: the whisker is known).
+    alternatives: usize,
+    /// Whether the sensors' gains and offsets are unknowns of the filter.
+    sensor_unknowns: bool,
 }
 
 /// The report.
@@ -80,6 +88,19 @@ impl Render for Report {
             sig(m.dt * 1e3, 3),
             m.max_iterations
         )?;
+        if m.alternatives > 0 || m.sensor_unknowns {
+            writeln!(
+                out,
+                "a whisker known only roughly: {} alternative whiskers; the sensors' gains and \
+                 offsets {}",
+                m.alternatives,
+                if m.sensor_unknowns {
+                    "unknown"
+                } else {
+                    "known"
+                }
+            )?;
+        }
         let mut t = Table::new(&[
             ("particles", Align::Right),
             ("wall (s)", Align::Right),
@@ -109,7 +130,7 @@ impl Render for Report {
 }
 
 /// Measures and prints.
-pub fn run(particles: &[usize], quick: bool, format: &FormatArgs) -> Result<()> {
+pub fn run(particles: &[usize], quick: bool, randomise: bool, format: &FormatArgs) -> Result<()> {
     if particles.is_empty() || particles.contains(&0) {
         bail!("--particles takes counts of at least 1 (e.g. 100,1000,10000)");
     }
@@ -122,19 +143,37 @@ pub fn run(particles: &[usize], quick: bool, format: &FormatArgs) -> Result<()> 
     let mut rows = Vec::new();
     let mut model = None;
     for &n in particles {
-        let temper = pf::temper_for(n);
-        let sigma = pf::observation_sigma(
-            noise.sensor,
-            std::array::from_fn(|c| MODEL_ERROR[c] * noise.sensor[c]),
-            temper,
-        );
-        let config = Config::e2(sigma, n, 1);
+        let config = if randomise {
+            // As `estimate --method pf --randomise` sets the filter up.
+            let family = e2.clone().randomised_if(true)?;
+            let mut filter = Pf::new(n);
+            filter.fit(&Training {
+                noise: family.training_noise(noise.sensor),
+                family: family.clone(),
+                samples: Vec::new(),
+                calibration: Vec::new(),
+            })?;
+            let sigma = filter
+                .sigma()
+                .ok_or_else(|| anyhow::anyhow!("the filter was not fitted"))?;
+            filter.config(&family, sigma)?
+        } else {
+            let temper = pf::temper_for(n);
+            let sigma = pf::observation_sigma(
+                noise.sensor,
+                std::array::from_fn(|c| MODEL_ERROR[c] * noise.sensor[c]),
+                temper,
+            );
+            Config::e2(sigma, n, 1)
+        };
         model.get_or_insert_with(|| TransitionModel {
             segments: config.segments,
             observed_segments: config.observed_segments,
             discretisation: config.model_discretisation().name(),
             dt: config.dt,
             max_iterations: config.max_iterations,
+            alternatives: config.alternatives.len(),
+            sensor_unknowns: !config.sensor_spread.is_fixed(),
         });
         // Fastest of a few repetitions (one for the largest counts).
         let reps = if quick || n >= 5000 { 1 } else { 3 };

@@ -599,9 +599,37 @@ fn bench_pf_reports_the_real_time_factor_per_particle_count() {
         .as_f64()
         .is_some_and(|dt| dt > 0.0 && dt <= 1e-3));
     assert!(model["discretisation"].is_string());
+    assert_eq!(model["alternatives"], 0, "{model}");
+    assert_eq!(model["sensor_unknowns"], false, "{model}");
     let bad = vibrissa(&["bench", "--pf", "--particles", "0"]);
     assert!(!bad.status.success());
     assert!(stderr(&bad).contains("at least 1"), "{}", stderr(&bad));
+}
+
+#[test]
+fn bench_pf_randomise_times_the_filter_for_a_whisker_known_roughly() {
+    let args = [
+        "bench",
+        "--pf",
+        "--randomise",
+        "--quick",
+        "--particles",
+        "128",
+    ];
+    let out = vibrissa(&[&args[..], &["--json"]].concat());
+    assert!(out.status.success(), "stderr:\n{}", stderr(&out));
+    let report = json(&out);
+    let model = &report["model"];
+    assert_eq!(model["alternatives"], 63, "{model}");
+    assert_eq!(model["sensor_unknowns"], true, "{model}");
+    assert_eq!(model["segments"], 8, "{model}");
+    let row = &report["rows"][0];
+    assert_eq!(row["particles"], 128, "{row}");
+    assert!(row["real_time_factor"].as_f64().unwrap() > 0.0, "{row}");
+    // Without --pf there is no filter to randomise.
+    let bad = vibrissa(&["bench", "--randomise", "--quick"]);
+    assert!(!bad.status.success());
+    assert!(stderr(&bad).contains("--pf"), "{}", stderr(&bad));
 }
 
 /// The example scenario of a row of three whiskers.
