@@ -213,12 +213,8 @@ pub fn evaluate_with(
     let grid = family.grid();
     let grid_runs = family.simulate_all(&grid, &noise, seed, &stage("grid", grid.len()))?;
     let grid_seconds = start.elapsed().as_secs_f64();
-    // What the estimators know of the noise: the sensor noise is what they measure on the
-    // recordings; the random forces are part of the experiment's world, stated as a scenario
-    // file's `process_noise` would state them.
     let recordings: Vec<&[Vec<f64>]> = grid_runs.iter().map(|s| &s.series[..]).collect();
-    let mut estimated_noise = estimated_noise(family, &recordings)?;
-    estimated_noise.process = estimated_noise.process.max(noise.process);
+    let estimated_noise = experiment_noise(family, &recordings, &noise)?;
     let is_template: Vec<bool> = grid.iter().map(|p| family.is_template(p)).collect();
     let mut templates: Vec<Sample> = grid_runs
         .iter()
@@ -517,6 +513,20 @@ pub fn estimated_noise(family: &Family, recordings: &[&[Vec<f64>]]) -> Result<No
     )?;
     let sensor = std::array::from_fn(|c| stated[c].unwrap_or(crate::noise::quantise(batch[c])));
     Ok(family.training_noise(sensor))
+}
+
+/// What the estimators of an experiment know of its noise: the sensor noise they measure on its
+/// recordings ([`estimated_noise`]), and the random forces of `made` (the noise the recordings
+/// were made with), which are part of the experiment's world and stated as a scenario file's
+/// `process_noise` would state them.
+pub fn experiment_noise(
+    family: &Family,
+    recordings: &[&[Vec<f64>]],
+    made: &Noise,
+) -> Result<Noise> {
+    let mut noise = estimated_noise(family, recordings)?;
+    noise.process = noise.process.max(made.process);
+    Ok(noise)
 }
 
 /// The training data that `method` may use in `family`, simulated afresh with `noise` (the

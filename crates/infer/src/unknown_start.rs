@@ -5,7 +5,7 @@
 //! estimate --max-delay` does, aligned at the contact's onset ([`crate::methods::Aligned`]).
 
 use crate::error::{Error, Result};
-use crate::evaluate::{estimated_noise, training_for};
+use crate::evaluate::{experiment_noise, training_for};
 use crate::experiment::Noise;
 use crate::experiment::Variant;
 use crate::family::Family;
@@ -143,11 +143,8 @@ pub fn evaluate_unknown_start(
         .collect::<Result<Vec<_>>>()?;
     progress("recordings", params.len(), params.len());
     let recordings: Vec<&[Vec<f64>]> = samples.iter().map(|s| &s.series[..]).collect();
-    // The sensor noise is what the estimators measure on the recordings; the random forces are
-    // part of the experiment's world, stated as a scenario's `process_noise` would state them
-    // (as `crate::evaluate::evaluate_with` does).
-    let mut estimated_noise = estimated_noise(family, &recordings)?;
-    estimated_noise.process = estimated_noise.process.max(noise.process);
+    let estimated_noise = experiment_noise(family, &recordings, &noise)?;
+    // The methods train on runs with the random forces, as the scenario states them.
     let stated = family.with_process_noise(estimated_noise.process);
     let mut filter = Pf::new(particles);
     filter.set_model(model);
@@ -272,15 +269,19 @@ fn score_method(
         ));
     }
     let mut trained = Trained::default();
-    let mut estimates = Vec::with_capacity(recordings.len());
-    let mut estimate_seconds = 0.0;
-    for rec in recordings {
-        let method = trained.get(family, rec, noise, name, seed, lead, &mut |_| {})?;
-        let t = Instant::now();
-        estimates.push(method.predict(&rec.values)?);
-
-        estimate_seconds += t.elapsed().as_secs_f64();
-    }
+    let names: Vec<String> = (0..recordings.len()).map(|k| format!("run {k}")).collect();
+    let estimates = crate::batch::estimate_each(
+        family,
+        &names,
+        recordings,
+        &vec![*noise; recordings.len()],
+        &vec![lead; recordings.len()],
+        name,
+        seed,
+        &mut trained,
+        &mut |_| {},
+    )?;
+    let estimate_seconds: f64 = estimates.iter().map(|(_, s)| s).sum();
     let unknowns = family.unknowns().len();
     let n = recordings.len().max(1) as f64;
     let per = |f: &dyn Fn(&Estimate, f64) -> f64| -> Vec<f64> {
@@ -289,7 +290,7 @@ fn score_method(
                 estimates
                     .iter()
                     .zip(params)
-                    .map(|(e, p)| f(&e[u], p[u]))
+                    .map(|((e, _), p)| f(&e[u], p[u]))
                     .sum::<f64>()
                     / n
             })
