@@ -2,7 +2,7 @@
 //! offsets, the Levenberg–Marquardt driver and the Gauss–Newton covariance.
 
 use super::params::{apply, bounds, Param, Reference};
-use super::{GainHandling, Progress};
+use super::GainHandling;
 use crate::error::{Error, Result};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
@@ -183,7 +183,7 @@ impl Setup<'_> {
     }
 
     /// Channels whose gain is fitted.
-    fn gains(&self) -> Vec<usize> {
+    pub(super) fn gains(&self) -> Vec<usize> {
         self.channels
             .iter()
             .copied()
@@ -335,7 +335,7 @@ impl Setup<'_> {
     /// differences; one-sided where one side fails to simulate), in parallel over parameters,
     /// sides and runs. Per free parameter: the simulations after and before (`None`: at `z`
     /// itself) and the distance between them.
-    fn stepped(&self, z: &[f64], count: &AtomicUsize) -> Option<Vec<Difference>> {
+    pub(super) fn stepped(&self, z: &[f64], count: &AtomicUsize) -> Option<Vec<Difference>> {
         let free = self.free_indices();
         let runs = self.runs.len();
         let tasks: Vec<(usize, f64, usize)> = (0..free.len())
@@ -503,182 +503,6 @@ pub(super) struct Solution {
     pub resp: [Response; CHANNELS],
     /// Jacobian evaluations (iterations).
     pub iterations: usize,
-}
-
-/// Gains and offsets at `z` (free parameters, then with joint handling the free gains and every
-/// offset) for `sims`.
-fn responses(setup: &Setup, z: &[f64], sims: &Sims) -> [Response; CHANNELS] {
-    match setup.handling {
-        GainHandling::Projected => setup.solve_linear(sims),
-        GainHandling::Joint => {
-            let mut resp = setup.nominal;
-            let p = setup.free.iter().filter(|&&f| f).count();
-            let gains = setup.gains();
-            for (k, &c) in gains.iter().enumerate() {
-                resp[c].gain = z[p + k];
-            }
-            for (k, &c) in setup.channels.iter().enumerate() {
-                resp[c].offset = z[p + gains.len() + k];
-            }
-            resp
-        }
-    }
-}
-
-/// The Jacobian of the residuals at `z` (free parameters, then with joint handling the gains
-/// and offsets), with `sims` the simulations there.
-fn jacobian(
-    setup: &Setup,
-    z: &[f64],
-    sims: &Sims,
-    resp: &[Response; CHANNELS],
-    count: &AtomicUsize,
-) -> Option<DMatrix<f64>> {
-    let p = setup.free.iter().filter(|&&f| f).count();
-    match setup.handling {
-        GainHandling::Joint => setup.jacobian_full(&z[..p], sims, resp, count),
-        GainHandling::Projected => {
-            // Derivatives of the residuals with the gains and offsets re-solved at each step.
-            let stepped = setup.stepped(&z[..p], count)?;
-            let e = setup.residual(sims, resp);
-            let mut jac = DMatrix::zeros(e.len(), p);
-            for (j, (a, b, h)) in stepped.iter().enumerate() {
-                let ea = setup.residual(a, &setup.solve_linear(a));
-                let eb = b
-                    .as_ref()
-                    .map_or_else(|| e.clone(), |b| setup.residual(b, &setup.solve_linear(b)));
-                jac.set_column(j, &((ea - eb) / *h));
-            }
-            Some(jac)
-        }
-    }
-}
-
-/// Relative decrease of the cost below which an iteration counts as stalled; two stalled
-/// iterations in a row end the fit.
-const FTOL: f64 = 1e-4;
-
-/// Fits the free parameters from `z0` (and, with joint handling, the gains and offsets from
-/// `resp0`) by Levenberg–Marquardt; at most `max_iterations` Jacobians.
-///
-/// Marquardt's scaling (the damping is λ times the diagonal of JᵀJ) with Nielsen's update of λ.
-/// A trial point whose simulation fails counts as a rejected step. The simulated channels are
-/// not smooth at the finest scale (contact events fall on time steps), so every decrease of the
-/// cost is accepted and the fit ends when the cost stops falling: two iterations in a row below
-/// a relative decrease of 1e-4, or no decrease for any damping.
-pub(super) fn fit(
-    setup: &Setup,
-    z0: &[f64],
-    resp0: &[Response; CHANNELS],
-    max_iterations: usize,
-    count: &AtomicUsize,
-    stage: &str,
-    progress: &mut dyn FnMut(&Progress),
-) -> Result<Solution> {
-    let mut z = z0.to_vec();
-    if setup.handling == GainHandling::Joint {
-        z.extend(setup.gains().iter().map(|&c| resp0[c].gain));
-        z.extend(setup.channels.iter().map(|&c| resp0[c].offset));
-    }
-    let p = setup.free.iter().filter(|&&f| f).count();
-    let evaluate = |z: &[f64]| -> Option<(Sims, [Response; CHANNELS], f64)> {
-        let sims = setup.simulate(&setup.full_x(&z[..p]), count)?;
-        let resp = responses(setup, z, &sims);
-        let cost = setup.residual(&sims, &resp).norm_squared();
-        cost.is_finite().then_some((sims, resp, cost))
-    };
-    let (mut sims, mut resp, mut cost) = evaluate(&z).ok_or_else(|| {
-        Error::Calibration("a recording's scenario does not simulate at the starting point".into())
-    })?;
-    let (mut evaluations, mut iterations, mut stalled) = (1, 0, 0);
-    let mut lambda: Option<f64> = None;
-    let mut nu = 2.0;
-    let converged = loop {
-        if iterations >= max_iterations {
-            break false;
-        }
-        iterations += 1;
-        let jac = jacobian(setup, &z, &sims, &resp, count).ok_or_else(|| {
-            Error::Calibration("simulations next to the current point failed".into())
-        })?;
-        let e = setup.residual(&sims, &resp);
-        let g = jac.transpose() * &e;
-        let a = jac.transpose() * &jac;
-        let diag: Vec<f64> = (0..a.nrows()).map(|k| a[(k, k)].max(1e-30)).collect();
-        let lam = *lambda.get_or_insert(1e-3);
-        // Trial steps, damping more after each failure.
-        let mut lam_try = lam;
-        let mut accepted = None;
-        for _ in 0..12 {
-            let mut m = a.clone();
-            for k in 0..m.nrows() {
-                m[(k, k)] += lam_try * diag[k];
-            }
-            let Some(step) = m.cholesky().map(|c| c.solve(&(-&g))) else {
-                lam_try *= nu;
-                nu *= 2.0;
-                continue;
-            };
-            // Steps beyond a parameter's bounds stop at the bound.
-            let free = setup.free_indices();
-            let trial: Vec<f64> = z
-                .iter()
-                .zip(step.iter())
-                .enumerate()
-                .map(|(j, (a, b))| match free.get(j) {
-                    Some(&i) => {
-                        let (lo, hi) = bounds(setup.params[i].kind);
-                        (a + b).clamp(lo, hi)
-                    }
-                    None => a + b,
-                })
-                .collect();
-            evaluations += 1;
-            let predicted = -(step.dot(&g) * 2.0 + (&jac * &step).norm_squared());
-            match evaluate(&trial) {
-                Some((s, r, c)) if c < cost => {
-                    // Nielsen: damp less after a step that went as predicted.
-                    let ratio = (cost - c) / predicted.max(f64::MIN_POSITIVE);
-                    lambda = Some(lam_try * (1.0 / 3.0f64).max(1.0 - (2.0 * ratio - 1.0).powi(3)));
-                    nu = 2.0;
-                    accepted = Some((trial, s, r, c));
-                    break;
-                }
-                _ => {
-                    lam_try *= nu;
-                    nu *= 2.0;
-                }
-            }
-        }
-        progress(&Progress {
-            stage: stage.to_string(),
-            iteration: iterations,
-            evaluations,
-            cost: accepted.as_ref().map_or(cost, |a| a.3),
-        });
-        let Some((zt, s, r, c)) = accepted else {
-            // No damping lowers the cost: a minimum at the resolution of the simulations.
-            break true;
-        };
-        let decrease = (cost - c) / cost;
-        (z, sims, resp, cost) = (zt, s, r, c);
-        stalled = if decrease < FTOL { stalled + 1 } else { 0 };
-        if stalled >= 2 {
-            break true;
-        }
-    };
-    if !converged {
-        return Err(Error::Calibration(format!(
-            "the fit did not converge within {max_iterations} iterations ({stage}; the cost \
-             still fell by more than {FTOL:e} per iteration)"
-        )));
-    }
-    Ok(Solution {
-        z: z[..p].to_vec(),
-        sims,
-        resp,
-        iterations,
-    })
 }
 
 /// Seed of the points at which the roughness is sampled (fixed: a calibration is repeatable).
