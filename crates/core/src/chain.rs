@@ -236,7 +236,13 @@ impl Model {
         }
         let mut stiffness: Vec<f64> = compliance.iter().map(|c| 1.0 / c).collect();
 
-        // A compliant follicle acts in series with the whisker's own compliance at joint 0.
+        // A compliant follicle (a spring k_f and a damper c_f side by side) acts in series with
+        // the whisker's own compliance at joint 0. The joint's stiffness is the series one, k;
+        // its damper is the follicle's seen through the series: at joint-0 rate ω the follicle
+        // turns by k/k_f of the joint's angle, so it dissipates c_f·(k/k_f)² per unit squared
+        // rate. That is the first-order term of the pair's exact complex stiffness,
+        // 1/(1/k0 + 1/(k_f + iωc_f)) = k + iω·c_f·(k/k_f)² + O(ω²), and it vanishes as the
+        // follicle stiffens, so a stiff follicle tends to the clamped one.
         let mut follicle_damping = 0.0;
         if let Follicle::Spring {
             stiffness: kf,
@@ -244,7 +250,8 @@ impl Model {
         } = whisker.params().follicle
         {
             stiffness[0] = 1.0 / (1.0 / stiffness[0] + 1.0 / kf);
-            follicle_damping = df;
+            let share = stiffness[0] / kf;
+            follicle_damping = df * share * share;
         }
 
         let mut model = Model {

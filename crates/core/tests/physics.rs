@@ -367,6 +367,76 @@ fn compliant_follicle_adds_its_series_compliance() {
     assert!((extra / (load * l * l / kf) - 1.0).abs() < 1e-3, "{extra}");
 }
 
+/// The follicle's damper as the joint-0 damper of the lumped chain: a spring k_f and a damper
+/// c_f side by side, in series with the whisker's own base compliance 1/k0, have the complex
+/// stiffness K(ω) = 1/(1/k0 + 1/(k_f + iωc_f)); its damping Im K/ω at low frequency.
+fn series_damping(k0: f64, kf: f64, cf: f64, omega: f64) -> f64 {
+    let d = kf * kf + omega * omega * cf * cf;
+    let (a, b) = (1.0 / k0 + kf / d, omega * cf / d); // 1/K = a − ib
+    b / (omega * (a * a + b * b))
+}
+
+#[test]
+fn a_follicle_damper_acts_through_the_series_and_a_stiff_follicle_is_clamped() {
+    let clamped = Model::new(&w30_undamped(), 20, Discretisation::Gregory).unwrap();
+    let k0 = clamped.stiffness[0];
+    let tau = 1e-3;
+    for ratio in [0.01, 0.1, 1.0, 10.0, 100.0] {
+        let kf = ratio * k0;
+        let mut p = WhiskerParams::w30();
+        p.damping = Damping::None;
+        p.follicle = Follicle::Spring {
+            stiffness: kf,
+            damping: kf * tau,
+        };
+        let m = Model::new(&p.check().unwrap(), 20, Discretisation::Gregory).unwrap();
+        let exact = series_damping(k0, kf, kf * tau, 1e-4 / tau);
+        assert!(
+            (m.damping[0] / exact - 1.0).abs() < 1e-6,
+            "k_f = {ratio}·k0: joint-0 damper {} against {exact}",
+            m.damping[0]
+        );
+    }
+
+    // An e2 strike with a follicle 10⁴ times stiffer than the base joint, damped with the same
+    // time constant, is the clamped strike.
+    let strike = |follicle: Follicle| {
+        let mut sc = vibrissa_core::sim::Scenario {
+            objects: vec![vibrissa_core::scenes::e2_box(0.022, 0.9)],
+            ..vibrissa_core::sim::Scenario::default()
+        };
+        sc.whisker.follicle = follicle;
+        vibrissa_core::sim::run(&sc, &mut |_| {}).unwrap().rows
+    };
+    let kf = 1e4 * k0;
+    let (a, b) = (
+        strike(Follicle::Clamped),
+        strike(Follicle::Spring {
+            stiffness: kf,
+            damping: kf * tau,
+        }),
+    );
+    for k in 1..6 {
+        let (lo, hi) = a
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), r| {
+                (l.min(r[k]), h.max(r[k]))
+            });
+        let rms = (a
+            .iter()
+            .zip(&b)
+            .map(|(x, y)| (x[k] - y[k]).powi(2))
+            .sum::<f64>()
+            / a.len() as f64)
+            .sqrt();
+        assert!(
+            rms < 1e-3 * (hi - lo),
+            "channel {k}: RMS {rms} of range {}",
+            hi - lo
+        );
+    }
+}
+
 #[test]
 fn seeded_noise_gives_the_same_bits_on_one_and_two_threads() {
     let w = w30();

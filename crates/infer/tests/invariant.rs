@@ -1,6 +1,10 @@
 //! `krr-invariant` trained on randomised whiskers, estimating strikes of a stand-in whisker that
 //! it is not told (the seed paper's chain at 50 segments, its material, damping, shape and
-//! sensors drawn off the nominal), against the same regression on raw amplitudes.
+//! sensors drawn off the nominal).
+//!
+//! (It is not held to beat the same regression on raw amplitudes, `krr`, trained on the same
+//! randomised runs: over stand-ins 41–46, 12 strikes each, their distance errors were 0.53–0.96
+//! mm and 0.54–2.16 mm, the invariant one ahead on three of six.)
 
 use std::path::PathBuf;
 use vibrissa_infer::evaluate::{estimated_noise, training_for};
@@ -43,7 +47,6 @@ fn shapes_and_the_moment_arm_hold_on_a_whisker_the_estimator_is_not_told() {
     let family = Family::builtin("e2").unwrap().randomised_if(true).unwrap();
     let views: Vec<&[Vec<f64>]> = runs.iter().map(|r| r.as_slice()).collect();
     let noise = estimated_noise(&family, &views).unwrap();
-    // Both regressions learn from the same randomised runs.
     let training = training_for(
         &family,
         &noise,
@@ -64,9 +67,7 @@ fn shapes_and_the_moment_arm_hold_on_a_whisker_the_estimator_is_not_told() {
         (err, held)
     };
     let (invariant, held) = score("krr-invariant");
-    let (raw, _) = score("krr");
-    eprintln!("d error: invariant {invariant} ({held} of 12 held), raw {raw}");
+    eprintln!("d error: invariant {invariant} ({held} of 12 held)");
     assert!(invariant < 1.5e-3, "d error {invariant}");
     assert!(held >= 9, "{held} of 12 intervals hold d");
-    assert!(invariant < 0.8 * raw, "invariant {invariant} vs raw {raw}");
 }
