@@ -13,8 +13,9 @@
 //! - modulus, density and the damping coefficient each times `e^u`, `u` uniform in ±0.3 (a factor
 //!   0.74–1.35);
 //! - with probability 1/2, the follicle becomes a spring whose compliance is 0.3–10 times the
-//!   nominal chain's base joint's (log-uniform), damped with a time constant `e^±1` times the
-//!   whisker's own; a follicle that is already a spring has its stiffness times `e^u`, `u` in ±0.5;
+//!   nominal chain's base joint's (log-uniform), damped so that the damper joint 0 receives
+//!   through the series is `k_f·τ·e^u`, τ the whisker's own time constant and `u` in ±1;
+//!   a follicle that is already a spring has its stiffness times `e^u`, `u` in ±0.5;
 //! - with probability 1/2, the tip radius times a factor uniform in 0.5–0.95;
 //! - every sensor gain times a factor uniform in 0.95–1.05;
 //! - with probability 1/2, the chain is cut into another number of segments: the scenario's count
@@ -247,9 +248,14 @@ impl Around {
                 let [lo, hi] = p.compliance;
                 let compliance = (lo.ln() + u_compliance * (hi / lo).ln()).exp();
                 let stiffness = self.k0 / compliance;
+                // The follicle's damper reaches joint 0 through the series, scaled by
+                // (k/k_f)² = 1/(1 + 1/compliance)² on the nominal chain (see `Model::new`): it is
+                // drawn so that joint 0 receives k_f·τ·e^u, τ the whisker's own time constant
+                // and u in ±1, the damping this prior was chosen and tested with.
+                let series = (1.0 + 1.0 / compliance).powi(2);
                 Follicle::Spring {
                     stiffness,
-                    damping: stiffness * self.tau0 * (2.0 * u_tau - 1.0).exp(),
+                    damping: stiffness * self.tau0 * (2.0 * u_tau - 1.0).exp() * series,
                 }
             }
             Follicle::Spring { stiffness, damping } => Follicle::Spring {
