@@ -292,6 +292,48 @@ mod tests {
     use crate::family::Family;
 
     #[test]
+    fn a_drawn_follicle_gives_joint_0_a_damper_of_its_stiffness_times_the_whisker_s_time_constant()
+    {
+        let base = Family::builtin("e2").unwrap().base().clone();
+        // Only the follicle varies, on the nominal chain.
+        let prior = Randomisation {
+            modulus: 0.0,
+            density: 0.0,
+            damping: 0.0,
+            follicle: 1.0,
+            spring: 0.0,
+            taper: 0.0,
+            gain: 0.0,
+            resegment: 0.0,
+            seed_rule: 0.0,
+            ..Randomisation::default()
+        };
+        let around = Around::new(&base, prior).unwrap();
+        let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
+        for seed in 0..300 {
+            let mut s = base.clone();
+            around.apply(&mut s, seed);
+            let Follicle::Spring { stiffness, damping } = s.whisker.follicle else {
+                panic!("draw {seed}: the follicle stayed clamped");
+            };
+            let model = vibrissa_core::Model::new(
+                &s.whisker.check().unwrap(),
+                s.segments,
+                s.discretisation,
+            )
+            .unwrap();
+            // What joint 0 receives of the follicle's damper through the series.
+            let share = model.stiffness[0] / stiffness;
+            let ratio = damping * share * share / (stiffness * around.tau0);
+            lo = lo.min(ratio);
+            hi = hi.max(ratio);
+        }
+        assert!(lo >= (-1.0f64).exp() * (1.0 - 1e-9), "{lo}");
+        assert!(hi <= 1.0f64.exp() * (1.0 + 1e-9), "{hi}");
+        assert!(lo < (-0.8f64).exp() && hi > 0.8f64.exp(), "{lo}..{hi}");
+    }
+
+    #[test]
     fn a_calibrated_scenario_is_randomised_narrowly_and_keeps_its_chain() {
         let fitted = "experiment = \"e2\"\nwhisker.follicle = { kind = \"spring\", stiffness = 3e-4, damping = 3e-8 }\n[calibration]\nlabelled = \"calib\"\nrecordings = 9\n";
         let calibrated = Family::open_str(fitted, "fitted.toml", &[]).unwrap();
