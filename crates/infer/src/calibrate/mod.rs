@@ -572,24 +572,17 @@ fn best_start(
         };
         let resp = setup.solve_linear(&sims);
         let stage = format!("start {} of {n}", k + 1);
-        let mut s = match search::Search::start(setup, start, &resp, count) {
-            Ok(s) => s,
-            Err(e) => {
-                last_error = Some(e);
-                continue;
+        let mut short = || -> Result<search::Search> {
+            let mut s = search::Search::start(setup, start, &resp, count)?;
+            while !s.converged && s.iterations < SHORT_ITERATIONS.min(settings.max_iterations) {
+                s.iterate(setup, count)?;
+                s.report(&stage, progress);
             }
+            Ok(s)
         };
-        let mut failed = None;
-        while !s.converged && s.iterations < SHORT_ITERATIONS.min(settings.max_iterations) {
-            if let Err(e) = s.iterate(setup, count) {
-                failed = Some(e);
-                break;
-            }
-            s.report(&stage, progress);
-        }
-        match failed {
-            Some(e) => last_error = Some(e),
-            None => searches.push((k, s)),
+        match short() {
+            Ok(s) => searches.push((k, s)),
+            Err(e) => last_error = Some(e),
         }
     }
     searches.sort_by(|a, b| a.1.cost.total_cmp(&b.1.cost));
