@@ -46,6 +46,9 @@ pub struct Args {
     /// Shape families: training runs per class (default 800).
     #[arg(long, value_name = "N", requires = "shapes")]
     pub(crate) training: Option<usize>,
+    /// Shape families with shape-bank: noise-free runs per class in its bank (default 3200).
+    #[arg(long, value_name = "N", requires = "shapes")]
+    pub(crate) bank: Option<usize>,
     /// Time-series CSV files in the contract's columns (t, theta01, theta12 required).
     #[arg(long, value_name = "FILE.csv", num_args = 1.., required_unless_present = "list")]
     pub(crate) obs: Vec<PathBuf>,

@@ -119,6 +119,7 @@ pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
     let options = BatchOptions {
         method: method.to_string(),
         training: args.training.unwrap_or(DEFAULT_TRAINING),
+        bank: args.bank.unwrap_or(vibrissa_infer::shapes::BANK_PER_CLASS),
         seed: args.seed,
         randomise: args.randomise,
         stated,

@@ -38,6 +38,10 @@ pub struct Args {
     /// Shape experiments: evaluated runs per class (default 50).
     #[arg(long, value_name = "N")]
     runs: Option<usize>,
+    /// Shape experiments with shape-bank: noise-free runs per class in its bank (default 3200,
+    /// the training runs' twins included; at least the training runs).
+    #[arg(long, value_name = "N")]
+    bank: Option<usize>,
     /// Shape experiments: the whisker sets to score, as counts of the array's middle whiskers
     /// (`1,3,5`, the default for a fan of five) or names joined by `+` (`c1+c5`).
     #[arg(long, value_name = "SETS")]
@@ -141,6 +145,7 @@ pub fn run(args: &Args) -> Result<()> {
             out: args.out.clone(),
             training: args.training,
             runs: args.runs,
+            bank: args.bank,
             whiskers: args.whiskers.as_deref(),
             methods: &args.methods,
             randomise: args.randomise,
@@ -151,6 +156,7 @@ pub fn run(args: &Args) -> Result<()> {
     if args.training.is_some()
         || !args.methods.is_empty()
         || args.runs.is_some()
+        || args.bank.is_some()
         || args.whiskers.is_some()
         || args.randomise
         || args.export.is_some()

@@ -16,7 +16,8 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::Instant;
 use vibrissa_infer::shapes::{
-    evaluate_shapes, ShapeEvaluation, ShapeFamily, ShapeSettings, SHAPE_METHODS,
+    evaluate_shapes, ShapeEvaluation, ShapeFamily, ShapeSettings, BANK_PER_CLASS,
+    DEFAULT_SHAPE_METHODS,
 };
 use vibrissa_infer::Variant;
 
@@ -33,6 +34,7 @@ pub struct ShapeArgs<'a> {
     pub out: Option<PathBuf>,
     pub training: Option<usize>,
     pub runs: Option<usize>,
+    pub bank: Option<usize>,
     pub whiskers: Option<&'a str>,
     pub methods: &'a [String],
     pub randomise: bool,
@@ -96,12 +98,16 @@ pub fn run(args: ShapeArgs) -> Result<()> {
     let settings = ShapeSettings {
         train_per_class: args.training.unwrap_or(DEFAULT_TRAINING),
         eval_per_class: args.runs.unwrap_or(DEFAULT_RUNS),
+        bank_per_class: args.bank.unwrap_or(BANK_PER_CLASS),
         variant: args.variant,
         seed: args.seed,
         randomise: args.randomise,
         subsets,
         methods: if args.methods.is_empty() {
-            SHAPE_METHODS.iter().map(|m| m.to_string()).collect()
+            DEFAULT_SHAPE_METHODS
+                .iter()
+                .map(|m| m.to_string())
+                .collect()
         } else {
             args.methods.to_vec()
         },

@@ -611,6 +611,7 @@ fn estimate_shapes(
     let options = BatchOptions {
         method: method.to_string(),
         training,
+        bank: vibrissa_infer::shapes::BANK_PER_CLASS,
         seed,
         randomise,
         stated,

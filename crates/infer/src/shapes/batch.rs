@@ -3,9 +3,10 @@
 //! estimator is trained once on runs of the family at that timing with that noise, and every
 //! recording is estimated.
 
+use super::bank::{CleanRuns, BANK_PER_CLASS};
 use super::estimator::{ShapeEstimate, ShapeKrr};
 use super::family::ShapeFamily;
-use super::method::{check_shape_method, fit_shape_method};
+use super::method::{check_shape_method, fit_shape_method, needs_clean_runs};
 use crate::contract::EstimateRow;
 use crate::error::{Error, Result};
 use crate::experiment::{Noise, CHANNELS};
@@ -22,6 +23,8 @@ pub struct BatchOptions {
     pub method: String,
     /// Training runs per class (at least 20).
     pub training: usize,
+    /// Noise-free runs per class for `shape-bank` (at least the training runs).
+    pub bank: usize,
     /// Seed of the training runs.
     pub seed: u64,
     /// Train on whiskers and sensors drawn around the scenario's.
@@ -37,6 +40,7 @@ impl Default for BatchOptions {
         BatchOptions {
             method: ShapeKrr::NAME.to_string(),
             training: DEFAULT_TRAINING,
+            bank: BANK_PER_CLASS,
             seed: 1,
             randomise: false,
             stated: [None; 5],
@@ -122,7 +126,25 @@ pub fn estimate_batch(
             .iter()
             .map(|f| format!("a training run could not be simulated and is left out: {f}")),
     );
-    let model = fit_shape_method(&options.method, &timed, &runs)?;
+    let clean = if needs_clean_runs(&options.method) {
+        let (clean, failed) = CleanRuns::simulate(
+            &train,
+            &draws,
+            options.bank.max(options.training),
+            options.seed,
+            options.seed ^ 0x5ea9,
+            &|| {},
+        )?;
+        warnings.extend(
+            failed
+                .iter()
+                .map(|f| format!("a noise-free run could not be simulated and is left out: {f}")),
+        );
+        Some(clean)
+    } else {
+        None
+    };
+    let model = fit_shape_method(&options.method, &timed, &runs, clean.as_ref())?;
     let training_seconds = started.elapsed().as_secs_f64();
     let mut traces = Vec::new();
     let estimates = recordings

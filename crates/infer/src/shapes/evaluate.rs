@@ -2,8 +2,9 @@
 //! whiskers; class accuracy, confusion, calibration of the class probabilities, and each class's
 //! pose errors and interval coverage.
 
+use super::bank::CleanRuns;
 use super::family::{ShapeFamily, ShapeSample};
-use super::method::{check_shape_method, fit_shape_method};
+use super::method::{check_shape_method, fit_shape_method, needs_clean_runs};
 use crate::error::{Error, Result};
 use crate::experiment::{Noise, Variant, CHANNELS};
 use crate::family::Family;
@@ -20,6 +21,9 @@ pub struct ShapeSettings {
     pub train_per_class: usize,
     /// Evaluated runs per class (drawn over each range, never the training runs).
     pub eval_per_class: usize,
+    /// Noise-free runs per class for estimators that weigh a bank of them (`shape-bank`; at
+    /// least the training runs, whose twins it includes).
+    pub bank_per_class: usize,
     /// The recordings' noise (the estimator is not told it: it measures it).
     pub variant: Variant,
     /// Seed of everything.
@@ -210,7 +214,14 @@ pub fn evaluate_shapes(
     // The recordings: the variant's noise is the seed experiments' (5% of each channel's range
     // over the clean e2 runs, and the random forces).
     let noise = Family::builtin("e2")?.noise(settings.variant)?;
-    let total = family.classes().len() * (settings.train_per_class + settings.eval_per_class);
+    // Estimators that weigh a bank of noise-free runs get one, simulated once for every set.
+    let bank_per_class = if settings.methods.iter().any(|m| needs_clean_runs(m)) {
+        settings.bank_per_class.max(settings.train_per_class)
+    } else {
+        0
+    };
+    let total = family.classes().len()
+        * (settings.train_per_class + settings.eval_per_class + bank_per_class);
     let done = std::sync::atomic::AtomicUsize::new(0);
     let step = || {
         let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
@@ -244,6 +255,20 @@ pub fn evaluate_shapes(
         &step,
     )?;
     failed.extend(failed_training);
+    let clean = if bank_per_class > 0 {
+        let (clean, failed_clean) = CleanRuns::simulate(
+            &training_family,
+            &train_draws,
+            bank_per_class,
+            settings.seed ^ 0xe3b1,
+            settings.seed ^ 0xe3b2,
+            &step,
+        )?;
+        failed.extend(failed_clean);
+        Some(clean)
+    } else {
+        None
+    };
     let simulate_seconds = started.elapsed().as_secs_f64();
 
     let classes = family.classes().len();
@@ -257,7 +282,8 @@ pub fn evaluate_shapes(
         .into_iter()
         .map(|(idx, names, method)| {
             let t0 = Instant::now();
-            let model = fit_shape_method(method, family, &subset(&training, idx))?;
+            let clean = clean.as_ref().map(|c| c.subset(idx));
+            let model = fit_shape_method(method, family, &subset(&training, idx), clean.as_ref())?;
             let fit_seconds = t0.elapsed().as_secs_f64();
             let t1 = Instant::now();
             let read = subset(&evaluated, idx);

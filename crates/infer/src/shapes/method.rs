@@ -1,13 +1,24 @@
 //! The one interface of the shape estimators, and fitting one by name.
 
+use super::bank::{CleanRuns, ShapeBank};
 use super::estimator::{ShapeEstimate, ShapeKrr};
 use super::family::{ShapeFamily, ShapeSample};
 use super::online::ShapeEsn;
 use crate::error::{Error, Result};
 
 /// The shape estimators, by name: `shape-krr` reads the whole recording at once, `shape-esn`
-/// reads it one sample at a time (a class posterior after every sample).
-pub const SHAPE_METHODS: [&str; 2] = [ShapeKrr::NAME, ShapeEsn::NAME];
+/// reads it one sample at a time (a class posterior after every sample), `shape-bank` weighs
+/// the recording's likelihood under a bank of noise-free runs of every class.
+pub const SHAPE_METHODS: [&str; 3] = [ShapeKrr::NAME, ShapeEsn::NAME, ShapeBank::NAME];
+
+/// The estimators an experiment scores when none is named (`shape-bank` simulates a bank of
+/// its own, several times the training runs, so it is scored when asked for).
+pub const DEFAULT_SHAPE_METHODS: [&str; 2] = [ShapeKrr::NAME, ShapeEsn::NAME];
+
+/// Whether estimator `name` needs noise-free runs ([`CleanRuns`]) beside the training runs.
+pub fn needs_clean_runs(name: &str) -> bool {
+    name == ShapeBank::NAME
+}
 
 /// A fitted shape estimator.
 pub trait ShapeMethod: Send + Sync {
@@ -38,6 +49,21 @@ impl ShapeMethod for ShapeKrr {
     }
 }
 
+impl ShapeMethod for ShapeBank {
+    fn name(&self) -> &'static str {
+        Self::NAME
+    }
+    fn predict(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<ShapeEstimate> {
+        ShapeBank::predict(self, whiskers)
+    }
+    fn trace(&self, _: &[Vec<Vec<f64>>]) -> Option<Result<Vec<Vec<f64>>>> {
+        None
+    }
+    fn settings(&self) -> Vec<(String, f64)> {
+        ShapeBank::settings(self)
+    }
+}
+
 impl ShapeMethod for ShapeEsn {
     fn name(&self) -> &'static str {
         Self::NAME
@@ -65,15 +91,23 @@ pub fn check_shape_method(name: &str) -> Result<()> {
     }
 }
 
-/// Fits the shape estimator `name` on the runs `training` of `family`.
+/// Fits the shape estimator `name` on the runs `training` of `family` (and, for one that
+/// [`needs_clean_runs`], the noise-free runs `clean`).
 pub fn fit_shape_method(
     name: &str,
     family: &ShapeFamily,
     training: &[ShapeSample],
+    clean: Option<&CleanRuns>,
 ) -> Result<Box<dyn ShapeMethod>> {
     check_shape_method(name)?;
     Ok(if name == ShapeEsn::NAME {
         Box::new(ShapeEsn::fit(family, training)?)
+    } else if name == ShapeBank::NAME {
+        let clean = clean.ok_or_else(|| Error::Fit {
+            method: name.into(),
+            detail: "needs noise-free runs beside the training runs".into(),
+        })?;
+        Box::new(ShapeBank::fit(family, training, clean)?)
     } else {
         Box::new(ShapeKrr::fit(family, training)?)
     })

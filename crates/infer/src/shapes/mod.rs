@@ -7,6 +7,7 @@
 //! over the classes and, for the most probable class, its pose with intervals
 //! ([`ShapeEstimate`]); several whiskers are read jointly, as one recording.
 
+mod bank;
 mod batch;
 pub mod e3;
 mod estimator;
@@ -15,6 +16,7 @@ mod family;
 mod method;
 mod online;
 
+pub use bank::{CleanRuns, ShapeBank, BANK_PER_CLASS};
 pub use batch::{estimate_batch, Batch, BatchOptions, DEFAULT_TRAINING};
 pub use estimator::{ShapeEstimate, ShapeKrr};
 pub use evaluate::{
@@ -22,5 +24,8 @@ pub use evaluate::{
     ShapeEvaluation, ShapeSettings, SubsetResult, Trace,
 };
 pub use family::{Class, ShapeFamily, ShapeSample, SHAPE_BUILTINS};
-pub use method::{check_shape_method, fit_shape_method, ShapeMethod, SHAPE_METHODS};
+pub use method::{
+    check_shape_method, fit_shape_method, needs_clean_runs, ShapeMethod, DEFAULT_SHAPE_METHODS,
+    SHAPE_METHODS,
+};
 pub use online::{Online, ShapeEsn};

@@ -1,0 +1,696 @@
+//! `shape-bank`: the class posterior as a likelihood ratio, from a bank of noise-free runs.
+//!
+//! Every class's evidence for a recording `y` is the mean, over noise-free simulations of that
+//! class at poses drawn from its prior, of the Gaussian likelihood of `y` about the simulation:
+//! a Monte Carlo estimate of `p(y | class)` with the pose integrated out. Its posterior is then
+//! Bayes' rule over the classes. Unlike a regressor trained on noisy runs, it never has to learn
+//! what noise looks like: the likelihood states it, so a few thousand noise-free runs per class
+//! go further than the same number of noisy ones.
+//!
+//! What the likelihood uses: every whisker's five channels, each divided by that channel's noise
+//! level, the noise level being what the world adds to a noise-free run, measured on the training
+//! runs against noise-free twins of the same poses (sensor noise and the response to random
+//! forces together, so nothing is assumed about either). The whitened series go through their
+//! leading principal components (the squared distance outside them is nearly the same for every
+//! run of the bank). The bank is far sparser than the likelihood is narrow, so the evidence is
+//! tempered, `exp(−χ²/(2T))`, and the class posterior is `(1 − ε)·softmax(s·log evidence) + ε/K`
+//! over the K classes, with `T`, `s` and `ε` the values whose held-out training runs (each scored
+//! without its own twin, those whose pose lies in the classes' ranges) get the lowest log loss:
+//! the probabilities are calibrated on runs the bank did not hold. The pose is the likelihood-weighted mean of the best class's bank runs
+//! (at its own temperature, chosen by the held-out runs' pose errors), with a 90% interval as
+//! wide as the held-out runs' errors (a split-conformal interval).
+
+use super::estimator::ShapeEstimate;
+use super::family::{ShapeFamily, ShapeSample};
+use crate::error::{Error, Result};
+use crate::experiment::{Noise, CHANNELS};
+use crate::method::Estimate;
+use crate::methods::kernel_ridge::Pca;
+use nalgebra::DMatrix;
+use rayon::prelude::*;
+use std::collections::HashMap;
+
+/// Noise-free runs per class in the bank by default (the training runs' twins included).
+pub const BANK_PER_CLASS: usize = 3200;
+/// Principal components of the whitened series kept.
+const COMPONENTS: usize = 200;
+/// Most bank runs the principal axes are found from.
+const PCA_RUNS: usize = 1000;
+/// Every `HOLD`-th training run is scored as held out.
+const HOLD: usize = 2;
+/// A channel's noise level is at least this share of its median RMS over the bank (a clean
+/// recording still weighs the channels by their size).
+const NOISE_FLOOR: f64 = 0.01;
+/// Runs projected onto the principal axes at once.
+const CHUNK: usize = 256;
+
+/// Noise-free runs of a shape family for [`ShapeBank`]: twins of the training runs (the same
+/// poses and, for randomised training, the same whiskers) and further draws.
+#[derive(Debug, Clone, Default)]
+pub struct CleanRuns {
+    /// The training draws simulated without noise, in their order.
+    pub twins: Vec<ShapeSample>,
+    /// Further draws over the training ranges, without noise.
+    pub extra: Vec<ShapeSample>,
+}
+
+impl CleanRuns {
+    /// Simulates the twins of `train_draws` (run `k` seeded as the training run `k` was, by
+    /// `train_seed`, on `train_family`, the family the training runs were simulated on) and the
+    /// rest of `per_class` draws per class from `draw_seed` (the seed of `train_draws`), so that
+    /// the bank holds `per_class` runs of every class. `tick` is called once per run.
+    pub fn simulate(
+        train_family: &ShapeFamily,
+        train_draws: &[(usize, Vec<f64>)],
+        per_class: usize,
+        draw_seed: u64,
+        train_seed: u64,
+        tick: &(dyn Fn() + Sync),
+    ) -> Result<(CleanRuns, Vec<String>)> {
+        let classes = train_family.classes().len();
+        let trained = train_draws.len() / classes.max(1);
+        let all = train_family.draws(per_class.max(trained), true, draw_seed);
+        let per = per_class.max(trained);
+        let extra_draws: Vec<(usize, Vec<f64>)> = (0..classes)
+            .flat_map(|k| all[k * per + trained..(k + 1) * per].iter().cloned())
+            .collect();
+        let (twins, mut failed) =
+            train_family.simulate_completed(train_draws, &Noise::NONE, train_seed, tick)?;
+        let (extra, more) = train_family.simulate_completed(
+            &extra_draws,
+            &Noise::NONE,
+            train_seed ^ 0xba4c,
+            tick,
+        )?;
+        failed.extend(more);
+        Ok((CleanRuns { twins, extra }, failed))
+    }
+
+    /// The same runs read by the whiskers at `idx` only.
+    pub fn subset(&self, idx: &[usize]) -> CleanRuns {
+        let pick = |v: &[ShapeSample]| {
+            v.iter()
+                .map(|s| ShapeSample {
+                    whiskers: idx.iter().map(|&i| s.whiskers[i].clone()).collect(),
+                    ..s.clone()
+                })
+                .collect()
+        };
+        CleanRuns {
+            twins: pick(&self.twins),
+            extra: pick(&self.extra),
+        }
+    }
+
+    /// Runs in all.
+    pub fn len(&self) -> usize {
+        self.twins.len() + self.extra.len()
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// The fitted estimator (see the module's documentation).
+#[derive(Debug, Clone)]
+pub struct ShapeBank {
+    classes: Vec<String>,
+    names: Vec<Vec<String>>,
+    whiskers: usize,
+    samples: usize,
+    /// Each channel's noise level, `[CHANNELS]`, SI.
+    sigma: [f64; 5],
+    pca: Pca,
+    /// The bank: class, pose, components.
+    class_of: Vec<usize>,
+    params: Vec<Vec<f64>>,
+    z: Vec<Vec<f64>>,
+    /// Bank runs of each class.
+    counts: Vec<usize>,
+    /// Temperature of the class evidence, the factor of its logarithm in the class softmax,
+    /// and the temperature of the pose's weights.
+    temperature: f64,
+    sharpness: f64,
+    /// The share of the class posterior spread evenly over the classes.
+    floor: f64,
+    /// The held-out runs' log loss at the chosen settings.
+    held_out_loss: f64,
+    pose_temperature: f64,
+    /// 90% half-widths `[classes][unknowns]`.
+    half_width: Vec<Vec<f64>>,
+}
+
+/// Temperatures tried: powers of √2 from 2^-4 to 2^28 (the squared distances are in units of
+/// the noise, so a clean recording's are enormous).
+fn temperatures() -> impl Iterator<Item = f64> {
+    (0..=64).map(|k| 2f64.powf(0.5 * k as f64 - 4.0))
+}
+
+/// Factors of the log evidence in the class softmax tried: powers of √2 from 2^-16 to 2^4.
+fn sharpnesses() -> impl Iterator<Item = f64> {
+    (0..=40).map(|k| 2f64.powf(0.5 * k as f64 - 16.0))
+}
+
+/// Shares of the class posterior spread evenly tried: 0 to 0.5 in steps of 0.02.
+fn floors() -> impl Iterator<Item = f64> {
+    (0..=25).map(|k| 0.02 * k as f64)
+}
+
+/// `exp(s·l)` normalised.
+fn softmax(l: &[f64], s: f64) -> Vec<f64> {
+    let top = l.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let e: Vec<f64> = l.iter().map(|x| (s * (x - top)).exp()).collect();
+    let sum: f64 = e.iter().sum();
+    e.iter().map(|x| x / sum).collect()
+}
+
+fn fit_error(detail: String) -> Error {
+    Error::Fit {
+        method: ShapeBank::NAME.into(),
+        detail,
+    }
+}
+
+impl ShapeBank {
+    /// The estimator's name.
+    pub const NAME: &'static str = "shape-bank";
+
+    /// Fits on the noisy `training` runs of `family` and the noise-free `clean` runs (whose
+    /// twins are the training runs' poses).
+    pub fn fit(family: &ShapeFamily, training: &[ShapeSample], clean: &CleanRuns) -> Result<Self> {
+        let first = training
+            .first()
+            .ok_or_else(|| fit_error("no training runs".into()))?;
+        let whiskers = first.whiskers.len();
+        let samples = first
+            .whiskers
+            .first()
+            .and_then(|w| w.first())
+            .map_or(0, Vec::len);
+        let bank: Vec<&ShapeSample> = clean.twins.iter().chain(&clean.extra).collect();
+        for s in training.iter().chain(bank.iter().copied()) {
+            if s.whiskers.len() != whiskers
+                || s.whiskers
+                    .iter()
+                    .any(|w| w.len() != CHANNELS.len() || w.iter().any(|c| c.len() != samples))
+            {
+                return Err(fit_error(format!(
+                    "every run must have {whiskers} whiskers of {} channels of {samples} samples",
+                    CHANNELS.len()
+                )));
+            }
+        }
+        let classes = family.classes().len();
+        let mut counts = vec![0usize; classes];
+        for s in &bank {
+            counts[s.class] += 1;
+        }
+        if counts.contains(&0) {
+            return Err(fit_error("the bank lacks a class".into()));
+        }
+        // Each training run's twin in the bank, by class and pose.
+        let key = |s: &ShapeSample| -> (usize, Vec<u64>) {
+            (s.class, s.params.iter().map(|p| p.to_bits()).collect())
+        };
+        let twin_of: HashMap<(usize, Vec<u64>), usize> = clean
+            .twins
+            .iter()
+            .enumerate()
+            .map(|(i, s)| (key(s), i))
+            .collect();
+        let pairs: Vec<(usize, usize)> = training
+            .iter()
+            .enumerate()
+            .filter_map(|(j, s)| twin_of.get(&key(s)).map(|&i| (j, i)))
+            .collect();
+        if pairs.len() < 20 {
+            return Err(fit_error(format!(
+                "only {} training runs have a noise-free twin (at least 20 needed)",
+                pairs.len()
+            )));
+        }
+        // The noise the world adds, per channel, and a floor for clean recordings.
+        let mut sigma = [0.0; 5];
+        for (c, s) in sigma.iter_mut().enumerate() {
+            let (mut sum, mut n) = (0.0, 0usize);
+            for &(j, i) in &pairs {
+                for (wn, wc) in training[j].whiskers.iter().zip(&bank[i].whiskers) {
+                    for (a, b) in wn[c].iter().zip(&wc[c]) {
+                        sum += (a - b) * (a - b);
+                        n += 1;
+                    }
+                }
+            }
+            let mut rms: Vec<f64> = bank
+                .iter()
+                .step_by(bank.len().div_ceil(500).max(1))
+                .flat_map(|s| {
+                    s.whiskers.iter().map(move |w| {
+                        (w[c].iter().map(|x| x * x).sum::<f64>() / samples.max(1) as f64).sqrt()
+                    })
+                })
+                .collect();
+            rms.sort_by(|a, b| a.total_cmp(b));
+            let floor = NOISE_FLOOR * rms[rms.len() / 2];
+            *s = (sum / n.max(1) as f64).sqrt().max(floor);
+            if !(s.is_finite() && *s > 0.0) {
+                return Err(fit_error(format!(
+                    "channel {} is zero on every run of the bank",
+                    CHANNELS[c]
+                )));
+            }
+        }
+        let whiten = |s: &ShapeSample| -> Vec<f64> {
+            s.whiskers
+                .iter()
+                .flat_map(|w| {
+                    w.iter()
+                        .zip(&sigma)
+                        .flat_map(|(ch, sd)| ch.iter().map(move |x| x / sd))
+                })
+                .collect()
+        };
+        let step = bank.len().div_ceil(PCA_RUNS).max(1);
+        let sub: Vec<Vec<f64>> = bank.iter().step_by(step).map(|s| whiten(s)).collect();
+        let pca = Pca::fit(&sub, COMPONENTS.min(sub.len().saturating_sub(1)).max(1));
+        let mut m = ShapeBank {
+            classes: family.class_names().iter().map(|s| s.to_string()).collect(),
+            names: family.unknown_names(),
+            whiskers,
+            samples,
+            sigma,
+            pca,
+            class_of: bank.iter().map(|s| s.class).collect(),
+            params: bank.iter().map(|s| s.params.clone()).collect(),
+            z: Vec::new(),
+            counts,
+            temperature: 1.0,
+            sharpness: 1.0,
+            floor: 0.0,
+            held_out_loss: f64::NAN,
+            pose_temperature: 1.0,
+            half_width: Vec::new(),
+        };
+        m.z = m.project_all(&bank.iter().map(|s| whiten(s)).collect::<Vec<_>>());
+        // Held-out training runs, each scored against the bank without its own twin: those
+        // whose pose lies in the class's ranges (the recordings' prior; the training draws'
+        // margins reach beyond it, where runs are rarer in the bank and often barely touched,
+        // so that probabilities calibrated on them would be too timid).
+        let ranges: Vec<Vec<[f64; 2]>> =
+            family.classes().iter().map(|c| c.family.ranges()).collect();
+        let inside = |s: &ShapeSample| {
+            s.params
+                .iter()
+                .zip(&ranges[s.class])
+                .all(|(x, [lo, hi])| (lo..=hi).contains(&x))
+        };
+        let held: Vec<(usize, usize)> = pairs
+            .iter()
+            .copied()
+            .step_by(HOLD)
+            .filter(|&(j, _)| inside(&training[j]))
+            .collect();
+        if held.len() < 8 * classes {
+            return Err(fit_error(format!(
+                "only {} held-out training runs lie in the classes' ranges (at least {} needed)",
+                held.len(),
+                8 * classes
+            )));
+        }
+        let held_z = m.project_all(
+            &held
+                .iter()
+                .map(|&(j, _)| whiten(&training[j]))
+                .collect::<Vec<_>>(),
+        );
+        let d2: Vec<Vec<f64>> = held_z
+            .par_iter()
+            .zip(&held)
+            .map(|(z, &(_, twin))| {
+                let mut d = m.distances(z);
+                d[twin] = f64::INFINITY;
+                d
+            })
+            .collect();
+        let truth: Vec<usize> = held.iter().map(|&(j, _)| training[j].class).collect();
+        // The class evidence's temperature, the sharpness of its softmax and the share of
+        // every posterior spread evenly over the classes: the three whose held-out log loss is
+        // lowest. (A single temperature would have to be high to calibrate, and a high one
+        // favours the class with the fewest unknowns, whose bank is densest near any
+        // recording; without the even share, the few runs whose nearest bank runs are of
+        // another class, confidently named wrong, would force every posterior to be timid.)
+        let evidence: Vec<Vec<Vec<f64>>> = d2
+            .par_iter()
+            .map(|d| temperatures().map(|t| m.log_evidence(d, t)).collect())
+            .collect();
+        let fits: Vec<(f64, f64, f64, f64)> = temperatures()
+            .enumerate()
+            .collect::<Vec<_>>()
+            .par_iter()
+            .map(|&(k, t)| {
+                let mut best = (f64::INFINITY, t, 1.0, 0.0);
+                for s in sharpnesses() {
+                    let soft: Vec<Vec<f64>> = evidence.iter().map(|l| softmax(&l[k], s)).collect();
+                    for e in floors() {
+                        let loss: f64 = soft
+                            .iter()
+                            .zip(&truth)
+                            .map(|(p, &c)| {
+                                -((1.0 - e) * p[c] + e / classes as f64).max(1e-300).ln()
+                            })
+                            .sum::<f64>()
+                            / d2.len() as f64;
+                        if loss < best.0 {
+                            best = (loss, t, s, e);
+                        }
+                    }
+                }
+                best
+            })
+            .collect();
+        let best = fits
+            .into_iter()
+            .fold((f64::INFINITY, 1.0, 1.0, 0.0), |a, b| {
+                if b.0 < a.0 {
+                    b
+                } else {
+                    a
+                }
+            });
+        (m.temperature, m.sharpness, m.floor) = (best.1, best.2, best.3);
+        m.held_out_loss = best.0;
+        // The pose temperature: the lowest held-out error in units of each range.
+        let spans: Vec<Vec<f64>> = ranges
+            .iter()
+            .map(|r| r.iter().map(|[lo, hi]| hi - lo).collect())
+            .collect();
+        let mut best = (f64::INFINITY, 1.0);
+        for t in temperatures() {
+            let err: f64 = d2
+                .iter()
+                .zip(&held)
+                .map(|(d, &(j, _))| {
+                    let s = &training[j];
+                    m.pose(d, s.class, t)
+                        .iter()
+                        .zip(&s.params)
+                        .zip(&spans[s.class])
+                        .map(|((p, x), w)| (p - x).abs() / w)
+                        .sum::<f64>()
+                })
+                .sum();
+            if err < best.0 {
+                best = (err, t);
+            }
+        }
+        m.pose_temperature = best.1;
+        // Split-conformal half-widths per class and unknown.
+        m.half_width = (0..classes)
+            .map(|c| {
+                let runs: Vec<(&Vec<f64>, &ShapeSample)> = d2
+                    .iter()
+                    .zip(&held)
+                    .filter(|(_, &(j, _))| training[j].class == c)
+                    .map(|(d, &(j, _))| (d, &training[j]))
+                    .collect();
+                let poses: Vec<Vec<f64>> = runs
+                    .iter()
+                    .map(|(d, _)| m.pose(d, c, m.pose_temperature))
+                    .collect();
+                (0..m.names[c].len())
+                    .map(|u| {
+                        let mut e: Vec<f64> = poses
+                            .iter()
+                            .zip(&runs)
+                            .map(|(p, (_, s))| (p[u] - s.params[u]).abs())
+                            .collect();
+                        e.sort_by(|a, b| a.total_cmp(b));
+                        if e.is_empty() {
+                            return 0.5 * spans[c][u];
+                        }
+                        let k = ((0.9 * (e.len() + 1) as f64).ceil() as usize).min(e.len());
+                        e[k - 1]
+                    })
+                    .collect()
+            })
+            .collect();
+        Ok(m)
+    }
+
+    /// Components of many whitened runs (chunks of them as matrix products, in parallel).
+    fn project_all(&self, x: &[Vec<f64>]) -> Vec<Vec<f64>> {
+        let dim = self.pca.mean.len();
+        let k = self.pca.axes.len();
+        let axes = DMatrix::from_fn(dim, k, |i, j| self.pca.axes[j][i]);
+        x.par_chunks(CHUNK)
+            .flat_map_iter(|chunk| {
+                let rows =
+                    DMatrix::from_fn(chunk.len(), dim, |i, j| chunk[i][j] - self.pca.mean[j]);
+                let p = rows * &axes;
+                (0..chunk.len())
+                    .map(|i| p.row(i).iter().copied().collect::<Vec<f64>>())
+                    .collect::<Vec<_>>()
+            })
+            .collect()
+    }
+
+    /// Squared distances from components `z` to every bank run.
+    fn distances(&self, z: &[f64]) -> Vec<f64> {
+        self.z
+            .iter()
+            .map(|b| b.iter().zip(z).map(|(a, c)| (a - c) * (a - c)).sum())
+            .collect()
+    }
+
+    /// Each class's log evidence at temperature `t`, up to a common constant.
+    fn log_evidence(&self, d2: &[f64], t: f64) -> Vec<f64> {
+        let lo = d2.iter().copied().fold(f64::INFINITY, f64::min);
+        let mut sum = vec![0.0f64; self.counts.len()];
+        for (d, &c) in d2.iter().zip(&self.class_of) {
+            sum[c] += (-(d - lo) / (2.0 * t)).exp();
+        }
+        sum.iter()
+            .zip(&self.counts)
+            .map(|(s, &n)| (s / n as f64).ln())
+            .collect()
+    }
+
+    /// Class `c`'s pose: its bank runs' poses weighted by their tempered likelihood.
+    fn pose(&self, d2: &[f64], c: usize, t: f64) -> Vec<f64> {
+        let lo = d2
+            .iter()
+            .zip(&self.class_of)
+            .filter(|(_, &k)| k == c)
+            .map(|(d, _)| *d)
+            .fold(f64::INFINITY, f64::min);
+        let mut mean = vec![0.0; self.names[c].len()];
+        let mut total = 0.0;
+        for ((d, &k), p) in d2.iter().zip(&self.class_of).zip(&self.params) {
+            if k != c {
+                continue;
+            }
+            let w = (-(d - lo) / (2.0 * t)).exp();
+            if w < 1e-12 {
+                continue;
+            }
+            total += w;
+            for (m, x) in mean.iter_mut().zip(p) {
+                *m += w * x;
+            }
+        }
+        mean.iter().map(|m| m / total).collect()
+    }
+
+    /// The class posterior and the most probable class's pose of one recording
+    /// (`[whiskers][CHANNELS][samples]`).
+    pub fn predict(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<ShapeEstimate> {
+        if whiskers.len() != self.whiskers
+            || whiskers
+                .iter()
+                .any(|w| w.len() != CHANNELS.len() || w.iter().any(|c| c.len() != self.samples))
+        {
+            return Err(Error::Observation(format!(
+                "{}: the recording must have {} whiskers of {} channels of {} samples, as the \
+                 training runs",
+                Self::NAME,
+                self.whiskers,
+                CHANNELS.len(),
+                self.samples
+            )));
+        }
+        if whiskers.iter().flatten().flatten().any(|x| !x.is_finite()) {
+            return Err(Error::Observation(format!(
+                "{}: the recording holds a value that is not finite",
+                Self::NAME
+            )));
+        }
+        let x: Vec<f64> = whiskers
+            .iter()
+            .flat_map(|w| {
+                w.iter()
+                    .zip(&self.sigma)
+                    .flat_map(|(ch, sd)| ch.iter().map(move |x| x / sd))
+            })
+            .collect();
+        let z = self.pca.project(&x);
+        let d2 = self.distances(&z);
+        let k = self.classes.len() as f64;
+        let p: Vec<f64> = softmax(&self.log_evidence(&d2, self.temperature), self.sharpness)
+            .into_iter()
+            .map(|p| (1.0 - self.floor) * p + self.floor / k)
+            .collect();
+        let best = (0..p.len()).fold(0, |b, c| if p[c] > p[b] { c } else { b });
+        let pose = self
+            .pose(&d2, best, self.pose_temperature)
+            .into_iter()
+            .zip(&self.half_width[best])
+            .zip(&self.names[best])
+            .map(|((m, h), n)| {
+                (
+                    n.clone(),
+                    Estimate {
+                        mean: m,
+                        std: h / crate::method::Z90,
+                        ci90: [m - h, m + h],
+                    },
+                )
+            })
+            .collect();
+        Ok(ShapeEstimate {
+            class: self.classes.iter().cloned().zip(p).collect(),
+            best,
+            pose,
+        })
+    }
+
+    /// Fitted settings worth reporting.
+    pub fn settings(&self) -> Vec<(String, f64)> {
+        let mut s = vec![
+            ("bank_runs".into(), self.z.len() as f64),
+            ("components".into(), self.pca.axes.len() as f64),
+            ("temperature".into(), self.temperature),
+            ("sharpness".into(), self.sharpness),
+            ("floor".into(), self.floor),
+            ("held_out_log_loss".into(), self.held_out_loss),
+            ("pose_temperature".into(), self.pose_temperature),
+        ];
+        for (c, x) in CHANNELS.iter().zip(self.sigma) {
+            s.push((format!("noise_{c}"), x));
+        }
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use vibrissa_core::rng::Rng;
+
+    const SAMPLES: usize = 100;
+    /// Each channel's size and its noise, a tenth of it.
+    const SCALE: [f64; 5] = [0.05, 0.01, 2e-5, 1e-3, 2e-3];
+
+    /// A made-up run of e3's class `class` at pose `p`, read by one whisker: a pulse whose time
+    /// follows the first unknown and whose width tells the class.
+    fn run(e3: &ShapeFamily, class: usize, p: &[f64], rng: Option<&mut Rng>) -> ShapeSample {
+        let [lo, hi] = e3.classes()[class].family.ranges()[0];
+        let u = (p[0] - lo) / (hi - lo);
+        let centre = 20.0 + 50.0 * u;
+        let width = 3.0 + 2.0 * class as f64;
+        let mut series: Vec<Vec<f64>> = SCALE
+            .iter()
+            .enumerate()
+            .map(|(c, s)| {
+                (0..SAMPLES)
+                    .map(|i| {
+                        let x = (i as f64 - centre) / width;
+                        s * (1.0 + 0.2 * c as f64) * (-x * x).exp()
+                    })
+                    .collect()
+            })
+            .collect();
+        if let Some(rng) = rng {
+            for (ch, s) in series.iter_mut().zip(SCALE) {
+                for v in ch.iter_mut() {
+                    *v += 0.1 * s * rng.normal();
+                }
+            }
+        }
+        ShapeSample {
+            class,
+            params: p.to_vec(),
+            whiskers: vec![series],
+        }
+    }
+
+    #[test]
+    fn the_bank_measures_the_noise_names_the_class_and_covers_the_pose_of_runs_it_did_not_hold() {
+        let e3 = ShapeFamily::builtin("e3")
+            .unwrap()
+            .unwrap()
+            .with_whiskers(&["c3"])
+            .unwrap();
+        let draws = |per: usize, seed: u64| e3.draws(per, false, seed);
+        let mut rng = Rng::new(7);
+        let train_draws = draws(60, 1);
+        let training: Vec<ShapeSample> = train_draws
+            .iter()
+            .map(|(c, p)| run(&e3, *c, p, Some(&mut rng)))
+            .collect();
+        let clean = CleanRuns {
+            twins: train_draws
+                .iter()
+                .map(|(c, p)| run(&e3, *c, p, None))
+                .collect(),
+            extra: draws(200, 2)
+                .iter()
+                .map(|(c, p)| run(&e3, *c, p, None))
+                .collect(),
+        };
+        let model = ShapeBank::fit(&e3, &training, &clean).unwrap();
+        // The noise it measured against the twins: the true tenth of each channel's size.
+        let settings = model.settings();
+        for (c, s) in SCALE.iter().enumerate() {
+            let (_, got) = &settings[7 + c];
+            assert!((got / (0.1 * s) - 1.0).abs() < 0.05, "{c}: {got}");
+        }
+        // Fresh noisy runs: the class, and the first unknown inside its interval.
+        let mut right = 0;
+        let mut covered = 0;
+        let fresh = draws(20, 3);
+        for (c, p) in &fresh {
+            let r = run(&e3, *c, p, Some(&mut rng));
+            let e = model.predict(&r.whiskers).unwrap();
+            assert!((e.class.iter().map(|x| x.1).sum::<f64>() - 1.0).abs() < 1e-9);
+            if e.best == *c {
+                right += 1;
+                covered += usize::from(e.pose[0].1.covers(p[0]));
+            }
+        }
+        assert!(right >= 76, "{right} of 80 named right");
+        assert!(
+            (0.75..=1.0).contains(&(covered as f64 / right as f64)),
+            "{covered} of {right} covered"
+        );
+        // What it was not fitted on is refused.
+        let r = run(&e3, 0, &fresh[0].1, None);
+        let short: Vec<Vec<Vec<f64>>> =
+            vec![r.whiskers[0].iter().map(|c| c[..50].to_vec()).collect()];
+        let err = model.predict(&short).unwrap_err().to_string();
+        assert!(err.contains("100 samples"), "{err}");
+        let mut nan = r.whiskers.clone();
+        nan[0][1][3] = f64::NAN;
+        assert!(model.predict(&nan).is_err());
+        // Training runs without twins are refused.
+        let none = CleanRuns {
+            twins: Vec::new(),
+            extra: clean.extra.clone(),
+        };
+        let err = ShapeBank::fit(&e3, &training, &none)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("twin"), "{err}");
+    }
+}
