@@ -556,7 +556,7 @@ fn shape_family(
 /// recording's class posterior after every sample (`[recordings][samples][classes]`) with the
 /// classes' names in that order.
 #[pyfunction]
-#[pyo3(signature = (shapes, whiskers, inputs, noise, seed, randomise, training, method))]
+#[pyo3(signature = (shapes, whiskers, inputs, noise, seed, randomise, training, method, bank))]
 #[allow(clippy::too_many_arguments, clippy::type_complexity)]
 fn estimate_shapes(
     py: Python<'_>,
@@ -568,6 +568,7 @@ fn estimate_shapes(
     randomise: bool,
     training: usize,
     method: &str,
+    bank: usize,
 ) -> PyResult<(Vec<String>, Vec<String>, Vec<Vec<Vec<f64>>>, Vec<String>)> {
     use vibrissa_infer::shapes::{estimate_batch, BatchOptions, ShapeKrr};
     let family = shape_family(shapes, whiskers)?;
@@ -611,7 +612,7 @@ fn estimate_shapes(
     let options = BatchOptions {
         method: method.to_string(),
         training,
-        bank: vibrissa_infer::shapes::BANK_PER_CLASS,
+        bank,
         seed,
         randomise,
         stated,

@@ -84,3 +84,19 @@ def test_the_online_estimator_gives_the_posterior_after_every_sample(family):
     assert "trace" not in vibrissa.estimate_shapes(run, path, training=30, noise="none")
     with pytest.raises(ValueError, match="shape-esn"):
         vibrissa.estimate_shapes(run, path, training=30, method="knn")
+
+
+def test_the_bank_weighs_the_recording_against_noise_free_runs(family):
+    folder, path = family
+    run = vibrissa.simulate(folder / "square.toml")
+    est = vibrissa.estimate_shapes(
+        run, path, training=30, bank=120, noise="none", method="shape-bank"
+    )
+    assert est["method"] == "shape-bank"
+    assert abs(sum(est["class"].values()) - 1.0) < 1e-9
+    assert "trace" not in est
+    # The square's pose lies inside its range; a bank smaller than the training runs is
+    # raised to them, and a tiny one refused.
+    assert 0.015 < est["x"]["mean"] < 0.029
+    with pytest.raises(ValueError, match="bank"):
+        vibrissa.estimate_shapes(run, path, training=30, bank=3, method="shape-bank")

@@ -365,6 +365,7 @@ def estimate_shapes(
     randomise=False,
     method="shape-krr",
     verbose=False,
+    bank=3200,
 ):
     """Which object struck the whiskers, and where: the class posterior and the most probable
     class's pose, as ``vibrissa estimate --shapes --json`` does.
@@ -393,6 +394,8 @@ def estimate_shapes(
         network that updates the class posterior after every sample) or ``"shape-bank"`` (the
         recording's likelihood under 3200 noise-free runs per class: best on noisy recordings,
         several minutes to simulate its bank).
+    bank : int
+        With ``"shape-bank"``: noise-free runs per class in its bank (at least ``training``).
 
     Returns
     -------
@@ -424,10 +427,19 @@ def estimate_shapes(
             )
     training = _count("training", training, 20)
     seed = _count("seed", seed, 0)
+    bank = _count("bank", bank, 20)
     if not isinstance(method, str):
         raise TypeError("method: expected a method name such as 'shape-esn'")
     rows, messages, traces, classes = _vibrissa.estimate_shapes(
-        shapes, whiskers, inputs, _noise_statement(noise), seed, bool(randomise), training, method
+        shapes,
+        whiskers,
+        inputs,
+        _noise_statement(noise),
+        seed,
+        bool(randomise),
+        training,
+        method,
+        bank,
     )
     if verbose:
         import sys
