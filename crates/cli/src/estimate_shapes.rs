@@ -115,6 +115,9 @@ pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
         };
         recordings.push(per);
     }
+    if args.bank.is_some() && method != "shape-bank" {
+        anyhow::bail!("--bank sets the bank of shape-bank: add --method shape-bank");
+    }
     let stated = crate::estimate::stated_noise(&family.classes()[0].family, &args.noise)?;
     let options = BatchOptions {
         method: method.to_string(),

@@ -161,7 +161,7 @@ pub fn run(args: &Args) -> Result<()> {
         || args.randomise
         || args.export.is_some()
     {
-        anyhow::bail!("--training, --runs, --whiskers, --method, --randomise and --export apply to shape experiments (e3, --shapes)");
+        anyhow::bail!("--training, --runs, --bank, --whiskers, --method, --randomise and --export apply to shape experiments (e3, --shapes)");
     }
     let family = match (&args.scenario, &args.experiment) {
         (Some(file), _) => Family::open(file, &args.sets)?,

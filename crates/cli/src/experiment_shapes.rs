@@ -112,6 +112,9 @@ pub fn run(args: ShapeArgs) -> Result<()> {
             args.methods.to_vec()
         },
     };
+    if args.bank.is_some() && !settings.methods.iter().any(|m| m == "shape-bank") {
+        anyhow::bail!("--bank sets the bank of shape-bank: add --method shape-bank");
+    }
     if settings.train_per_class < 20 {
         anyhow::bail!(
             "--training must be at least 20 runs per class (got {})",

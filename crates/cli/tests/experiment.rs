@@ -1344,5 +1344,26 @@ fn experiment_e3_scores_shapes_and_exports_every_evaluated_run() {
         .unwrap();
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("c9"));
+    // A bank size for an estimator that has no bank is refused, naming the one that has.
+    for args in [
+        vec!["experiment", "e3", "--bank", "100", "--out"],
+        vec!["estimate", "--shapes", "e3", "--bank", "100", "--obs"],
+    ] {
+        let target = if args[0] == "experiment" {
+            dir.join("bad")
+        } else {
+            dir.join("run.csv")
+        };
+        let bad = vibrissa().args(&args).arg(target).output().unwrap();
+        assert!(!bad.status.success());
+        let err = String::from_utf8_lossy(&bad.stderr);
+        assert!(err.contains("--method shape-bank"), "{err}");
+    }
+    let bad = vibrissa()
+        .args(["experiment", "e2", "--bank", "100"])
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("--bank"));
     std::fs::remove_dir_all(&dir).ok();
 }
