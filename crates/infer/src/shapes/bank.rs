@@ -21,6 +21,7 @@
 //! wide as the held-out runs' errors (a split-conformal interval).
 
 use super::estimator::ShapeEstimate;
+use super::evaluate::subset;
 use super::family::{ShapeFamily, ShapeSample};
 use crate::error::{Error, Result};
 use crate::experiment::{Noise, CHANNELS};
@@ -88,17 +89,9 @@ impl CleanRuns {
 
     /// The same runs read by the whiskers at `idx` only.
     pub fn subset(&self, idx: &[usize]) -> CleanRuns {
-        let pick = |v: &[ShapeSample]| {
-            v.iter()
-                .map(|s| ShapeSample {
-                    whiskers: idx.iter().map(|&i| s.whiskers[i].clone()).collect(),
-                    ..s.clone()
-                })
-                .collect()
-        };
         CleanRuns {
-            twins: pick(&self.twins),
-            extra: pick(&self.extra),
+            twins: subset(&self.twins, idx),
+            extra: subset(&self.extra, idx),
         }
     }
 
@@ -164,6 +157,19 @@ fn softmax(l: &[f64], s: f64) -> Vec<f64> {
     let e: Vec<f64> = l.iter().map(|x| (s * (x - top)).exp()).collect();
     let sum: f64 = e.iter().sum();
     e.iter().map(|x| x / sum).collect()
+}
+
+/// A run's channels (`[whiskers][CHANNELS][samples]`), each divided by its noise level, end to
+/// end.
+fn whitened(whiskers: &[Vec<Vec<f64>>], sigma: &[f64; 5]) -> Vec<f64> {
+    whiskers
+        .iter()
+        .flat_map(|w| {
+            w.iter()
+                .zip(sigma)
+                .flat_map(|(ch, sd)| ch.iter().map(move |x| x / sd))
+        })
+        .collect()
 }
 
 fn fit_error(detail: String) -> Error {
@@ -262,18 +268,12 @@ impl ShapeBank {
                 )));
             }
         }
-        let whiten = |s: &ShapeSample| -> Vec<f64> {
-            s.whiskers
-                .iter()
-                .flat_map(|w| {
-                    w.iter()
-                        .zip(&sigma)
-                        .flat_map(|(ch, sd)| ch.iter().map(move |x| x / sd))
-                })
-                .collect()
-        };
         let step = bank.len().div_ceil(PCA_RUNS).max(1);
-        let sub: Vec<Vec<f64>> = bank.iter().step_by(step).map(|s| whiten(s)).collect();
+        let sub: Vec<Vec<f64>> = bank
+            .iter()
+            .step_by(step)
+            .map(|s| whitened(&s.whiskers, &sigma))
+            .collect();
         let pca = Pca::fit(&sub, COMPONENTS.min(sub.len().saturating_sub(1)).max(1));
         let mut m = ShapeBank {
             classes: family.class_names().iter().map(|s| s.to_string()).collect(),
@@ -293,7 +293,7 @@ impl ShapeBank {
             pose_temperature: 1.0,
             half_width: Vec::new(),
         };
-        m.z = m.project_all(&bank.iter().map(|s| whiten(s)).collect::<Vec<_>>());
+        m.z = m.project_all(&bank);
         // Held-out training runs, each scored against the bank without its own twin: those
         // whose pose lies in the class's ranges (the recordings' prior; the training draws'
         // margins reach beyond it, where runs are rarer in the bank and often barely touched,
@@ -319,12 +319,7 @@ impl ShapeBank {
                 8 * classes
             )));
         }
-        let held_z = m.project_all(
-            &held
-                .iter()
-                .map(|&(j, _)| whiten(&training[j]))
-                .collect::<Vec<_>>(),
-        );
+        let held_z = m.project_all(&held.iter().map(|&(j, _)| &training[j]).collect::<Vec<_>>());
         let d2: Vec<Vec<f64>> = held_z
             .par_iter()
             .zip(&held)
@@ -439,13 +434,18 @@ impl ShapeBank {
         Ok(m)
     }
 
-    /// Components of many whitened runs (chunks of them as matrix products, in parallel).
-    fn project_all(&self, x: &[Vec<f64>]) -> Vec<Vec<f64>> {
+    /// Components of many runs, whitened a chunk at a time and projected as one matrix product
+    /// per chunk, in parallel.
+    fn project_all(&self, runs: &[&ShapeSample]) -> Vec<Vec<f64>> {
         let dim = self.pca.mean.len();
         let k = self.pca.axes.len();
         let axes = DMatrix::from_fn(dim, k, |i, j| self.pca.axes[j][i]);
-        x.par_chunks(CHUNK)
-            .flat_map_iter(|chunk| {
+        runs.par_chunks(CHUNK)
+            .flat_map_iter(|runs| {
+                let chunk: Vec<Vec<f64>> = runs
+                    .iter()
+                    .map(|s| whitened(&s.whiskers, &self.sigma))
+                    .collect();
                 let rows =
                     DMatrix::from_fn(chunk.len(), dim, |i, j| chunk[i][j] - self.pca.mean[j]);
                 let p = rows * &axes;
@@ -526,15 +526,7 @@ impl ShapeBank {
                 Self::NAME
             )));
         }
-        let x: Vec<f64> = whiskers
-            .iter()
-            .flat_map(|w| {
-                w.iter()
-                    .zip(&self.sigma)
-                    .flat_map(|(ch, sd)| ch.iter().map(move |x| x / sd))
-            })
-            .collect();
-        let z = self.pca.project(&x);
+        let z = self.pca.project(&whitened(whiskers, &self.sigma));
         let d2 = self.distances(&z);
         let k = self.classes.len() as f64;
         let p: Vec<f64> = softmax(&self.log_evidence(&d2, self.temperature), self.sharpness)
@@ -547,16 +539,7 @@ impl ShapeBank {
             .into_iter()
             .zip(&self.half_width[best])
             .zip(&self.names[best])
-            .map(|((m, h), n)| {
-                (
-                    n.clone(),
-                    Estimate {
-                        mean: m,
-                        std: h / crate::method::Z90,
-                        ci90: [m - h, m + h],
-                    },
-                )
-            })
+            .map(|((m, h), n)| (n.clone(), Estimate::normal(m, h / crate::method::Z90)))
             .collect();
         Ok(ShapeEstimate {
             class: self.classes.iter().cloned().zip(p).collect(),

@@ -161,7 +161,7 @@ pub struct ShapeEvaluation {
 }
 
 /// The runs `samples` read by the whiskers at `idx` of the family's array.
-fn subset(samples: &[ShapeSample], idx: &[usize]) -> Vec<ShapeSample> {
+pub(super) fn subset(samples: &[ShapeSample], idx: &[usize]) -> Vec<ShapeSample> {
     samples
         .iter()
         .map(|s| ShapeSample {
