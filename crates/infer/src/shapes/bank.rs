@@ -23,6 +23,7 @@
 use super::estimator::ShapeEstimate;
 use super::evaluate::subset;
 use super::family::{ShapeFamily, ShapeSample};
+use super::series_noise::SeriesNoise;
 use crate::error::{Error, Result};
 use crate::experiment::{Noise, CHANNELS};
 use crate::method::Estimate;
@@ -42,6 +43,9 @@ const HOLD: usize = 2;
 /// A channel's noise level is at least this share of its median RMS over the bank (a clean
 /// recording still weighs the channels by their size).
 const NOISE_FLOOR: f64 = 0.01;
+/// Most residual series (one whisker of one training run each) the noise's covariance is
+/// estimated from.
+const NOISE_SERIES: usize = 16_000;
 /// Runs projected onto the principal axes at once.
 const CHUNK: usize = 256;
 
@@ -51,7 +55,7 @@ const CHUNK: usize = 256;
 pub struct CleanRuns {
     /// The training draws simulated without noise, in their order.
     pub twins: Vec<ShapeSample>,
-    /// Further draws over the training ranges, without noise.
+    /// Further draws over the classes' ranges (without the training margins), without noise.
     pub extra: Vec<ShapeSample>,
 }
 
@@ -70,7 +74,9 @@ impl CleanRuns {
     ) -> Result<(CleanRuns, Vec<String>)> {
         let classes = train_family.classes().len();
         let trained = train_draws.len() / classes.max(1);
-        let all = train_family.draws(per_class.max(trained), true, draw_seed);
+        // The further draws continue the training draws' streams, over the ranges themselves:
+        // the recordings' prior, which the training runs' margins reach beyond.
+        let all = train_family.draws(per_class.max(trained), false, draw_seed);
         let per = per_class.max(trained);
         let extra_draws: Vec<(usize, Vec<f64>)> = (0..classes)
             .flat_map(|k| all[k * per + trained..(k + 1) * per].iter().cloned())
@@ -115,7 +121,17 @@ pub struct ShapeBank {
     samples: usize,
     /// Each channel's noise level, `[CHANNELS]`, SI.
     sigma: [f64; 5],
-    pca: Pca,
+    /// The noise's covariance over one whisker's series (in units of `sigma`).
+    noise: SeriesNoise,
+    /// Principal components kept.
+    components: usize,
+    /// The projection onto the principal axes of the whitened series, folded with the
+    /// whitening: components = `x · fold − offset`, `x` a run divided by `sigma`, end to end.
+    fold: DMatrix<f64>,
+    offset: Vec<f64>,
+    /// Every bank run's whitened series in full (`[runs][whiskers][samples][CHANNELS]`, f32),
+    /// for the class posterior after every sample.
+    whitened: Vec<f32>,
     /// The bank: class, pose, components.
     class_of: Vec<usize>,
     params: Vec<Vec<f64>>,
@@ -159,17 +175,57 @@ fn softmax(l: &[f64], s: f64) -> Vec<f64> {
     e.iter().map(|x| x / sum).collect()
 }
 
-/// A run's channels (`[whiskers][CHANNELS][samples]`), each divided by its noise level, end to
-/// end.
-fn whitened(whiskers: &[Vec<Vec<f64>>], sigma: &[f64; 5]) -> Vec<f64> {
-    whiskers
-        .iter()
-        .flat_map(|w| {
-            w.iter()
-                .zip(sigma)
-                .flat_map(|(ch, sd)| ch.iter().map(move |x| x / sd))
+/// A run's channels (`[whiskers][CHANNELS][samples]`), each divided by its noise level, whisker
+/// after whisker, each whisker's time-major (its five channels at one sample, then the next).
+fn scaled(whiskers: &[Vec<Vec<f64>>], sigma: &[f64; 5]) -> Vec<f64> {
+    let samples = whiskers.first().and_then(|w| w.first()).map_or(0, Vec::len);
+    let mut out = Vec::with_capacity(whiskers.len() * 5 * samples);
+    for w in whiskers {
+        for t in 0..w[0].len() {
+            for (ch, sd) in w.iter().zip(sigma) {
+                out.push(ch[t] / sd);
+            }
+        }
+    }
+    out
+}
+
+/// Runs scaled and whitened, every whisker's series by the noise's covariance.
+fn whiten_runs(runs: &[&ShapeSample], sigma: &[f64; 5], noise: &SeriesNoise) -> Vec<Vec<f64>> {
+    let whiskers = runs.first().map_or(0, |s| s.whiskers.len());
+    let block = noise.width();
+    let x: Vec<Vec<f64>> = runs.iter().map(|s| scaled(&s.whiskers, sigma)).collect();
+    // One row per whisker of every run, whitened as one matrix product.
+    let rows = DMatrix::from_fn(runs.len() * whiskers, block, |r, c| {
+        x[r / whiskers][(r % whiskers) * block + c]
+    });
+    drop(x);
+    let u = rows * noise.whitening().transpose();
+    (0..runs.len())
+        .map(|k| {
+            (0..whiskers)
+                .flat_map(|w| u.row(k * whiskers + w).iter().copied().collect::<Vec<_>>())
+                .collect()
         })
         .collect()
+}
+
+/// The projection onto `pca`'s axes (of whitened series) as one acting on scaled series:
+/// `fold` = blockdiag(W)ᵀ · axes, `offset` = mean · axes.
+fn folded(pca: &Pca, noise: &SeriesNoise, whiskers: usize) -> (DMatrix<f64>, Vec<f64>) {
+    let block = noise.width();
+    let k = pca.axes.len();
+    let axes = DMatrix::from_fn(whiskers * block, k, |i, j| pca.axes[j][i]);
+    let wt = noise.whitening().transpose();
+    let mut fold = DMatrix::zeros(whiskers * block, k);
+    for w in 0..whiskers {
+        let part = &wt * axes.rows(w * block, block);
+        fold.rows_mut(w * block, block).copy_from(&part);
+    }
+    let offset = (0..k)
+        .map(|j| pca.axes[j].iter().zip(&pca.mean).map(|(a, m)| a * m).sum())
+        .collect();
+    (fold, offset)
 }
 
 fn fit_error(detail: String) -> Error {
@@ -268,20 +324,39 @@ impl ShapeBank {
                 )));
             }
         }
+        // The noise's covariance over one whisker's series, from the training runs' residuals
+        // against their twins (every whisker's alike, pooled).
+        let block = CHANNELS.len() * samples;
+        let pair_step = (pairs.len() * whiskers).div_ceil(NOISE_SERIES).max(1);
+        let used: Vec<(usize, usize)> = pairs.iter().copied().step_by(pair_step).collect();
+        let residuals = DMatrix::from_fn(used.len() * whiskers, block, |row, col| {
+            let (j, i) = used[row / whiskers];
+            let w = row % whiskers;
+            let (t, c) = (col / CHANNELS.len(), col % CHANNELS.len());
+            (training[j].whiskers[w][c][t] - bank[i].whiskers[w][c][t]) / sigma[c]
+        });
+        let noise = SeriesNoise::fit(&residuals, CHANNELS.len())
+            .ok_or_else(|| fit_error("the noise's covariance is not positive definite".into()))?;
+        drop(residuals);
+        // Principal axes of the whitened series of a subset of the bank.
         let step = bank.len().div_ceil(PCA_RUNS).max(1);
-        let sub: Vec<Vec<f64>> = bank
-            .iter()
-            .step_by(step)
-            .map(|s| whitened(&s.whiskers, &sigma))
-            .collect();
-        let pca = Pca::fit(&sub, COMPONENTS.min(sub.len().saturating_sub(1)).max(1));
+        let sub_runs: Vec<&ShapeSample> = bank.iter().copied().step_by(step).collect();
+        let sub = whiten_runs(&sub_runs, &sigma, &noise);
+        let components = COMPONENTS.min(sub.len().saturating_sub(1)).max(1);
+        let pca = Pca::fit(&sub, components);
+        drop(sub);
+        let (fold, offset) = folded(&pca, &noise, whiskers);
         let mut m = ShapeBank {
             classes: family.class_names().iter().map(|s| s.to_string()).collect(),
             names: family.unknown_names(),
             whiskers,
             samples,
             sigma,
-            pca,
+            noise,
+            components: pca.axes.len(),
+            fold,
+            offset,
+            whitened: Vec::new(),
             class_of: bank.iter().map(|s| s.class).collect(),
             params: bank.iter().map(|s| s.params.clone()).collect(),
             z: Vec::new(),
@@ -294,6 +369,14 @@ impl ShapeBank {
             half_width: Vec::new(),
         };
         m.z = m.project_all(&bank);
+        m.whitened = bank
+            .par_chunks(CHUNK)
+            .flat_map_iter(|runs| {
+                whiten_runs(runs, &m.sigma, &m.noise)
+                    .into_iter()
+                    .flat_map(|u| u.into_iter().map(|x| x as f32))
+            })
+            .collect();
         // Held-out training runs, each scored against the bank without its own twin: those
         // whose pose lies in the class's ranges (the recordings' prior; the training draws'
         // margins reach beyond it, where runs are rarer in the bank and often barely touched,
@@ -434,23 +517,26 @@ impl ShapeBank {
         Ok(m)
     }
 
-    /// Components of many runs, whitened a chunk at a time and projected as one matrix product
-    /// per chunk, in parallel.
+    /// Components of many runs, a chunk at a time, each chunk one matrix product with the
+    /// folded projection, in parallel.
     fn project_all(&self, runs: &[&ShapeSample]) -> Vec<Vec<f64>> {
-        let dim = self.pca.mean.len();
-        let k = self.pca.axes.len();
-        let axes = DMatrix::from_fn(dim, k, |i, j| self.pca.axes[j][i]);
         runs.par_chunks(CHUNK)
             .flat_map_iter(|runs| {
                 let chunk: Vec<Vec<f64>> = runs
                     .iter()
-                    .map(|s| whitened(&s.whiskers, &self.sigma))
+                    .map(|s| scaled(&s.whiskers, &self.sigma))
                     .collect();
-                let rows =
-                    DMatrix::from_fn(chunk.len(), dim, |i, j| chunk[i][j] - self.pca.mean[j]);
-                let p = rows * &axes;
+                let dim = self.fold.nrows();
+                let rows = DMatrix::from_fn(chunk.len(), dim, |i, j| chunk[i][j]);
+                let p = rows * &self.fold;
                 (0..chunk.len())
-                    .map(|i| p.row(i).iter().copied().collect::<Vec<f64>>())
+                    .map(|i| {
+                        p.row(i)
+                            .iter()
+                            .zip(&self.offset)
+                            .map(|(a, o)| a - o)
+                            .collect::<Vec<f64>>()
+                    })
                     .collect::<Vec<_>>()
             })
             .collect()
@@ -503,9 +589,8 @@ impl ShapeBank {
         mean.iter().map(|m| m / total).collect()
     }
 
-    /// The class posterior and the most probable class's pose of one recording
-    /// (`[whiskers][CHANNELS][samples]`).
-    pub fn predict(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<ShapeEstimate> {
+    /// A recording's shape and values, checked against the training runs'.
+    fn check(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<()> {
         if whiskers.len() != self.whiskers
             || whiskers
                 .iter()
@@ -526,7 +611,20 @@ impl ShapeBank {
                 Self::NAME
             )));
         }
-        let z = self.pca.project(&whitened(whiskers, &self.sigma));
+        Ok(())
+    }
+
+    /// The class posterior and the most probable class's pose of one recording
+    /// (`[whiskers][CHANNELS][samples]`).
+    pub fn predict(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<ShapeEstimate> {
+        self.check(whiskers)?;
+        let x = scaled(whiskers, &self.sigma);
+        let z: Vec<f64> = self
+            .fold
+            .column_iter()
+            .zip(&self.offset)
+            .map(|(a, o)| a.iter().zip(&x).map(|(a, x)| a * x).sum::<f64>() - o)
+            .collect();
         let d2 = self.distances(&z);
         let k = self.classes.len() as f64;
         let p: Vec<f64> = softmax(&self.log_evidence(&d2, self.temperature), self.sharpness)
@@ -548,11 +646,64 @@ impl ShapeBank {
         })
     }
 
+    /// The class posterior after every sample of one recording (`[samples][classes]`): the
+    /// same evidence as [`ShapeBank::predict`]'s, each bank run's likelihood that of the
+    /// recording so far (the whitening is causal: see [`SeriesNoise::whitening`]), in the full
+    /// whitened series rather than its principal components.
+    pub fn trace(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<Vec<Vec<f64>>> {
+        self.check(whiskers)?;
+        let u = whiten_runs(
+            &[&ShapeSample {
+                class: 0,
+                params: Vec::new(),
+                whiskers: whiskers.to_vec(),
+            }],
+            &self.sigma,
+            &self.noise,
+        )
+        .pop()
+        .unwrap_or_default();
+        let u: Vec<f32> = u.into_iter().map(|x| x as f32).collect();
+        let (samples, channels) = (self.samples, CHANNELS.len());
+        let width = self.whiskers * samples * channels;
+        // Each bank run's squared distance to the recording so far, after every sample.
+        let cumulative: Vec<Vec<f32>> = self
+            .whitened
+            .par_chunks(width)
+            .map(|b| {
+                let mut sum = vec![0.0f32; samples];
+                for w in 0..self.whiskers {
+                    let mut acc = 0.0f32;
+                    for (t, s) in sum.iter_mut().enumerate() {
+                        let at = (w * samples + t) * channels;
+                        for k in at..at + channels {
+                            let d = u[k] - b[k];
+                            acc += d * d;
+                        }
+                        *s += acc;
+                    }
+                }
+                sum
+            })
+            .collect();
+        let k = self.classes.len() as f64;
+        Ok((0..samples)
+            .map(|t| {
+                let d2: Vec<f64> = cumulative.iter().map(|c| f64::from(c[t])).collect();
+                softmax(&self.log_evidence(&d2, self.temperature), self.sharpness)
+                    .into_iter()
+                    .map(|p| (1.0 - self.floor) * p + self.floor / k)
+                    .collect()
+            })
+            .collect())
+    }
+
     /// Fitted settings worth reporting.
     pub fn settings(&self) -> Vec<(String, f64)> {
         let mut s = vec![
             ("bank_runs".into(), self.z.len() as f64),
-            ("components".into(), self.pca.axes.len() as f64),
+            ("components".into(), self.components as f64),
+            ("noise_shrinkage".into(), self.noise.shrinkage()),
             ("temperature".into(), self.temperature),
             ("sharpness".into(), self.sharpness),
             ("floor".into(), self.floor),
@@ -636,7 +787,8 @@ mod tests {
         // The noise it measured against the twins: the true tenth of each channel's size.
         let settings = model.settings();
         for (c, s) in SCALE.iter().enumerate() {
-            let (_, got) = &settings[7 + c];
+            let name = format!("noise_{}", CHANNELS[c]);
+            let (_, got) = settings.iter().find(|(n, _)| *n == name).unwrap();
             assert!((got / (0.1 * s) - 1.0).abs() < 0.05, "{c}: {got}");
         }
         // Fresh noisy runs: the class, and the first unknown inside its interval.
@@ -653,6 +805,26 @@ mod tests {
             }
         }
         assert!(right >= 76, "{right} of 80 named right");
+        // Read online: nothing is known before the pulses begin, and after the last sample the
+        // posterior names the class as the whole recording's does.
+        let mut agree = 0;
+        for (c, p) in &fresh {
+            let r = run(&e3, *c, p, Some(&mut rng));
+            let trace = model.trace(&r.whiskers).unwrap();
+            assert_eq!(trace.len(), SAMPLES);
+            for row in &trace {
+                assert!((row.iter().sum::<f64>() - 1.0).abs() < 1e-9);
+            }
+            assert!(
+                trace[0].iter().all(|q| (q - 0.25).abs() < 0.05),
+                "{:?}",
+                trace[0]
+            );
+            let last = &trace[SAMPLES - 1];
+            let top = (0..4).fold(0, |b, k| if last[k] > last[b] { k } else { b });
+            agree += usize::from(top == model.predict(&r.whiskers).unwrap().best);
+        }
+        assert!(agree >= 72, "{agree} of 80 agree");
         assert!(
             (0.75..=1.0).contains(&(covered as f64 / right as f64)),
             "{covered} of {right} covered"

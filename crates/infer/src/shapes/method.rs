@@ -56,8 +56,8 @@ impl ShapeMethod for ShapeBank {
     fn predict(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<ShapeEstimate> {
         ShapeBank::predict(self, whiskers)
     }
-    fn trace(&self, _: &[Vec<Vec<f64>>]) -> Option<Result<Vec<Vec<f64>>>> {
-        None
+    fn trace(&self, whiskers: &[Vec<Vec<f64>>]) -> Option<Result<Vec<Vec<f64>>>> {
+        Some(ShapeBank::trace(self, whiskers))
     }
     fn settings(&self) -> Vec<(String, f64)> {
         ShapeBank::settings(self)

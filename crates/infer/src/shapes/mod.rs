@@ -15,6 +15,7 @@ mod evaluate;
 mod family;
 mod method;
 mod online;
+mod series_noise;
 
 pub use bank::{CleanRuns, ShapeBank, BANK_PER_CLASS};
 pub use batch::{estimate_batch, Batch, BatchOptions, DEFAULT_TRAINING};
