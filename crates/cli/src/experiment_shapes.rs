@@ -479,6 +479,7 @@ impl Render for Report {
             ("ECE", Align::Right),
             ("fit (s)", Align::Right),
             ("estimate (ms)", Align::Right),
+            ("online (ms)", Align::Right),
         ]);
         for s in &ev.subsets {
             t.row(vec![
@@ -489,6 +490,7 @@ impl Render for Report {
                 format!("{:.3}", s.ece),
                 format!("{:.1}", s.fit_seconds),
                 format!("{:.2}", s.estimate_ms),
+                s.online_ms.map_or("-".into(), |m| format!("{m:.2}")),
             ]);
         }
         t.write(out, "  ")?;

@@ -109,6 +109,9 @@ pub struct SubsetResult {
     pub fit_seconds: f64,
     /// Milliseconds per estimate (wall time, while the other fits share the cores).
     pub estimate_ms: f64,
+    /// Milliseconds per recording for the class posterior after every sample, for an online
+    /// estimator (wall time, as `estimate_ms`).
+    pub online_ms: Option<f64>,
     /// The fitted settings.
     pub settings: Vec<(String, f64)>,
     /// For an online estimator: the posterior over time of the first evaluated run of each
@@ -378,12 +381,16 @@ pub fn evaluate_shapes(
             let mut accuracy_over_time = Vec::new();
             let mut traces = Vec::new();
             // (`None` for an estimator that reads the recording whole.)
+            let t2 = Instant::now();
             let online = read
                 .iter()
                 .map(|s| model.trace(&s.whiskers))
                 .collect::<Option<Vec<_>>>()
                 .map(|t| t.into_iter().collect::<Result<Vec<_>>>())
                 .transpose()?;
+            let online_ms = online
+                .as_ref()
+                .map(|_| 1e3 * t2.elapsed().as_secs_f64() / read.len().max(1) as f64);
             if let Some(all) = online {
                 let samples = all.iter().map(Vec::len).min().unwrap_or(0);
                 accuracy_over_time = (0..samples)
@@ -421,6 +428,7 @@ pub fn evaluate_shapes(
                 runs,
                 fit_seconds,
                 estimate_ms,
+                online_ms,
                 settings: model.settings(),
                 traces,
                 accuracy_over_time,
