@@ -453,11 +453,14 @@ mod tests {
     use crate::scenes::e2_box;
     use crate::whisker::WhiskerParams;
 
+    /// What a step leaves: the state vector, the base wrench, the contact force and the time.
+    type After = (Vec<f64>, [f64; 3], Option<[f64; 2]>, f64);
+
     /// The e2 box at d = 20 mm, 0.8 m/s, starting 11 mm from the w30 whisker, stepped by
     /// `advance` at the default step for 150 ms: every state after every step.
     fn run(
         advance: fn(&Model, &Stepper, &mut State, &Inputs, &mut Workspace) -> Result<()>,
-    ) -> Vec<(Vec<f64>, [f64; 3], Option<[f64; 2]>, f64)> {
+    ) -> Vec<After> {
         let whisker = WhiskerParams::w30().check().unwrap();
         let model = Model::new(&whisker, 20, Discretisation::default()).unwrap();
         let st = Integrator::default().check().unwrap();
