@@ -3,10 +3,10 @@
 //!
 //! Reads every file's whiskers (`c1.theta01`, … for an array; the plain columns for one
 //! whisker), measures the sensor noise on the recordings, trains the shape estimator
-//! (`shape-krr`, or the online `shape-esn`) once on runs of the shape family simulated at the
-//! files' timing with that noise, and prints one estimate per file: `"class"` (each class's
-//! probability) and the most probable class's pose unknowns. With `shape-esn`, `--trace` writes
-//! the class posterior after every sample and its plot.
+//! (`shape-krr`, the online `shape-esn`, or `shape-bank`) once on runs of the shape family
+//! simulated at the files' timing with that noise, and prints one estimate per file: `"class"`
+//! (each class's probability) and the most probable class's pose unknowns. With `shape-esn` or
+//! `shape-bank`, `--trace` writes the class posterior after every sample and its plot.
 
 use crate::estimate::{read_recording, Args};
 use crate::files;
@@ -18,7 +18,7 @@ use serde_json::{Map, Value};
 use std::io::{self, Write};
 use std::path::Path;
 use vibrissa_infer::shapes::{
-    check_shape_method, estimate_batch, BatchOptions, ShapeEsn, ShapeFamily, ShapeKrr,
+    check_shape_method, estimate_batch, BatchOptions, ShapeBank, ShapeEsn, ShapeFamily, ShapeKrr,
     DEFAULT_TRAINING, SHAPE_METHODS,
 };
 use vibrissa_infer::{Reader, CHANNELS};
@@ -77,10 +77,11 @@ pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
     if args.particles.is_some() || args.check || !args.prior.is_empty() {
         bail!("--particles, --check and --prior do not apply to shape families");
     }
-    if args.trace.is_some() && method != ShapeEsn::NAME {
+    if args.trace.is_some() && method != ShapeEsn::NAME && method != ShapeBank::NAME {
         bail!(
-            "--trace with a shape family needs --method {} (the online estimator)",
-            ShapeEsn::NAME
+            "--trace with a shape family needs --method {} or {} (the online estimators)",
+            ShapeEsn::NAME,
+            ShapeBank::NAME
         );
     }
     crate::estimate::check_trace_file(args)?;

@@ -46,9 +46,11 @@ pub struct Args {
     /// (`1,3,5`, the default for a fan of five) or names joined by `+` (`c1+c5`).
     #[arg(long, value_name = "SETS")]
     whiskers: Option<String>,
-    /// Shape experiments: the estimators to score (repeatable): shape-krr (reads the recording
-    /// whole) and shape-esn (online: a class posterior after every sample). Default: both.
-    #[arg(long = "method", value_name = "NAME")]
+    /// Shape experiments: the estimators to score (repeatable, or joined by commas): shape-krr
+    /// (reads the recording whole), shape-esn (online: a class posterior after every sample)
+    /// and shape-bank (the likelihood under a bank of noise-free runs, also online; simulates
+    /// its bank, about 4 minutes on 2 cores). Default: shape-krr and shape-esn.
+    #[arg(long = "method", value_name = "NAME", value_delimiter = ',')]
     methods: Vec<String>,
     /// Shape experiments: train on whiskers and sensors drawn around the scenario's (for
     /// recordings of a whisker known only roughly).

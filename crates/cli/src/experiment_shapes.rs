@@ -433,11 +433,20 @@ fn figures(ev: &ShapeEvaluation, dir: &Path) -> Result<Vec<PathBuf>> {
 /// An estimator and whisker set, for a figure's legend.
 fn set_label(s: &vibrissa_infer::shapes::SubsetResult) -> String {
     format!(
-        "{}, {} whiskers ({})",
+        "{}, {} ({})",
         s.method,
-        s.whiskers.len(),
+        whisker_count(s.whiskers.len()),
         s.whiskers.join("+")
     )
+}
+
+/// "1 whisker", "3 whiskers".
+fn whisker_count(n: usize) -> String {
+    if n == 1 {
+        "1 whisker".into()
+    } else {
+        format!("{n} whiskers")
+    }
 }
 
 /// Percent with no decimals.
@@ -532,9 +541,9 @@ impl Render for Report {
         for s in &ev.subsets {
             writeln!(
                 out,
-                "confusion of {} with {} whiskers (rows: truth; columns: estimate {}):",
+                "confusion of {} with {} (rows: truth; columns: estimate {}):",
                 s.method,
-                s.whiskers.len(),
+                whisker_count(s.whiskers.len()),
                 ev.classes.join(", ")
             )?;
             for (c, row) in s.confusion.iter().enumerate() {

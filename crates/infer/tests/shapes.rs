@@ -325,6 +325,13 @@ fn the_bank_tells_a_wall_from_a_peg_through_noise_and_says_how_sure_it_is() {
         let got = fitted[&format!("noise_{c}")];
         assert!(got > 0.8 * m && got < 5.0 * m, "{c}: {got} against {m}");
     }
+    // Read online too: a posterior after every sample, at chance before the first contact and
+    // as good as the whole recording's by the end.
+    let over_time = &s.accuracy_over_time;
+    assert_eq!(over_time.len(), 201);
+    assert!(over_time[0] < 0.7, "{}", over_time[0]);
+    assert!(over_time[200] >= 0.6, "{}", over_time[200]);
+    assert!(s.online_ms.is_some());
     // A peg classified right is placed within a few millimetres, and its interval mostly holds.
     let peg = &s.poses[1];
     assert!(

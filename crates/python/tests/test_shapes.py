@@ -94,7 +94,12 @@ def test_the_bank_weighs_the_recording_against_noise_free_runs(family):
     )
     assert est["method"] == "shape-bank"
     assert abs(sum(est["class"].values()) - 1.0) < 1e-9
-    assert "trace" not in est
+    # Online too: a posterior after every sample, each row summing to one.
+    trace = est["trace"]
+    assert set(trace) == set(est["class"])
+    assert len(trace["square"]) == len(run["t"])
+    for k in range(len(run["t"])):
+        assert abs(sum(p[k] for p in trace.values()) - 1.0) < 1e-9
     # The square's pose lies inside its range; a bank smaller than the training runs is
     # raised to them, and a tiny one refused.
     assert 0.015 < est["x"]["mean"] < 0.029

@@ -403,8 +403,8 @@ def estimate_shapes(
         ``"class"`` (each class's probability), the most probable class's unknowns as
         ``{"mean", "std", "ci90"}``, ``"method"``, ``"seconds"``, ``"noise"`` and
         ``"warnings"``, plus ``"file"`` for each of a list of recordings. With
-        ``"shape-esn"`` also ``"trace"``: each class's probability after every sample (a list
-        per class name).
+        ``"shape-esn"`` or ``"shape-bank"`` also ``"trace"``: each class's probability after
+        every sample (a list per class name).
     """
     several = isinstance(obs, (list, tuple))
     shapes = os.fspath(shapes)
