@@ -253,7 +253,7 @@ fn draw(png: &Path, fit: &Fit, nominal: &str) -> Result<Pending> {
             let n = run.t.len();
             match &run.recorded[c] {
                 Some(y) => recorded[c].extend_from_slice(y),
-                None => recorded[c].extend(std::iter::repeat(f64::NAN).take(n)),
+                None => recorded[c].extend(std::iter::repeat_n(f64::NAN, n)),
             }
             before[c].extend_from_slice(&run.nominal[c]);
             after[c].extend_from_slice(&run.fitted[c]);

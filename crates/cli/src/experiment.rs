@@ -555,7 +555,7 @@ fn figures(ev: &Evaluation, dir: &Path) -> Result<Vec<PathBuf>> {
                     format!("template d = {:.0} mm", p[0] * 1e3)
                 },
                 points: (0..ev.grid.len())
-                    .filter(|&k| speed.map_or(true, |v| (ev.grid[k][1] - v).abs() < 1e-9))
+                    .filter(|&k| speed.is_none_or(|v| (ev.grid[k][1] - v).abs() < 1e-9))
                     .map(|k| (ev.grid[k][0] * 1e3, ev.responsibilities[k][i]))
                     .collect(),
                 mark: Mark::LineDots,

@@ -174,7 +174,7 @@ impl Vertical {
 impl Object {
     /// Whether the whisker's plane cuts the object at time `t` (so that they can touch).
     pub fn in_plane(&self, t: f64) -> bool {
-        self.vertical.map_or(true, |v| v.cuts_plane(t))
+        self.vertical.is_none_or(|v| v.cuts_plane(t))
     }
 
     /// The object's pose at time `t`.

@@ -600,7 +600,7 @@ fn best_start(
                 *fits += 1;
                 *iterations += sol.iterations;
                 let cost = setup.residual(&sol.sims, &sol.resp).norm_squared();
-                if best.as_ref().map_or(true, |b| cost < b.0) {
+                if best.as_ref().is_none_or(|b| cost < b.0) {
                     best = Some((cost, sol.z, sol.resp));
                 }
             }
@@ -754,7 +754,7 @@ fn worst_undetermined(
         .fold(0.0, f64::max);
     let mut worst: Option<(f64, Held, String)> = None;
     let mut consider = |badness: f64, held: Held, note: String| {
-        if badness > 1.0 && worst.as_ref().map_or(true, |w| badness > w.0) {
+        if badness > 1.0 && worst.as_ref().is_none_or(|w| badness > w.0) {
             worst = Some((badness, held, note));
         }
     };

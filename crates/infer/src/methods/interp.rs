@@ -163,7 +163,7 @@ impl Interp {
         for &j in &cells_v {
             for &i in &cells_d {
                 let f = self.fit_cell(x, i, j);
-                if best.map_or(true, |b| f.sse < b.sse) {
+                if best.is_none_or(|b| f.sse < b.sse) {
                     best = Some(f);
                 }
             }

@@ -188,7 +188,7 @@ impl Method for Krr {
                 .collect();
             let settings = Regression::choose(&z, &y, &inside, &fail)?;
             let held: f64 = settings.iter().map(|b| b.0).sum();
-            if best.as_ref().map_or(true, |b| held < b.0) {
+            if best.as_ref().is_none_or(|b| held < b.0) {
                 best = Some((held, w, z, settings));
             }
         }

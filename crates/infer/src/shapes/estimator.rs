@@ -481,7 +481,7 @@ impl ShapeKrr {
             m.weight = w;
             let z: Vec<Vec<f64>> = x.iter().zip(&amps).map(|(x, a)| m.point_of(x, a)).collect();
             let (classifier, loss) = Classifier::fit(&z, &labels, classes)?;
-            if best.as_ref().map_or(true, |b| loss < b.0) {
+            if best.as_ref().is_none_or(|b| loss < b.0) {
                 best = Some((loss, w, z, classifier));
             }
         }

@@ -416,7 +416,7 @@ impl ShapeEsn {
                     }
                 }
                 let (power, loss) = fit_temperature(&logs, &each);
-                if best.map_or(true, |b| loss < b.0) {
+                if best.is_none_or(|b| loss < b.0) {
                     best = Some((loss, ridge, floor, power));
                 }
             }
@@ -513,7 +513,7 @@ impl ShapeEsn {
                 }
             }
             let total: f64 = sq.iter().sum();
-            if best.as_ref().map_or(true, |b| total < b.0) {
+            if best.as_ref().is_none_or(|b| total < b.0) {
                 let spread = sq
                     .iter()
                     .map(|s| (s / held.len().max(1) as f64).sqrt())
