@@ -22,6 +22,7 @@ pub mod experiment;
 pub mod family;
 pub mod features;
 pub mod lead_in;
+mod linalg;
 pub mod method;
 pub mod methods;
 pub mod noise;

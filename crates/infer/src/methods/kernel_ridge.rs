@@ -134,7 +134,7 @@ pub(crate) fn solve(k: &DMatrix<f64>, ridge: f64, y: &[Vec<f64>]) -> Option<Vec<
     for i in 0..n {
         a[(i, i)] += ridge;
     }
-    let chol = a.cholesky()?;
+    let chol = crate::linalg::cholesky(a)?;
     Some(
         y.iter()
             .map(|t| {
@@ -247,8 +247,7 @@ impl Regression {
                 for i in 0..z.len() {
                     a[(i, i)] += ridge;
                 }
-                let chol = a
-                    .cholesky()
+                let chol = crate::linalg::cholesky(a)
                     .ok_or_else(|| fail("kernel matrix not positive definite"))?;
                 let alpha: Vec<f64> = chol
                     .solve(&DVector::from_column_slice(&y[u]))

@@ -133,9 +133,11 @@ fn nystrom_weights(
     kmm: &DMatrix<f64>,
     y: &DMatrix<f64>,
 ) -> Vec<Option<Vec<Vec<f64>>>> {
-    let a = knm.transpose() * knm;
-    let b = knm.transpose() * y;
     let m = kmm.nrows();
+    let mut a = DMatrix::zeros(m, m);
+    crate::linalg::add_gram_lower(&mut a, &knm.transpose());
+    crate::linalg::mirror_lower(&mut a);
+    let b = knm.transpose() * y;
     RIDGES
         .iter()
         .map(|&r| {
@@ -144,7 +146,7 @@ fn nystrom_weights(
             for i in 0..m {
                 s[(i, i)] += jitter;
             }
-            let alpha = s.cholesky()?.solve(&b);
+            let alpha = crate::linalg::cholesky(s)?.solve(&b);
             Some(
                 (0..y.ncols())
                     .map(|c| alpha.column(c).iter().copied().collect())

@@ -67,7 +67,7 @@ impl SeriesNoise {
                 c[(i, i)] += add + 1e-9;
             }
         }
-        let l = c.cholesky()?.unpack();
+        let l = crate::linalg::cholesky(c)?.unpack();
         let whiten = l.solve_lower_triangular(&DMatrix::identity(b, b))?;
         Some(SeriesNoise { whiten, shrinkage })
     }
