@@ -6,7 +6,8 @@
 //!   second, articulated-body solves per step and the cost of one step per segment (constant if
 //!   the step is O(N));
 //! - a batch of states against one model on every core, and the same batch on one thread, for
-//!   the parallel speedup;
+//!   the parallel speedup: once in free motion, once with every state held in contact by a peg
+//!   pressed into the whisker;
 //! - the ratio of the per-segment cost at the largest N to that at the smallest.
 //!
 //! Every measurement warms up, sizes its repetitions to a minimum duration, and keeps the best of
@@ -69,6 +70,10 @@ const BATCH_SEGMENTS: usize = 20;
 const DT: f64 = 1.0e-4;
 /// Largest joint amplitude of the initial first-mode vibration, rad.
 const AMPLITUDE: f64 = 1.0e-3;
+/// The peg of the in-contact batch: its radius, where it meets the whisker (m from the base),
+/// its speed into the whisker and how long it presses before the timed steps begin (m, m, m/s,
+/// s).
+const PEG: (f64, f64, f64, f64) = (1.0e-3, 0.015, 0.2, 5.0e-3);
 
 /// How long and how often to measure.
 #[derive(Debug, Clone, Copy)]
@@ -132,6 +137,10 @@ struct Single {
 /// Batched throughput on all threads and on one.
 #[derive(Debug, Clone, Serialize)]
 struct Batched {
+    /// `free` (the first-mode vibration of `small`) or `contact` (every state held against a
+    /// peg of radius 1 mm pressed into the whisker 15 mm from its base at 0.2 m/s, in contact
+    /// throughout the timed steps).
+    motion: &'static str,
     /// Segment count N of every state.
     segments: usize,
     /// States stepped together.
@@ -181,8 +190,10 @@ struct BenchReport {
     threads: usize,
     /// Single state, one thread, per N.
     single: Vec<Single>,
-    /// Batch of states.
+    /// Batch of states in free motion.
     batch: Batched,
+    /// The same batch, every state in contact with a peg.
+    batch_contact: Batched,
     /// Growth of the per-segment cost with N.
     scaling: Scaling,
 }
@@ -275,44 +286,37 @@ pub fn run(args: &Args) -> Result<()> {
         }
     }
 
-    // (b) A batch of states against one model, on every thread and then on one.
+    // (b) A batch of states against one model, on every thread and then on one: in free
+    // motion, then held in contact by a peg.
     let (model, initial) = setup(BATCH_SEGMENTS, "small")?;
-    let initial = vec![initial; plan.batch_states];
-    let mut states = initial.clone();
-    let mut batch_call = || -> Result<Duration> {
-        states.clone_from(&initial);
-        let start = Instant::now();
-        batch::step_all(&model, &stepper, &mut states, &inputs, plan.batch_steps)?;
-        black_box(&mut states);
-        Ok(start.elapsed())
+    let batch = batched(&plan, &model, &stepper, &initial, &inputs, "free")?;
+    let (radius, along, speed, press) = PEG;
+    let peg = [vibrissa_core::objects::Object {
+        shape: vibrissa_core::objects::Shape::Circle { radius },
+        position: [along, radius + speed * 0.2 * press],
+        angle: 0.0,
+        motion: vibrissa_core::objects::Motion::Constant {
+            velocity: [0.0, -speed],
+            angular_velocity: 0.0,
+        },
+        friction: 0.0,
+        vertical: None,
+    }];
+    let pressed = Inputs {
+        objects: &peg,
+        ..Inputs::default()
     };
-    eprintln!(
-        "bench: batch of {} states, N = {BATCH_SEGMENTS}, {threads} threads",
-        plan.batch_states
+    let mut held = State::at_rest(&model, 0);
+    let mut ws = Workspace::new(&model);
+    dynamics::initialize(&model, &mut held, &pressed, &mut ws)?;
+    while held.t < press {
+        dynamics::step(&model, &stepper, &mut held, &pressed, &mut ws)?;
+    }
+    anyhow::ensure!(
+        held.contact.is_some(),
+        "the in-contact batch's peg does not touch the whisker after {press} s"
     );
-    let parallel =
-        best_seconds_per_call(&plan, &mut batch_call).context("batched run on all threads")?;
-    eprintln!(
-        "bench: batch of {} states, N = {BATCH_SEGMENTS}, 1 thread",
-        plan.batch_states
-    );
-    let one_thread = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .context("could not start a one-thread pool")?
-        .install(|| best_seconds_per_call(&plan, &mut batch_call))
-        .context("batched run on one thread")?;
-    let state_steps = (plan.batch_states * plan.batch_steps) as f64;
-    let batch = Batched {
-        segments: BATCH_SEGMENTS,
-        states: plan.batch_states,
-        threads,
-        state_steps_per_second: state_steps / parallel,
-        seconds_per_state_step: parallel / state_steps,
-        single_thread_state_steps_per_second: state_steps / one_thread,
-        single_thread_seconds_per_state_step: one_thread / state_steps,
-        speedup: one_thread / parallel,
-    };
+    let batch_contact = batched(&plan, &model, &stepper, &held, &pressed, "contact")?;
 
     // (c) Growth of the per-segment cost from the smallest to the largest N (small motion).
     let (first, last) = (&single[0], &single[SEGMENTS.len() - 1]);
@@ -332,10 +336,67 @@ pub fn run(args: &Args) -> Result<()> {
         threads,
         single,
         batch,
+        batch_contact,
         scaling,
     };
     args.format.format().print(&report)?;
     Ok(())
+}
+
+/// Throughput of the plan's batch of copies of `initial` stepped together with `inputs`, on
+/// every thread and on one. With objects among the inputs, every state must still be touching
+/// one after the timed steps.
+fn batched(
+    plan: &Plan,
+    model: &Model,
+    stepper: &vibrissa_core::Stepper,
+    initial: &State,
+    inputs: &Inputs,
+    motion: &'static str,
+) -> Result<Batched> {
+    let threads = rayon::current_num_threads();
+    let initial = vec![initial.clone(); plan.batch_states];
+    let mut states = initial.clone();
+    let mut batch_call = || -> Result<Duration> {
+        states.clone_from(&initial);
+        let start = Instant::now();
+        batch::step_all(model, stepper, &mut states, inputs, plan.batch_steps)?;
+        let elapsed = start.elapsed();
+        black_box(&mut states);
+        anyhow::ensure!(
+            inputs.objects.is_empty() || states.iter().all(|s| s.contact.is_some()),
+            "a state of the in-contact batch lost contact during the timed steps"
+        );
+        Ok(elapsed)
+    };
+    eprintln!(
+        "bench: batch of {} states, N = {}, {motion}, {threads} threads",
+        plan.batch_states, model.n
+    );
+    let parallel =
+        best_seconds_per_call(plan, &mut batch_call).context("batched run on all threads")?;
+    eprintln!(
+        "bench: batch of {} states, N = {}, {motion}, 1 thread",
+        plan.batch_states, model.n
+    );
+    let one_thread = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .context("could not start a one-thread pool")?
+        .install(|| best_seconds_per_call(plan, &mut batch_call))
+        .context("batched run on one thread")?;
+    let state_steps = (plan.batch_states * plan.batch_steps) as f64;
+    Ok(Batched {
+        motion,
+        segments: model.n,
+        states: plan.batch_states,
+        threads,
+        state_steps_per_second: state_steps / parallel,
+        seconds_per_state_step: parallel / state_steps,
+        single_thread_state_steps_per_second: state_steps / one_thread,
+        single_thread_seconds_per_state_step: one_thread / state_steps,
+        speedup: one_thread / parallel,
+    })
 }
 
 /// Best (shortest) seconds per call of `call` over the plan's repetitions. `call` does one unit
@@ -403,27 +464,32 @@ impl Render for BenchReport {
         table.write(out, "  ")?;
         writeln!(out)?;
 
-        // Batch.
+        // Batches.
         let b = &self.batch;
         writeln!(out, "batch of {} states, N = {}", b.states, b.segments)?;
         let mut table = Table::new(&[
+            ("motion", Align::Left),
             ("threads", Align::Right),
             ("state-steps/s", Align::Right),
             ("ns/state-step", Align::Right),
             ("speedup", Align::Right),
         ]);
-        table.row(vec![
-            "1".into(),
-            grouped(b.single_thread_state_steps_per_second),
-            sig(b.single_thread_seconds_per_state_step * 1e9, 3),
-            "1.00".into(),
-        ]);
-        table.row(vec![
-            b.threads.to_string(),
-            grouped(b.state_steps_per_second),
-            sig(b.seconds_per_state_step * 1e9, 3),
-            format!("{:.2}", b.speedup),
-        ]);
+        for b in [&self.batch, &self.batch_contact] {
+            table.row(vec![
+                b.motion.to_string(),
+                "1".into(),
+                grouped(b.single_thread_state_steps_per_second),
+                sig(b.single_thread_seconds_per_state_step * 1e9, 3),
+                "1.00".into(),
+            ]);
+            table.row(vec![
+                b.motion.to_string(),
+                b.threads.to_string(),
+                grouped(b.state_steps_per_second),
+                sig(b.seconds_per_state_step * 1e9, 3),
+                format!("{:.2}", b.speedup),
+            ]);
+        }
         table.write(out, "  ")?;
         writeln!(out)?;
 

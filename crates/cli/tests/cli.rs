@@ -138,6 +138,14 @@ fn bench_quick_json_reports_positive_speeds() {
         .as_f64()
         .expect("batch.state_steps_per_second");
     assert!(batch.is_finite() && batch > 0.0, "{}", report["batch"]);
+    assert_eq!(report["batch"]["motion"], "free");
+    // The batch held in contact by a peg, the same way.
+    let contact = &report["batch_contact"];
+    assert_eq!(contact["motion"], "contact", "{contact}");
+    let rate = contact["state_steps_per_second"]
+        .as_f64()
+        .expect("batch_contact.state_steps_per_second");
+    assert!(rate.is_finite() && rate > 0.0, "{contact}");
     assert!(report["scaling"]["ratio"].as_f64().expect("scaling.ratio") > 0.0);
 }
 
