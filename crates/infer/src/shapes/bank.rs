@@ -20,7 +20,7 @@
 //! (at its own temperature, chosen by the held-out runs' pose errors), with a 90% interval as
 //! wide as the held-out runs' errors (a split-conformal interval).
 
-use super::estimator::ShapeEstimate;
+use super::estimator::{conformal_half_width, ShapeEstimate};
 use super::evaluate::subset;
 use super::family::{ShapeFamily, ShapeSample};
 use super::series_noise::SeriesNoise;
@@ -504,12 +504,7 @@ impl ShapeBank {
                             .zip(&runs)
                             .map(|(p, (_, s))| (p[u] - s.params[u]).abs())
                             .collect();
-                        e.sort_by(|a, b| a.total_cmp(b));
-                        if e.is_empty() {
-                            return 0.5 * spans[c][u];
-                        }
-                        let k = ((0.9 * (e.len() + 1) as f64).ceil() as usize).min(e.len());
-                        e[k - 1]
+                        conformal_half_width(&mut e).unwrap_or(0.5 * spans[c][u])
                     })
                     .collect()
             })

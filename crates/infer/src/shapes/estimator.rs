@@ -110,6 +110,18 @@ pub(super) fn fit_temperature(scores: &[Vec<f64>], labels: &[usize]) -> (f64, f6
     (u.exp(), f(u))
 }
 
+/// The split-conformal 90% half-width of held-out absolute errors `errors` (sorted here): the
+/// ⌈0.9·(n + 1)⌉-th smallest, which a new run's error exceeds with probability at most 10%
+/// when it is exchangeable with the held-out runs; `None` without errors.
+pub(super) fn conformal_half_width(errors: &mut [f64]) -> Option<f64> {
+    if errors.is_empty() {
+        return None;
+    }
+    errors.sort_by(|a, b| a.total_cmp(b));
+    let k = ((0.9 * (errors.len() + 1) as f64).ceil() as usize).min(errors.len());
+    Some(errors[k - 1])
+}
+
 /// The training runs used as the classifier's centres (Nyström landmarks): all of them up to
 /// [`LANDMARKS`], else that many spread evenly over them.
 fn landmarks(n: usize) -> Vec<usize> {
@@ -584,5 +596,15 @@ mod tests {
         assert!(t < 5.0, "{t}");
         let p = softmax(&[1.0, 0.0, 0.0], 2.0);
         assert!((p.iter().sum::<f64>() - 1.0).abs() < 1e-12 && p[0] > p[1]);
+    }
+
+    #[test]
+    fn conformal_half_width_is_the_held_out_quantile() {
+        // ⌈0.9·(n + 1)⌉-th smallest: the 10th of 10, the 90th of 99, whatever the order.
+        let mut e: Vec<f64> = (1..=10).rev().map(f64::from).collect();
+        assert_eq!(conformal_half_width(&mut e), Some(10.0));
+        let mut e: Vec<f64> = (1..=99).map(f64::from).collect();
+        assert_eq!(conformal_half_width(&mut e), Some(90.0));
+        assert_eq!(conformal_half_width(&mut []), None);
     }
 }

@@ -24,17 +24,17 @@
 //! classes' shares; sharper as the contact unfolds). The scores are floored, raised to a power
 //! and normalised; the floor and the power, like the ridge, are chosen by the log loss on every
 //! such sample of held-out training runs. Each class's pose is a ridge read-out of the features
-//! after the last sample, fitted on that class's runs, with a normal interval whose spread is
-//! the held-out runs' error.
+//! after the last sample, fitted on that class's runs, with a 90% interval whose half-width is
+//! the split-conformal quantile of the held-out runs' errors.
 //!
 //! The network starts at its rest state (the state it settles to without input). Its weights
 //! are drawn from a fixed seed, so a fit is reproducible.
 
-use super::estimator::{fit_temperature, softmax, Scales, ShapeEstimate};
+use super::estimator::{conformal_half_width, fit_temperature, softmax, Scales, ShapeEstimate};
 use super::family::{ShapeFamily, ShapeSample};
 use crate::error::{Error, Result};
 use crate::experiment::CHANNELS;
-use crate::method::Estimate;
+use crate::method::{Estimate, Z90};
 use crate::methods::kernel_ridge::HOLD;
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
@@ -220,7 +220,7 @@ pub struct ShapeEsn {
 }
 
 /// A class's pose read-out: weights (`unknowns × features`, values in units of the ranges),
-/// each unknown's held-out RMS error in the same units, and the ranges.
+/// each unknown's spread in the same units (see [`ShapeEsn::pose_readout`]), and the ranges.
 #[derive(Debug, Clone)]
 struct PoseReadout {
     weights: DMatrix<f64>,
@@ -480,7 +480,8 @@ impl ShapeEsn {
 
     /// A class's pose read-out from the final states of its runs `idx` (values in units of
     /// `ranges`): the ridge with the least held-out error, refitted on all of them, and each
-    /// unknown's held-out RMS error.
+    /// unknown's spread: the std of a normal whose 90% interval is the split-conformal
+    /// half-width of the held-out errors.
     fn pose_readout(
         finals: &[DVector<f64>],
         training: &[ShapeSample],
@@ -513,18 +514,26 @@ impl ShapeEsn {
         let mut best: Option<(f64, usize, Vec<f64>)> = None;
         for (r, m) in Self::ridge(&g, &c).into_iter().enumerate() {
             let Some(m) = m else { continue };
-            let mut sq = vec![0.0; ranges.len()];
+            // Each unknown's held-out errors; the intervals from the runs whose pose lies in
+            // the class's ranges (the recordings' prior: the training draws' margins reach
+            // beyond it, where the read-out errs more).
+            let mut total = 0.0;
+            let mut errors = vec![Vec::with_capacity(held.len()); ranges.len()];
             for &i in &held {
-                let e = &m * &finals[i] - target(i);
-                for (s, v) in sq.iter_mut().zip(e.iter()) {
-                    *s += v * v;
+                let y = target(i);
+                let e = &m * &finals[i] - &y;
+                total += e.norm_squared();
+                if y.iter().all(|v| (0.0..=1.0).contains(v)) {
+                    for (list, v) in errors.iter_mut().zip(e.iter()) {
+                        list.push(v.abs());
+                    }
                 }
             }
-            let total: f64 = sq.iter().sum();
             if best.as_ref().is_none_or(|b| total < b.0) {
-                let spread = sq
-                    .iter()
-                    .map(|s| (s / held.len().max(1) as f64).sqrt())
+                // The std of a normal whose 90% interval is the split-conformal half-width.
+                let spread = errors
+                    .iter_mut()
+                    .map(|e| conformal_half_width(e).unwrap_or(0.5) / Z90)
                     .collect();
                 best = Some((total, r, spread));
             }
