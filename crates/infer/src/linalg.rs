@@ -9,6 +9,8 @@
 //!
 //! [`add_gram_lower`] accumulates `Φ·Φᵀ` by blocks on and below the diagonal only, about half of
 //! a full product's arithmetic; [`mirror_lower`] then copies the lower triangle above.
+//! [`mul_lower_transposed`] multiplies by the transpose of a lower triangular matrix without
+//! the products of its zeros.
 
 use nalgebra::{Cholesky, DMatrix, Dyn};
 
@@ -80,6 +82,36 @@ pub fn mirror_lower(m: &mut DMatrix<f64>) {
     }
 }
 
+/// Columns per block of [`mul_lower_transposed`].
+const TRIANGLE_BLOCK: usize = 128;
+
+/// `x · lᵀ` for a lower triangular `l` (its entries above the diagonal are taken as zero):
+/// column `i` of the product needs the first `i + 1` columns of `x` only, so it is formed by
+/// blocks of columns, each one matrix product over the columns it needs, about half the
+/// arithmetic of a full product.
+pub fn mul_lower_transposed(x: &DMatrix<f64>, l: &DMatrix<f64>) -> DMatrix<f64> {
+    let (rows, b) = x.shape();
+    assert_eq!(l.shape(), (b, b), "mul_lower_transposed: sizes differ");
+    let lt = l.transpose();
+    let mut out = DMatrix::zeros(rows, b);
+    let mut i = 0;
+    while i < b {
+        let ib = TRIANGLE_BLOCK.min(b - i);
+        let k = i + ib;
+        let mut block = lt.view((0, i), (k, ib)).clone_owned();
+        // The part of the diagonal block above the diagonal of `l` (below it in `lᵀ`'s view).
+        for c in 0..ib {
+            for r in i + c + 1..k {
+                block[(r, c)] = 0.0;
+            }
+        }
+        out.view_mut((0, i), (rows, ib))
+            .gemm(1.0, &x.view((0, 0), (rows, k)), &block, 0.0);
+        i = k;
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -138,6 +170,23 @@ mod tests {
             mirror_lower(&mut ours);
             assert!((&ours - &full).amax() < 1e-12 * full.amax(), "f = {f}");
             assert_eq!(ours, ours.transpose(), "f = {f}: not symmetric");
+        }
+    }
+
+    #[test]
+    fn product_with_a_triangle_equals_the_full_product() {
+        let mut rng = Rng::new(10);
+        for (rows, b) in [(3, 1), (7, 128), (20, 129), (9, 300)] {
+            let x = DMatrix::from_fn(rows, b, |_, _| rng.normal());
+            // Garbage above the diagonal must be ignored.
+            let l = DMatrix::from_fn(b, b, |i, j| if j <= i { rng.normal() } else { f64::NAN });
+            let clean = DMatrix::from_fn(b, b, |i, j| if j <= i { l[(i, j)] } else { 0.0 });
+            let full = &x * clean.transpose();
+            let ours = mul_lower_transposed(&x, &l);
+            assert!(
+                (&ours - &full).amax() < 1e-12 * full.amax().max(1.0),
+                "{rows} × {b}"
+            );
         }
     }
 

@@ -190,17 +190,18 @@ fn scaled(whiskers: &[Vec<Vec<f64>>], sigma: &[f64; 5]) -> Vec<f64> {
     out
 }
 
-/// Runs scaled and whitened, every whisker's series by the noise's covariance.
+/// Runs scaled and whitened, every whisker's series by the noise's covariance (the whitening is
+/// lower triangular: see [`crate::linalg::mul_lower_transposed`]).
 fn whiten_runs(runs: &[&ShapeSample], sigma: &[f64; 5], noise: &SeriesNoise) -> Vec<Vec<f64>> {
     let whiskers = runs.first().map_or(0, |s| s.whiskers.len());
     let block = noise.width();
     let x: Vec<Vec<f64>> = runs.iter().map(|s| scaled(&s.whiskers, sigma)).collect();
-    // One row per whisker of every run, whitened as one matrix product.
+    // One row per whisker of every run, whitened together.
     let rows = DMatrix::from_fn(runs.len() * whiskers, block, |r, c| {
         x[r / whiskers][(r % whiskers) * block + c]
     });
     drop(x);
-    let u = rows * noise.whitening().transpose();
+    let u = crate::linalg::mul_lower_transposed(&rows, noise.whitening());
     (0..runs.len())
         .map(|k| {
             (0..whiskers)
