@@ -86,8 +86,15 @@ fn log_loss(scores: &[Vec<f64>], labels: &[usize], t: f64) -> f64 {
 /// The temperature in [0.1, 1000] that minimises [`log_loss`] (golden-section search on its
 /// logarithm; the loss is unimodal in it for scores that rank the true class first on average).
 pub(super) fn fit_temperature(scores: &[Vec<f64>], labels: &[usize]) -> (f64, f64) {
-    let f = |u: f64| log_loss(scores, labels, u.exp());
-    let (mut a, mut b) = (0.1f64.ln(), 1000f64.ln());
+    let (u, loss) = golden(
+        |u| log_loss(scores, labels, u.exp()),
+        (0.1f64.ln(), 1000f64.ln()),
+    );
+    (u.exp(), loss)
+}
+
+/// Golden-section search of `f` over `[a, b]` (60 steps); returns the argument and value.
+fn golden(f: impl Fn(f64) -> f64, (mut a, mut b): (f64, f64)) -> (f64, f64) {
     let g = (5f64.sqrt() - 1.0) / 2.0;
     let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
     let (mut fc, mut fd) = (f(c), f(d));
@@ -107,7 +114,61 @@ pub(super) fn fit_temperature(scores: &[Vec<f64>], labels: &[usize]) -> (f64, f6
         }
     }
     let u = 0.5 * (a + b);
-    (u.exp(), f(u))
+    (u, f(u))
+}
+
+/// A temperature that moves through a recording: `t0` at its first sample and `t1` at its
+/// last, geometrically in between (`t0^(1−τ)·t1^τ` at the share τ of the recording read).
+/// Scores early in a recording say little, late ones much; one temperature for all of them
+/// leaves the last too timid or the first too sure.
+pub(super) fn ramp(t: [f64; 2], tau: f64) -> f64 {
+    let tau = tau.clamp(0.0, 1.0);
+    (t[0].ln() * (1.0 - tau) + t[1].ln() * tau).exp()
+}
+
+/// The [`ramp`] in [0.1, 1000]² that minimises the log loss of `scores` (`[samples][classes]`,
+/// each read at the share `tau` of its recording) with their `labels`, from the constant
+/// temperature `start`: golden-section searches on the logarithm of each end in turn, until
+/// neither moves the loss by 1e-9.
+pub(super) fn fit_ramp(
+    scores: &[Vec<f64>],
+    labels: &[usize],
+    tau: &[f64],
+    start: f64,
+) -> ([f64; 2], f64) {
+    let loss = |t: [f64; 2]| {
+        scores
+            .iter()
+            .zip(labels)
+            .zip(tau)
+            .map(|((s, &l), &x)| -softmax(s, ramp(t, x))[l].max(1e-300).ln())
+            .sum::<f64>()
+            / scores.len().max(1) as f64
+    };
+    let range = (0.1f64.ln(), 1000f64.ln());
+    let mut t = [start, start];
+    let mut best = loss(t);
+    for _ in 0..6 {
+        let before = best;
+        for end in 0..2 {
+            let (u, l) = golden(
+                |u| {
+                    let mut x = t;
+                    x[end] = u.exp();
+                    loss(x)
+                },
+                range,
+            );
+            if l < best {
+                t[end] = u.exp();
+                best = l;
+            }
+        }
+        if before - best < 1e-9 {
+            break;
+        }
+    }
+    (t, best)
 }
 
 /// The split-conformal 90% half-width of held-out absolute errors `errors` (sorted here): the

@@ -22,15 +22,19 @@
 //! [`STRIDE`]-th sample of every training run to the run's class indicator, so its scores
 //! estimate the classes' probabilities given what has been read so far (before contact, the
 //! classes' shares; sharper as the contact unfolds). The scores are floored, raised to a power
-//! and normalised; the floor and the power, like the ridge, are chosen by the log loss on every
-//! such sample of held-out training runs. Each class's pose is a ridge read-out of the features
+//! and normalised; the floor and a power, like the ridge, are chosen by the log loss on every
+//! such sample of held-out training runs, and the power is then let move through the
+//! recording, from one value at its first sample to another at its last, fitted on the same
+//! samples (one power for all left the last sample's posterior too timid). Each class's pose is a ridge read-out of the features
 //! after the last sample, fitted on that class's runs, with a 90% interval whose half-width is
 //! the split-conformal quantile of the held-out runs' errors.
 //!
 //! The network starts at its rest state (the state it settles to without input). Its weights
 //! are drawn from a fixed seed, so a fit is reproducible.
 
-use super::estimator::{conformal_half_width, fit_temperature, softmax, Scales, ShapeEstimate};
+use super::estimator::{
+    conformal_half_width, fit_ramp, fit_temperature, ramp, softmax, Scales, ShapeEstimate,
+};
 use super::family::{ShapeFamily, ShapeSample};
 use crate::error::{Error, Result};
 use crate::experiment::CHANNELS;
@@ -184,6 +188,16 @@ impl Reservoir {
     }
 }
 
+/// The share of a recording of `samples` samples read after sample `k` (0 at the first, 1 at
+/// the last).
+fn sample_share(k: usize, samples: usize) -> f64 {
+    if samples > 1 {
+        k as f64 / (samples - 1) as f64
+    } else {
+        1.0
+    }
+}
+
 /// `tanh(x)` as `1 − 2/(e^{2x} + 1)`: one exponential, cheaper than the library's `tanh`
 /// (which the network's fit spent most of its stepping in). Its absolute error stays below
 /// 1e-15, far below what the read-out resolves.
@@ -211,9 +225,10 @@ pub struct ShapeEsn {
     /// Class read-out, `classes × features`.
     readout: DMatrix<f64>,
     /// The class probabilities are the read-out's scores (estimates of the indicators'
-    /// expectations) floored at `floor`, raised to `power` and normalised.
+    /// expectations) floored at `floor`, raised to a power and normalised; the power moves
+    /// from `power[0]` at the first sample to `power[1]` at the last (see `ramp`).
     floor: f64,
-    power: f64,
+    power: [f64; 2],
     /// Each class's pose read-out (`unknowns × features`, in units of the ranges), the
     /// held-out spread of each unknown (same units) and the ranges.
     poses: Vec<PoseReadout>,
@@ -411,7 +426,7 @@ impl ShapeEsn {
         let readouts: Vec<DMatrix<f64>> = candidates.iter().map(|c| c.1.clone()).collect();
         let held = Self::pass(&scales, &reservoir, &held_runs, classes, &readouts, memory);
         let labels: Vec<usize> = held_runs.iter().map(|s| s.class).collect();
-        let mut best: Option<(f64, usize, f64, f64)> = None;
+        let mut best: Option<(f64, usize, usize, f64, f64)> = None;
         for (r, &(ridge, _)) in candidates.iter().enumerate() {
             for floor in FLOORS {
                 // The logarithms of the floored scores and the labels of every held-out sample.
@@ -425,11 +440,21 @@ impl ShapeEsn {
                 }
                 let (power, loss) = fit_temperature(&logs, &each);
                 if best.is_none_or(|b| loss < b.0) {
-                    best = Some((loss, ridge, floor, power));
+                    best = Some((loss, r, ridge, floor, power));
                 }
             }
         }
-        let (_, ridge, floor, power) = best.expect("at least one candidate");
+        let (_, r, ridge, floor, power) = best.expect("at least one candidate");
+        // The power then moves through the recording (see `ramp`), fitted on the same samples.
+        let (mut logs, mut each, mut tau) = (Vec::new(), Vec::new(), Vec::new());
+        for (run, &l) in held.scores.iter().zip(&labels) {
+            for (j, s) in run[r].iter().enumerate() {
+                logs.push(s.iter().map(|v| v.max(floor).ln()).collect());
+                each.push(l);
+                tau.push(sample_share(j * STRIDE + STRIDE - 1, samples));
+            }
+        }
+        let (power, _) = fit_ramp(&logs, &each, &tau, power);
         // The final read-out on every run.
         let gram = &fitted.gram + &held.gram;
         let cross = &fitted.cross + &held.cross;
@@ -558,6 +583,7 @@ impl ShapeEsn {
             u: DMatrix::zeros(inputs, 1),
             phi: DMatrix::zeros(r.features_len(), 1),
             column: vec![0.0; inputs],
+            read: 0,
         }
     }
 
@@ -627,7 +653,8 @@ impl ShapeEsn {
         vec![
             ("units".into(), self.reservoir.size() as f64),
             ("class_floor".into(), self.floor),
-            ("class_power".into(), self.power),
+            ("class_power_first".into(), self.power[0]),
+            ("class_power_last".into(), self.power[1]),
         ]
     }
 }
@@ -641,6 +668,8 @@ pub struct Online<'a> {
     u: DMatrix<f64>,
     phi: DMatrix<f64>,
     column: Vec<f64>,
+    /// Samples read so far.
+    read: usize,
 }
 
 impl Online<'_> {
@@ -677,7 +706,9 @@ impl Online<'_> {
             .iter()
             .map(|s| s.max(m.floor).ln())
             .collect();
-        Ok(softmax(&logs, m.power))
+        let power = ramp(m.power, sample_share(self.read, m.samples));
+        self.read += 1;
+        Ok(softmax(&logs, power))
     }
 
     /// The estimate with posterior `p` at the current state.
