@@ -5,8 +5,10 @@
         [--vibrissa target/release/vibrissa] [--noise auto|none|CHANNEL=SIGMA,...]
         [--randomise] [--seed N] [--arg=--particles --arg=2000 ...]
 
-Prints, per method and per labelled unknown, the mean absolute error and the share of files
-whose 90% interval holds the truth. Needs only the Python standard library.
+Prints, per method and per labelled unknown, the mean absolute error, the share of files
+whose 90% interval holds the truth and the bias (mean of estimate minus truth: an error that
+leans one way, as a whisker described slightly wrong gives). Needs only the Python standard
+library.
 """
 import argparse
 import csv
@@ -43,7 +45,8 @@ def main():
     ]
 
     print(f"{len(files)} recordings in {a.labelled}, scenario {a.scenario}")
-    print(f"{'method':10}" + "".join(f"{'MAE ' + k:>14}{'cover ' + k:>12}" for k in keys))
+    print(f"{'method':10}" + "".join(f"{'MAE ' + k:>14}{'cover ' + k:>12}" for k in keys)
+          + "".join(f"{'bias ' + k:>14}" for k in keys))
     for m in methods:
         cmd = [a.vibrissa, "estimate", "--scenario", a.scenario, "--method", m, "--json"]
         if a.noise:
@@ -61,17 +64,18 @@ def main():
             continue
         text = out.stdout.strip()
         ests = [json.loads(line) for line in text.splitlines()] if len(files) > 1 else [json.loads(text)]
-        line = f"{m:10}"
+        line, biases = f"{m:10}", ""
         for k in keys:
             errs, cover = [], []
             for r, e in zip(rows, ests):
                 truth = float(r[k])
-                errs.append(abs(e[k]["mean"] - truth))
+                errs.append(e[k]["mean"] - truth)
                 lo, hi = e[k]["ci90"]
                 cover.append(lo <= truth <= hi)
-            mae = sum(errs) / len(errs)
+            mae = sum(abs(x) for x in errs) / len(errs)
             line += f"{mae:14.4g}{100 * sum(cover) / len(cover):11.0f}%"
-        print(line)
+            biases += f"{sum(errs) / len(errs):+14.3g}"
+        print(line + biases)
 
 
 if __name__ == "__main__":
