@@ -71,9 +71,10 @@ const DT: f64 = 1.0e-4;
 /// Largest joint amplitude of the initial first-mode vibration, rad.
 const AMPLITUDE: f64 = 1.0e-3;
 /// The peg of the in-contact batch: its radius, where it meets the whisker (m from the base),
-/// its speed into the whisker and how long it presses before the timed steps begin (m, m, m/s,
-/// s).
-const PEG: (f64, f64, f64, f64) = (1.0e-3, 0.015, 0.2, 5.0e-3);
+/// its speed into the whisker, how far its surface starts from the whisker's axis and how long
+/// it presses before the timed steps begin (m, m, m/s, m, s). It reaches the whisker (radius
+/// 0.1 mm) after 0.5 ms and pushes it 0.9 mm further before the timed steps.
+const PEG: (f64, f64, f64, f64, f64) = (1.0e-3, 0.015, 0.2, 2.0e-4, 5.0e-3);
 
 /// How long and how often to measure.
 #[derive(Debug, Clone, Copy)]
@@ -290,17 +291,13 @@ pub fn run(args: &Args) -> Result<()> {
     // motion, then held in contact by a peg.
     let (model, initial) = setup(BATCH_SEGMENTS, "small")?;
     let batch = batched(&plan, &model, &stepper, &initial, &inputs, "free")?;
-    let (radius, along, speed, press) = PEG;
+    let (radius, along, speed, start_gap, press) = PEG;
     let peg = [vibrissa_core::objects::Object {
-        shape: vibrissa_core::objects::Shape::Circle { radius },
-        position: [along, radius + speed * 0.2 * press],
-        angle: 0.0,
         motion: vibrissa_core::objects::Motion::Constant {
             velocity: [0.0, -speed],
             angular_velocity: 0.0,
         },
-        friction: 0.0,
-        vertical: None,
+        ..vibrissa_core::scenes::peg(along, radius + start_gap, radius, 0.0)
     }];
     let pressed = Inputs {
         objects: &peg,

@@ -52,13 +52,18 @@ pub fn cholesky(mut a: DMatrix<f64>) -> Option<Cholesky<f64, Dyn>> {
 /// Rows per block of [`add_gram_lower`].
 const GRAM_BLOCK: usize = 128;
 
-/// `gram += phi·phiᵀ` on and below the diagonal of `gram` (`f × f`, `phi` `f × k`), by blocks
-/// of rows: the blocks above the diagonal blocks are left as they were. [`mirror_lower`]
-/// completes the symmetric matrix once every term has been added.
-pub fn add_gram_lower(gram: &mut DMatrix<f64>, phi: &DMatrix<f64>) {
+/// `gram += phi·phiᵀ` on and below the diagonal of `gram` (`f × f`, `phi` `f × k`, `phi_t` its
+/// transpose, which callers often hold already), by blocks of rows: the blocks above the
+/// diagonal blocks are left as they were. [`mirror_lower`] completes the symmetric matrix once
+/// every term has been added.
+pub fn add_gram_lower(gram: &mut DMatrix<f64>, phi: &DMatrix<f64>, phi_t: &DMatrix<f64>) {
     let (f, k) = phi.shape();
     assert_eq!(gram.shape(), (f, f), "add_gram_lower: sizes differ");
-    let phi_t = phi.transpose();
+    assert_eq!(
+        phi_t.shape(),
+        (k, f),
+        "add_gram_lower: phi_t is not phi's transpose"
+    );
     let mut i = 0;
     while i < f {
         let ib = GRAM_BLOCK.min(f - i);
@@ -165,7 +170,7 @@ mod tests {
             for _ in 0..3 {
                 let phi = DMatrix::from_fn(f, k, |_, _| rng.normal());
                 full.gemm(1.0, &phi, &phi.transpose(), 1.0);
-                add_gram_lower(&mut ours, &phi);
+                add_gram_lower(&mut ours, &phi, &phi.transpose());
             }
             mirror_lower(&mut ours);
             assert!((&ours - &full).amax() < 1e-12 * full.amax(), "f = {f}");

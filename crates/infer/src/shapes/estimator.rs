@@ -207,10 +207,11 @@ fn nystrom_weights(
     y: &DMatrix<f64>,
 ) -> Vec<Option<Vec<Vec<f64>>>> {
     let m = kmm.nrows();
+    let knm_t = knm.transpose();
     let mut a = DMatrix::zeros(m, m);
-    crate::linalg::add_gram_lower(&mut a, &knm.transpose());
+    crate::linalg::add_gram_lower(&mut a, &knm_t, knm);
     crate::linalg::mirror_lower(&mut a);
-    let b = knm.transpose() * y;
+    let b = knm_t * y;
     RIDGES
         .iter()
         .map(|&r| {

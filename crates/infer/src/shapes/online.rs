@@ -25,9 +25,10 @@
 //! and normalised; the floor and a power, like the ridge, are chosen by the log loss on every
 //! such sample of held-out training runs, and the power is then let move through the
 //! recording, from one value at its first sample to another at its last, fitted on the same
-//! samples (one power for all left the last sample's posterior too timid). Each class's pose is a ridge read-out of the features
-//! after the last sample, fitted on that class's runs, with a 90% interval whose half-width is
-//! the split-conformal quantile of the held-out runs' errors.
+//! samples (one power for all left the last sample's posterior too timid). Each class's pose
+//! is a ridge read-out of the features after the last sample, fitted on that class's runs,
+//! with a 90% interval whose half-width is the split-conformal quantile of the held-out runs'
+//! errors.
 //!
 //! The network starts at its rest state (the state it settles to without input). Its weights
 //! are drawn from a fixed seed, so a fit is reproducible.
@@ -318,7 +319,7 @@ impl ShapeEsn {
                     if k % STRIDE != STRIDE - 1 {
                         continue;
                     }
-                    crate::linalg::add_gram_lower(&mut gram, &phi);
+                    crate::linalg::add_gram_lower(&mut gram, &phi, &phi.transpose());
                     cross.gemm(1.0, &phi, &y, 1.0);
                     for (r, readout) in readouts.iter().enumerate() {
                         let s = readout * &phi;
