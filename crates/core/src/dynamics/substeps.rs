@@ -11,8 +11,11 @@
 //! whisker or the object more than doubles its speed within one step.
 //!
 //! A substep in which some object begins or ends carrying contact force (an impact, a release)
-//! is taken again as five finer steps, so that the impact's impulse and the moment of release
-//! are resolved at a fifth of the substep.
+//! is taken again as two halves, and a half in which that happens again is halved in turn, down
+//! to a sixteenth of the substep ([`EVENT_DEPTH`] halvings): the event is located by bisection,
+//! so that the impact's impulse and the moment of release fall within a sixteenth of the
+//! substep of where they belong, at the cost of about two steps per halving. The halves that
+//! hold no event are taken whole.
 //!
 //! With [`Integrator::fit_first_mode`](super::Integrator::fit_first_mode), the steps taken
 //! whole are taken on a copy of the chain whose masses and inertias are scaled by
@@ -38,8 +41,9 @@ use crate::chain::Model;
 use crate::error::Result;
 use crate::objects::{bounds, closest};
 
-/// Finer steps of a substep in which contact begins or ends (an impact or a release).
-const EVENT_SUBSTEPS: usize = 5;
+/// Halvings by which an impact or a release is located within its substep (`2^EVENT_DEPTH`
+/// finer pieces at most).
+pub(crate) const EVENT_DEPTH: usize = 4;
 
 /// How many steps' worth of closing motion count as within reach.
 const REACH_STEPS: f64 = 2.0;
@@ -170,68 +174,114 @@ pub(super) fn take<F: Forcing + ?Sized>(
     backup.clone_from(state);
     let (t0, b0, b1) = (state.t, state.base, inputs.base);
     let n = model.n;
-    let scale_prev = |state: &mut State, factor: f64| {
-        let (v, v_prev) = state.x[n..4 * n].split_at_mut(2 * n);
-        for (p, v) in v_prev[..n].iter_mut().zip(&v[..n]) {
-            *p = v - factor * (v - *p);
-        }
-    };
-    scale_prev(state, 1.0 / m as f64);
-    let k = EVENT_SUBSTEPS;
-    let fine = Integrator {
-        dt: st.dt / (m * k) as f64,
-        contact_substeps: 1,
-        ..st.integrator()
+    scale_prev(n, state, 1.0 / m as f64);
+    let mut pool = std::mem::take(&mut ws.event_pool);
+    if pool.len() < EVENT_DEPTH + 1 {
+        pool.resize_with(EVENT_DEPTH + 1, || state.clone());
     }
-    .check()?;
-    let mut start = ws.event_backup.take().unwrap_or_else(|| state.clone());
     let mut result = Ok(());
     for j in 1..=m {
-        let base = if j == m {
-            b1
-        } else {
-            base_at(b0, b1, st.dt, j as f64 / m as f64)
-        };
-        let part = Inputs { base, ..*inputs };
-        if k > 1 {
-            start.clone_from(state);
-        }
-        result = step_whole(model, &sub, state, &part, ws, forcing);
+        let (c0, c1) = (
+            state.base,
+            if j == m {
+                b1
+            } else {
+                base_at(b0, b1, st.dt, j as f64 / m as f64)
+            },
+        );
+        let t_sub = state.t;
+        result = piece(model, &sub, state, c0, c1, inputs, ws, forcing, &mut pool);
         if result.is_err() {
             break;
         }
-        if k > 1 && state.touching != start.touching {
-            // An impact or a release: the substep again in finer steps.
-            state.clone_from(&start);
-            let (c0, t_sub) = (state.base, state.t);
-            for i in 1..=k {
-                let base = if i == k {
-                    part.base
-                } else {
-                    base_at(c0, part.base, sub.dt, i as f64 / k as f64)
-                };
-                let fine_part = Inputs { base, ..*inputs };
-                result = step_whole(model, &fine, state, &fine_part, ws, forcing);
-                if result.is_err() {
-                    break;
-                }
-            }
-            if result.is_err() {
-                break;
-            }
-            state.t = t_sub + sub.dt;
-        }
+        state.t = t_sub + sub.dt;
     }
-    ws.event_backup = Some(start);
+    ws.event_pool = pool;
     match result {
         Ok(()) => {
-            scale_prev(state, m as f64);
+            scale_prev(n, state, m as f64);
             state.t = t0 + st.dt;
         }
         Err(_) => state.clone_from(&backup),
     }
     ws.substep_backup = Some(backup);
     result
+}
+
+/// Takes one piece of a step of `sub` from `state` (base motion `c0` now, `c1` at its end): whole,
+/// and, when some object begins or ends carrying contact force in it and `pool` (one spare state
+/// per halving left) allows, again as two halves, each a piece in turn. On error the state is
+/// wherever the failed step left it.
+#[allow(clippy::too_many_arguments)]
+fn piece<F: Forcing + ?Sized>(
+    model: &Model,
+    sub: &Stepper,
+    state: &mut State,
+    c0: BaseMotion,
+    c1: BaseMotion,
+    inputs: &Inputs,
+    ws: &mut Workspace,
+    forcing: &mut F,
+    pool: &mut [State],
+) -> Result<()> {
+    let (start, rest) = match pool.split_first_mut() {
+        Some((start, rest)) if !rest.is_empty() => (start, rest),
+        _ => {
+            return step_whole(
+                model,
+                sub,
+                state,
+                &Inputs {
+                    base: c1,
+                    ..*inputs
+                },
+                ws,
+                forcing,
+            )
+        }
+    };
+    start.clone_from(state);
+    step_whole(
+        model,
+        sub,
+        state,
+        &Inputs {
+            base: c1,
+            ..*inputs
+        },
+        ws,
+        forcing,
+    )?;
+    if state.touching == start.touching {
+        return Ok(());
+    }
+    // An impact or a release within the piece: locate it in halves.
+    state.clone_from(start);
+    let half = Integrator {
+        dt: 0.5 * sub.dt,
+        contact_substeps: 1,
+        ..sub.integrator()
+    }
+    .check()?;
+    let t0 = state.t;
+    scale_prev(model.n, state, 0.5);
+    let middle = base_at(c0, c1, sub.dt, 0.5);
+    piece(model, &half, state, c0, middle, inputs, ws, forcing, rest)?;
+    state.t = t0 + half.dt;
+    piece(model, &half, state, middle, c1, inputs, ws, forcing, rest)?;
+    scale_prev(model.n, state, 2.0);
+    state.t = t0 + sub.dt;
+    Ok(())
+}
+
+/// Rescales the rates one step earlier in `state` (which predict the next step's first
+/// geometric iterate) to a step `factor` times as long: their difference from the rates now
+/// scales by `factor`.
+fn scale_prev(n: usize, state: &mut State, factor: f64) {
+    let (v, v_prev) = state.x[n..4 * n].split_at_mut(2 * n);
+    for (p, v) in v_prev[..n].iter_mut().zip(&v[..n]) {
+        *p = v - factor * (v - *p);
+    }
 }
 
 /// A chain whose masses are scaled so that its first mode rings at the source chain's first

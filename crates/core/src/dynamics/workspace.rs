@@ -62,8 +62,9 @@ pub struct Workspace {
     pub(super) backup: Option<State>,
     /// The state at the start of a step taken in substeps (restored if a substep fails).
     pub(super) substep_backup: Option<State>,
-    /// The state at the start of a substep (taken again in finer steps at an impact or release).
-    pub(super) event_backup: Option<State>,
+    /// The states at the start of a substep and of its halves (taken again in halves at an
+    /// impact or a release), one per level of the bisection.
+    pub(super) event_pool: Vec<State>,
     /// The chain fitted to a step's first mode: the source chain, the step and the fitted copy.
     pub(super) fitted: Option<Box<super::substeps::Fitted>>,
 }
@@ -90,7 +91,7 @@ impl Workspace {
             iterations: 0,
             backup: None,
             substep_backup: None,
-            event_backup: None,
+            event_pool: Vec::new(),
             fitted: None,
         }
     }
