@@ -27,7 +27,7 @@
 //! tolerance = 1e-5           # integrator: geometric tolerance, rad
 //! max_iterations = 6         # integrator: most geometric iterations per step, 1..=20
 //! contact_substeps = 1       # integrator: substeps of a step near contact, 1..=1000 (1: none;
-//!                            # e.g. dt = 1e-3 with 10; see docs/contact.md, "Long time steps")
+//!                            # e.g. dt = 1e-3 with 20; see docs/contact.md, "Long time steps")
 //! fit_first_mode = false     # integrator: whole steps on a chain whose first mode rings at its
 //!                            # own frequency at this dt (true | false; docs/contact.md)
 //! segments = 20              # segment count N
