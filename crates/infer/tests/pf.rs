@@ -407,3 +407,51 @@ fn a_randomised_filter_widens_its_intervals_to_hold_on_held_out_whiskers() {
     let nominal = fitted(&Family::builtin("e2").unwrap(), &level, &Options::new(50)).unwrap();
     assert!(nominal.interval_scale.is_empty());
 }
+
+/// On a randomised family the filter runs twice, the second time with alternatives drawn around
+/// the whiskers the first run favoured, each with its prior/proposal weight: on a whisker a fifth
+/// softer than the scenario's, the second run's whiskers lie nearer its modulus than the prior's
+/// draws do.
+#[test]
+fn the_second_pass_draws_its_whiskers_near_the_recording_s() {
+    let truth = Family::open("e2", &["whisker.youngs_modulus=2.4e9".to_string()]).unwrap();
+    let family = Family::builtin("e2").unwrap().randomised_if(true).unwrap();
+    let noise = Noise {
+        sensor: truth.noise(Variant::Noisy).unwrap().sensor.map(|s| 0.3 * s),
+        process: 0.0,
+    };
+    let mut filter = fitted(&family, noise, 1000);
+    filter.alternatives = 31;
+    let run = truth.simulate(&[0.022, 0.9], &noise, 3).unwrap();
+    let obs = Observations::at_rate(run.series, 1000.0);
+    let sigma = filter.sigma().unwrap();
+    let mut config = filter.config(&family, sigma).unwrap();
+    let first = config.alternatives.clone();
+    let post = filter.run_passes(&family, &mut config, &obs).unwrap();
+    let mean_log_modulus = |ws: &[vibrissa_core::whisker::WhiskerParams]| {
+        ws.iter()
+            .map(|w| (w.youngs_modulus / 3.0e9).ln())
+            .sum::<f64>()
+            / ws.len() as f64
+    };
+    let target = 0.8f64.ln();
+    let (before, after) = (
+        (mean_log_modulus(&first) - target).abs(),
+        (mean_log_modulus(&config.alternatives) - target).abs(),
+    );
+    assert!(after < 0.5 * before, "log-modulus miss {before} -> {after}");
+    assert_eq!(config.alternatives.len(), 31);
+    assert_eq!(config.whisker_log_weights.len(), 32);
+    assert_eq!(config.whisker_log_weights[0], 0.0);
+    assert!(config.whisker_log_weights.iter().all(|w| w.is_finite()));
+    assert_eq!(post.whisker_weights.len(), 32);
+    assert!((post.whisker_weights.iter().sum::<f64>() - 1.0).abs() < 1e-9);
+    let e = post.last();
+    assert!((e[0].mean - 0.022).abs() < 2e-3, "{e:?}");
+    // Without the second pass, the alternatives stay the prior's draws.
+    filter.refine = false;
+    let mut plain = filter.config(&family, sigma).unwrap();
+    filter.run_passes(&family, &mut plain, &obs).unwrap();
+    assert_eq!(plain.alternatives, first);
+    assert!(plain.whisker_log_weights.is_empty());
+}

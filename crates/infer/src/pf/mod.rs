@@ -37,6 +37,7 @@ mod likelihood;
 mod method;
 mod posterior;
 pub mod recording;
+mod refine;
 mod sampling;
 mod sensors;
 mod transition;
