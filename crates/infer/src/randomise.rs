@@ -224,30 +224,11 @@ impl Around {
     /// `s` with its whisker and sensor gains drawn from the prior by `seed` (the same seed gives
     /// the same draw).
     pub fn apply(&self, s: &mut Scenario, seed: u64) {
-        self.apply_uniforms(s, &Around::uniforms(seed));
-    }
-
-    /// The uniform numbers in [0, 1) behind the draw of `seed` ([`Around::apply_uniforms`]).
-    pub fn uniforms(seed: u64) -> [f64; UNIFORMS] {
-        let mut rng = Rng::stream(seed, 0xD0_A1A5);
-        std::array::from_fn(|_| rng.uniform())
-    }
-
-    /// `s` with its whisker and sensor gains set by the uniform numbers `u` (each in [0, 1]; a
-    /// draw from the prior when they are independent and uniform): the modulus, density, damping
-    /// and a spring follicle's factors (`u[0..4]`), whether a clamped follicle becomes a spring,
-    /// its compliance and damper (`u[4..7]`), whether the whisker tapers and its tip radius
-    /// (`u[7..9]`), the five sensor gains (`u[9..14]`) and the chain's segments and stiffness
-    /// rule (`u[14..17]`). The first [`WHISKER_UNIFORMS`] set the whisker alone.
-    pub fn apply_uniforms(&self, s: &mut Scenario, u: &[f64; UNIFORMS]) {
         let p = &self.prior;
-        let factor = |half: f64, u: f64| (half * (2.0 * u - 1.0)).exp();
-        let (fe, fr, fd) = (
-            factor(p.modulus, u[0]),
-            factor(p.density, u[1]),
-            factor(p.damping, u[2]),
-        );
-        let fs = factor(p.spring, u[3]);
+        let mut rng = Rng::stream(seed, 0xD0_A1A5);
+        let mut factor = |half: f64| (half * (2.0 * rng.uniform() - 1.0)).exp();
+        let (fe, fr, fd) = (factor(p.modulus), factor(p.density), factor(p.damping));
+        let fs = factor(p.spring);
         let w = &mut s.whisker;
         w.youngs_modulus *= fe;
         w.density *= fr;
@@ -261,7 +242,7 @@ impl Around {
             }
             Damping::None => Damping::None,
         };
-        let (u_follicle, u_compliance, u_tau) = (u[4], u[5], u[6]);
+        let (u_follicle, u_compliance, u_tau) = (rng.uniform(), rng.uniform(), rng.uniform());
         w.follicle = match w.follicle {
             Follicle::Clamped if u_follicle < p.follicle => {
                 let [lo, hi] = p.compliance;
@@ -283,17 +264,17 @@ impl Around {
             },
             f => f,
         };
-        let (u_taper, u_tip) = (u[7], u[8]);
+        let (u_taper, u_tip) = (rng.uniform(), rng.uniform());
         if u_taper < p.taper {
             let [lo, hi] = p.tip;
             w.tip_radius = (w.tip_radius * (lo + u_tip * (hi - lo))).min(w.base_radius);
         }
         let nominal = s.sensor_response.to_array();
         s.sensor_response = SensorResponse::from_array(std::array::from_fn(|c| Response {
-            gain: nominal[c].gain * (1.0 + p.gain * (2.0 * u[9 + c] - 1.0)),
+            gain: nominal[c].gain * (1.0 + p.gain * (2.0 * rng.uniform() - 1.0)),
             offset: nominal[c].offset,
         }));
-        let (u_resegment, u_segments, u_rule) = (u[14], u[15], u[16]);
+        let (u_resegment, u_segments, u_rule) = (rng.uniform(), rng.uniform(), rng.uniform());
         if u_resegment < p.resegment {
             let [lo, hi] = p.segments;
             let factor = (lo.ln() + u_segments * (hi / lo).ln()).exp();
@@ -304,12 +285,6 @@ impl Around {
         }
     }
 }
-
-/// Uniform numbers behind one draw of [`Around::apply_uniforms`].
-pub const UNIFORMS: usize = 17;
-
-/// The first of [`UNIFORMS`] that set the whisker alone (not the sensors or the chain).
-pub const WHISKER_UNIFORMS: usize = 9;
 
 #[cfg(test)]
 mod tests {

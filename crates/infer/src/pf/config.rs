@@ -67,10 +67,6 @@ pub struct Config {
     /// resampled descendants, so the posterior weighs the whiskers by how well they explain the
     /// recording.
     pub alternatives: Vec<WhiskerParams>,
-    /// Prior log weight of each whisker, `whisker` first, then `alternatives` (empty: all
-    /// equal). Whiskers drawn from another distribution than the prior carry prior/proposal
-    /// here (see `refine`).
-    pub whisker_log_weights: Vec<f64>,
     /// Segments of the filter's chain. It may be coarser than the observed chain: its joint
     /// angles are mapped onto the observed chain's joints (see [`map_joints`]).
     pub segments: usize,
@@ -142,7 +138,6 @@ impl Config {
             seed,
             whisker: WhiskerParams::w30(),
             alternatives: Vec::new(),
-            whisker_log_weights: Vec::new(),
             segments: 5,
             observed_segments: 20,
             discretisation: Discretisation::default(),
@@ -237,15 +232,6 @@ impl Config {
             return bad(
                 "alternatives",
                 "fewer alternative whiskers than particles (and than 65535)",
-            );
-        }
-        if !(self.whisker_log_weights.is_empty()
-            || (self.whisker_log_weights.len() == 1 + self.alternatives.len()
-                && self.whisker_log_weights.iter().all(|w| w.is_finite())))
-        {
-            return bad(
-                "whisker_log_weights",
-                "none, or one finite log weight per whisker (the whisker and each alternative)",
             );
         }
         if !(self.dt > 0.0 && self.dt <= 1e-3) {

@@ -150,11 +150,11 @@ impl Filter {
             .collect();
         let mut objs: Vec<ObjState> = Vec::with_capacity(np);
         let mut logw: Vec<f64> = Vec::with_capacity(np);
-        for (i, h) in hyp.iter().enumerate() {
+        for i in 0..np {
             let mut rng = Rng::stream(config.seed, STREAM_PRIOR + i as u64);
             let (o, lw) = draw_initial(config, &mut rng);
             objs.push(o);
-            logw.push(lw + config.whisker_log_weights.get(*h as usize).unwrap_or(&0.0));
+            logw.push(lw);
         }
         let free: Vec<usize> = (0..PARAMS.len())
             .filter(|&k| config.priors[k].is_free())
@@ -233,27 +233,7 @@ impl Filter {
     pub fn finish(mut self) -> Posterior {
         let np = self.config.particles;
         self.post.ringing_share = self.ringing_samples as f64 / (np * self.samples.max(1)) as f64;
-        self.post.whisker_weights = self.whisker_weights();
         self.post
-    }
-
-    /// The posterior weight of each whisker entertained (`config.whisker` first, then its
-    /// alternatives) after the last sample: the sum of its particles' weights.
-    pub fn whisker_weights(&self) -> Vec<f64> {
-        let mut out = vec![0.0; self.hyps.len()];
-        match &self.last {
-            Some((_, w)) => {
-                for (h, w) in self.hyp.iter().zip(w) {
-                    out[*h as usize] += w;
-                }
-            }
-            None => {
-                for h in &self.hyp {
-                    out[*h as usize] += 1.0 / self.hyp.len() as f64;
-                }
-            }
-        }
-        out
     }
 
     /// Takes the sample `y` (theta01, theta12, m0, fx, fy; `NaN` where a channel is missing) at

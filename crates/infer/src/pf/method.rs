@@ -6,7 +6,6 @@ use super::likelihood::{
     observation_sigma, temper_for, TransitionModel, FINE_TEMPER, MODEL_ERROR, UNKNOWN_START_TEMPER,
 };
 use super::posterior::{Observations, Posterior};
-use super::refine;
 use super::sensors::SensorSpread;
 use crate::error::{Error, Result};
 use crate::experiment::CHANNELS;
@@ -61,10 +60,6 @@ pub struct Pf {
     /// none): set by [`super::recording::fitted`] from held-out runs of a randomised family, so
     /// that they hold on whiskers it has not seen.
     pub interval_scale: Vec<(String, f64)>,
-    /// Whether, on a randomised family not written by calibration, each recording is filtered
-    /// twice: the second time with alternatives drawn around the whiskers the first favoured
-    /// (`refine`).
-    pub refine: bool,
     /// Whether the family it was fitted to is randomised.
     randomised: bool,
     /// Whether the family it was fitted to was written by calibration.
@@ -202,7 +197,6 @@ impl Pf {
             sensor_spread: None,
             alternatives: ALTERNATIVES,
             interval_scale: Vec::new(),
-            refine: true,
             randomised: false,
             calibrated: false,
             sigma: None,
@@ -330,50 +324,12 @@ impl Pf {
                 std: [e[0].std.max(1e-5), v.std.max(1e-3)],
             });
         }
-        let observations = Observations::at_rate(obs.to_vec(), family.sample_rate());
-        let post = self.run_passes(family, &mut config, &observations)?;
+        let post = run(
+            &config,
+            &Observations::at_rate(obs.to_vec(), family.sample_rate()),
+            &mut |_| {},
+        )?;
         self.tally.add(&post);
-        Ok(post)
-    }
-
-    /// Runs the filter with `config` (from [`Pf::config`]) over `obs`; on a randomised family not
-    /// written by calibration, and with [`Pf::refine`], a second time with alternatives drawn
-    /// around the whiskers that the first run favoured (see `refine`), whose posterior it
-    /// returns. `config` is left as the last run's.
-    pub fn run_passes(
-        &self,
-        family: &crate::Family,
-        config: &mut Config,
-        obs: &Observations,
-    ) -> Result<Posterior> {
-        let mut post = run(config, obs, &mut |_| {})?;
-        let Some(prior) = family.randomisation() else {
-            return Ok(post);
-        };
-        if !self.refine || family.is_calibrated() || config.alternatives.is_empty() {
-            return Ok(post);
-        }
-        let around = crate::randomise::Around::new(family.base(), prior)?;
-        let first: Vec<_> = std::iter::once(refine::nominal_uniforms())
-            .chain(
-                (0..config.alternatives.len() as u64)
-                    .map(|i| crate::randomise::Around::uniforms(ALTERNATIVE_SEED + i)),
-            )
-            .collect();
-        if let Some((whiskers, log_weights)) = refine::second_pass(
-            &around,
-            family.base(),
-            &first,
-            &post.whisker_weights,
-            config.alternatives.len(),
-            self.seed,
-        )? {
-            config.alternatives = whiskers;
-            config.whisker_log_weights = log_weights;
-            let steps = post.steps;
-            post = run(config, obs, &mut |_| {})?;
-            post.steps += steps;
-        }
         Ok(post)
     }
 

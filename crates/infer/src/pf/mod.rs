@@ -37,7 +37,6 @@ mod likelihood;
 mod method;
 mod posterior;
 pub mod recording;
-mod refine;
 mod sampling;
 mod sensors;
 mod transition;

@@ -82,9 +82,6 @@ pub struct Posterior {
     /// [`crate::experiment::CHANNELS`], when the filter was not told them exactly
     /// ([`super::Config::sensor_spread`]).
     pub sensors: Option<SensorPosterior>,
-    /// Posterior weight of each whisker the filter entertained, the scenario's first, then its
-    /// alternatives (one entry, 1, when the whisker is known).
-    pub whisker_weights: Vec<f64>,
 }
 
 /// The posterior of the sensors' gains and offsets (their mean and standard deviation over the
@@ -112,7 +109,6 @@ impl Posterior {
             log_evidence: 0.0,
             rate_widening: 1.0,
             sensors: None,
-            whisker_weights: vec![1.0],
         }
     }
 

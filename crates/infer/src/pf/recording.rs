@@ -4,7 +4,7 @@
 //! of (a collapsed effective sample size, data that no particle explains, a posterior at an end
 //! of its prior, diverged steps).
 
-use super::{Config, Injection, Observations, Pf, Posterior, Prior, TransitionModel, PARAMS};
+use super::{run, Config, Injection, Observations, Pf, Posterior, Prior, TransitionModel, PARAMS};
 use crate::evaluate::training_for;
 use crate::recording::Recording;
 use crate::{Family, Method, Result};
@@ -330,7 +330,7 @@ pub fn estimate(
         t: rec.t.iter().map(|t| t - rec.t[0]).collect(),
         values: rec.values.clone(),
     };
-    let mut posterior = filter.run_passes(family, &mut config, &obs)?;
+    let mut posterior = run(&config, &obs, &mut |_| {})?;
     let misfit = filter.misfit(&posterior, config.channels.len());
     if !filter.interval_scale.is_empty() {
         posterior.widen(&filter.widening(&posterior.unknowns));
