@@ -73,6 +73,10 @@ pub fn run(args: &Args) -> Result<()> {
 
     // Load and run, with progress on standard error for long runs.
     let loaded = scenario::load_full(&args.scenario, &args.sets)?;
+    let objects = !loaded.scenario.objects.is_empty();
+    if let Some(w) = loaded.scenario.integrator.coarse_contact_warning(objects) {
+        eprintln!("warning: {w}");
+    }
     if !loaded.whiskers.is_empty() {
         return run_array(args, &loaded);
     }

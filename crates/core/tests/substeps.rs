@@ -194,3 +194,18 @@ fn bad_settings_name_their_key() {
         assert!(e.contains("contact_substeps") && e.contains("1000"), "{e}");
     }
 }
+
+#[test]
+fn a_long_step_without_substeps_near_objects_is_warned_of() {
+    let plain = Integrator::with_dt(1e-3);
+    let w = plain
+        .coarse_contact_warning(true)
+        .expect("a warning at 1 ms");
+    assert!(w.contains("contact_substeps"), "{w}");
+    assert!(plain.coarse_contact_warning(false).is_none());
+    assert!(long_step().coarse_contact_warning(true).is_none());
+    assert!(Integrator::default().coarse_contact_warning(true).is_none());
+    assert!(Integrator::with_dt(2.5e-4)
+        .coarse_contact_warning(true)
+        .is_none());
+}
