@@ -224,34 +224,16 @@ fn piece<F: Forcing + ?Sized>(
     forcing: &mut F,
     pool: &mut [State],
 ) -> Result<()> {
+    let part = Inputs {
+        base: c1,
+        ..*inputs
+    };
     let (start, rest) = match pool.split_first_mut() {
         Some((start, rest)) if !rest.is_empty() => (start, rest),
-        _ => {
-            return step_whole(
-                model,
-                sub,
-                state,
-                &Inputs {
-                    base: c1,
-                    ..*inputs
-                },
-                ws,
-                forcing,
-            )
-        }
+        _ => return step_whole(model, sub, state, &part, ws, forcing),
     };
     start.clone_from(state);
-    step_whole(
-        model,
-        sub,
-        state,
-        &Inputs {
-            base: c1,
-            ..*inputs
-        },
-        ws,
-        forcing,
-    )?;
+    step_whole(model, sub, state, &part, ws, forcing)?;
     if state.touching == start.touching {
         return Ok(());
     }
