@@ -51,6 +51,11 @@ pub struct Args {
     /// Most Levenberg–Marquardt iterations of one fit.
     #[arg(long, default_value_t = Settings::default().max_iterations)]
     pub max_iterations: usize,
+    /// Starting points carried on to convergence after the short fits: the lowest minimum is
+    /// the fit, and the others within twice its cost widen the standard errors (the cost has
+    /// many minima; more finalists search wider, at about a tenth more time each).
+    #[arg(long, default_value_t = Settings::default().finalists, value_name = "N")]
+    pub finalists: usize,
     #[command(flatten)]
     pub format: FormatArgs,
 }
@@ -96,6 +101,9 @@ pub fn run(args: &Args) -> Result<()> {
     if args.max_iterations == 0 {
         bail!("--max-iterations must be at least 1");
     }
+    if args.finalists == 0 {
+        bail!("--finalists must be at least 1 (the start whose minimum is the fit)");
+    }
     if !(args.gain_prior >= 0.0 && args.gain_prior.is_finite()) {
         bail!(
             "--gain-prior {}: give the gains' relative prior standard deviation, a number ≥ 0 \
@@ -118,6 +126,7 @@ pub fn run(args: &Args) -> Result<()> {
     let settings = Settings {
         max_iterations: args.max_iterations,
         gain_prior: args.gain_prior,
+        finalists: args.finalists,
         ..Settings::default()
     };
     let start = Instant::now();

@@ -3,7 +3,8 @@
 //! ```sh
 //! cargo run --release -p vibrissa-infer --example calibrate_standins -- \
 //!     [--seeds 1..20] [--segments 20] [--discretisation gregory] [--nominal e2] [--out DIR] \
-//!     [--calib-noise 0] [--step 0.03] [--gain-prior 0.1] [--noise-rounds 3] [--truth-start]
+//!     [--calib-noise 0] [--step 0.03] [--gain-prior 0.1] [--noise-rounds 3] [--finalists 2]
+//!     [--truth-start]
 //! ```
 //!
 //! For every seed: draw a stand-in whisker from the nominal scenario (`vibrissa_infer::standin`),
@@ -55,6 +56,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
             "--step" => settings.step = value()?.parse()?,
             "--gain-prior" => settings.gain_prior = value()?.parse()?,
             "--noise-rounds" => settings.noise_rounds = value()?.parse()?,
+            "--finalists" => settings.finalists = value()?.parse()?,
             "--truth-start" => truth_start = true,
             _ => return Err(format!("unknown option {flag}").into()),
         }

@@ -134,6 +134,9 @@ pub struct Settings {
     /// Prior standard deviation of each fitted sensor gain about its nominal value, relative
     /// (0.1: the gains are known to about ±10%); 0 fits the gains by maximum likelihood alone.
     pub gain_prior: f64,
+    /// Starts carried on to convergence after the short fits (at least 1); the lowest minimum
+    /// wins, and the others' spread enters the standard errors (see [`calibrate`]).
+    pub finalists: usize,
 }
 
 impl Default for Settings {
@@ -145,6 +148,7 @@ impl Default for Settings {
             step: 0.03,
             threshold: 0.5,
             gain_prior: 0.1,
+            finalists: FINALISTS,
         }
     }
 }
@@ -367,7 +371,7 @@ pub fn calibrate(
     } else {
         setup.gain_prior = START_GAIN_PRIOR;
     }
-    let (mut z, mut resp) = best_start(
+    let (best, others) = best_start(
         &setup,
         &z,
         settings,
@@ -376,6 +380,7 @@ pub fn calibrate(
         &mut fits,
         progress,
     )?;
+    let (mut z, mut resp) = (best.z.clone(), best.resp);
     setup.gain_prior = settings.gain_prior;
     let (solution, cov) = loop {
         let sol = fit_with_noise(
@@ -393,6 +398,7 @@ pub fn calibrate(
         match worst_undetermined(&setup, &sol, &cov, settings, &reference) {
             None => {
                 fit::add_roughness(&setup, &sol, &mut cov, &count)?;
+                add_other_minima(&setup, &sol, &mut cov, &best, &others);
                 break (sol, cov);
             }
             Some((Held::Param(i), note)) => {
@@ -463,8 +469,21 @@ const STARTS: usize = 8;
 /// Iterations every start is taken before the starts are ranked by their cost.
 const SHORT_ITERATIONS: usize = 4;
 
-/// Starts carried on to convergence after the ranking; the lowest minimum wins.
-const FINALISTS: usize = 2;
+/// Starts carried on to convergence after the ranking by default
+/// ([`Settings::finalists`]); the lowest minimum wins, and the others within
+/// [`OTHER_MINIMA_COST`] of it widen the standard errors.
+const FINALISTS: usize = 4;
+
+/// A local minimum of the cost that a start of the search converged to.
+struct Minimum {
+    /// Its cost (sum of squared weighted residuals, with the search's noise levels).
+    cost: f64,
+    /// Its free parameters, and every parameter's value.
+    z: Vec<f64>,
+    x: Vec<Option<f64>>,
+    /// The gains and offsets there.
+    resp: [Response; CHANNELS],
+}
 
 /// The start of the final fit: the best of several short fits.
 ///
@@ -487,7 +506,7 @@ fn best_start(
     iterations: &mut usize,
     fits: &mut usize,
     progress: &mut dyn FnMut(&Progress),
-) -> Result<(Vec<f64>, [Response; CHANNELS])> {
+) -> Result<(Minimum, Vec<Minimum>)> {
     use rayon::prelude::*;
     let free = setup.free_indices();
     let slot = |kind: Kind| free.iter().position(|&i| setup.params[i].kind == kind);
@@ -586,10 +605,10 @@ fn best_start(
         }
     }
     searches.sort_by(|a, b| a.1.cost.total_cmp(&b.1.cost));
-    let mut best: Option<(f64, Vec<f64>, [Response; CHANNELS])> = None;
+    let mut minima: Vec<Minimum> = Vec::new();
     for (rank, (k, s)) in searches.into_iter().enumerate() {
         // The others end here; their iterations count all the same.
-        if rank >= FINALISTS {
+        if rank >= settings.finalists {
             *fits += 1;
             *iterations += s.iterations;
             continue;
@@ -600,27 +619,103 @@ fn best_start(
                 *fits += 1;
                 *iterations += sol.iterations;
                 let cost = setup.residual(&sol.sims, &sol.resp).norm_squared();
-                if best.as_ref().is_none_or(|b| cost < b.0) {
-                    best = Some((cost, sol.z, sol.resp));
-                }
+                minima.push(Minimum {
+                    cost,
+                    x: setup.full_x(&sol.z),
+                    z: sol.z,
+                    resp: sol.resp,
+                });
             }
             Err(e) => last_error = Some(e),
         }
     }
-    match (best, last_error) {
-        (Some((_, z, resp)), _) => Ok((z, resp)),
-        (None, Some(e)) => Err(e),
-        (None, None) => Err(Error::Calibration(
+    minima.sort_by(|a, b| a.cost.total_cmp(&b.cost));
+    match (minima.is_empty(), last_error) {
+        (false, _) => {
+            let best = minima.remove(0);
+            Ok((best, minima))
+        }
+        (true, Some(e)) => Err(e),
+        (true, None) => Err(Error::Calibration(
             "no starting point of the fit simulates".into(),
         )),
     }
 }
 
+/// Other minima count towards the errors when their cost is within this factor of the best's.
+/// Between points 2% apart in the parameters the residual's RMS jumps by up to 30% (the
+/// simulations' roughness: docs/calibration.md), so the cost by up to 1.7 times: minima within
+/// twice the best cost are not told apart by it.
+const OTHER_MINIMA_COST: f64 = 2.0;
+
+/// Adds to `cov` the spread of the other minima the search converged to (`others`, beside the
+/// `best` one that led to `sol`): the mean of `(x_k − x̂)(x_k − x̂)ᵀ` over those whose cost is
+/// within [`OTHER_MINIMA_COST`] of the best's, over the free whisker parameters, the gains and
+/// the offsets.
+///
+/// The cost is rough and its minima many (docs/calibration.md, "Parameter recovery"): which one
+/// the search ends in depends on where it started, and among minima of about the same cost a
+/// lower one is no nearer the truth. A local error (the cost's curvature, the roughness next to
+/// the solution) cannot see that choice; the minima reached from other starts measure it.
+fn add_other_minima(
+    setup: &Setup,
+    sol: &Solution,
+    cov: &mut fit::Covariance,
+    best: &Minimum,
+    others: &[Minimum],
+) {
+    let free = setup.free_indices();
+    let gains = setup.gains();
+    let x = setup.full_x(&sol.z);
+    let near: Vec<&Minimum> = others
+        .iter()
+        .filter(|m| m.cost <= OTHER_MINIMA_COST * best.cost)
+        .collect();
+    if near.is_empty() {
+        return;
+    }
+    let p = free.len() + gains.len() + setup.channels.len();
+    let deviations: Vec<nalgebra::DVector<f64>> = near
+        .iter()
+        .map(|m| {
+            let mut d = nalgebra::DVector::<f64>::zeros(p);
+            for (a, &i) in free.iter().enumerate() {
+                if let (Some(xi), Some(mi)) = (x[i], m.x[i]) {
+                    d[a] = mi - xi;
+                }
+            }
+            for (k, &c) in gains.iter().enumerate() {
+                d[free.len() + k] = m.resp[c].gain - sol.resp[c].gain;
+            }
+            for (k, &c) in setup.channels.iter().enumerate() {
+                d[free.len() + gains.len() + k] = m.resp[c].offset - sol.resp[c].offset;
+            }
+            d
+        })
+        .collect();
+    let extra = spread(&deviations, p);
+    let mut view = cov.cov.view_mut((0, 0), (p, p));
+    view += extra;
+}
+
+/// The mean of `d dᵀ` over `deviations` (each of length `p`): the spread of points about a
+/// centre, as a covariance.
+fn spread(deviations: &[nalgebra::DVector<f64>], p: usize) -> nalgebra::DMatrix<f64> {
+    let mut out = nalgebra::DMatrix::<f64>::zeros(p, p);
+    for d in deviations {
+        out += d * d.transpose();
+    }
+    if !deviations.is_empty() {
+        out /= deviations.len() as f64;
+    }
+    out
+}
+
 /// Refuses settings out of range.
 fn check_settings(s: &Settings) -> Result<()> {
-    if s.max_iterations == 0 || s.noise_rounds == 0 {
+    if s.max_iterations == 0 || s.noise_rounds == 0 || s.finalists == 0 {
         return Err(Error::Setting(
-            "calibration: max_iterations and noise_rounds must be at least 1".into(),
+            "calibration: max_iterations, noise_rounds and finalists must be at least 1".into(),
         ));
     }
     if !(s.gain_prior >= 0.0 && s.gain_prior.is_finite()) {
@@ -1041,4 +1136,34 @@ fn overrides(setup: &Setup, phys: &[(f64, Vec<f64>)], resp: &[Response; CHANNELS
         ));
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{DMatrix, DVector};
+
+    #[test]
+    fn the_spread_of_other_minima_is_the_mean_outer_product_of_their_deviations() {
+        let d = [
+            DVector::from_vec(vec![1.0, 0.0]),
+            DVector::from_vec(vec![-1.0, 2.0]),
+        ];
+        let s = spread(&d, 2);
+        assert_eq!(s, DMatrix::from_row_slice(2, 2, &[1.0, -1.0, -1.0, 2.0]));
+        // One other minimum a distance δ away: a standard error of δ, so two of them reach it.
+        let one = spread(&[DVector::from_vec(vec![0.3])], 1);
+        assert!((one[(0, 0)].sqrt() - 0.3).abs() < 1e-15);
+        assert_eq!(spread(&[], 3), DMatrix::zeros(3, 3));
+    }
+
+    #[test]
+    fn no_finalist_is_refused() {
+        let settings = Settings {
+            finalists: 0,
+            ..Settings::default()
+        };
+        let err = check_settings(&settings).unwrap_err().to_string();
+        assert!(err.contains("finalists"), "{err}");
+    }
 }
