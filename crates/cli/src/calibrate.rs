@@ -81,6 +81,8 @@ struct Report {
     iterations: usize,
     fits: usize,
     simulations: usize,
+    /// Other minima of the cost whose spread is in the standard errors.
+    other_minima: usize,
     /// Wall-clock time of the fit, s.
     seconds: f64,
 }
@@ -172,6 +174,7 @@ pub fn run(args: &Args) -> Result<()> {
         iterations: fit.iterations,
         fits: fit.fits,
         simulations: fit.simulations,
+        other_minima: fit.other_minima,
         seconds,
     };
     args.format.format().print(&report)?;
@@ -219,6 +222,18 @@ impl Render for Report {
         for note in notes {
             writeln!(out, "  - {note}")?;
         }
+        writeln!(
+            out,
+            "  the standard errors include the spread of {} other minim{} of the cost within \
+             twice the best one's{}",
+            self.other_minima,
+            if self.other_minima == 1 { "um" } else { "a" },
+            if self.other_minima == 0 {
+                " (none found: the errors are the local ones only)"
+            } else {
+                ""
+            }
+        )?;
         writeln!(out, "\nresidual RMS per channel:")?;
         let mut table = Table::new(&[
             ("channel", Align::Left),

@@ -133,6 +133,9 @@ fn a_perturbed_whisker_is_fitted_and_its_scenario_written() {
     let e = modulus["value"].as_f64().unwrap();
     assert!((e - 3.4e9).abs() < (3.0e9f64 - 3.4e9).abs(), "modulus {e}");
     assert!(fs::metadata(&png).unwrap().len() > 1000, "a figure");
+    // The search's other minima (at most three besides the best of four finalists).
+    let others = report["other_minima"].as_u64().expect("other_minima");
+    assert!(others <= 3, "{others}");
 
     // The fitted file is a scenario like any other and records the fit.
     let fitted = scratch.arg("fitted.toml");
@@ -289,6 +292,9 @@ fn bad_arguments_and_nominal_scenarios_are_refused() {
     // A gain prior that is no probability scale.
     let out = calibrate(&scratch, &dir, &["--gain-prior=-1"]);
     assert_refused(&scratch, &out, &["--gain-prior"]);
+    // No finalist: no minimum to take.
+    let out = calibrate(&scratch, &dir, &["--finalists", "0"]);
+    assert_refused(&scratch, &out, &["--finalists"]);
 
     // An output folder that does not exist is refused before anything is fitted (no progress
     // of a fit on standard error).

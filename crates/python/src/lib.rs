@@ -792,7 +792,7 @@ fn sweep_manifest(
 /// Returns the command line's JSON report (with the fitted scenario's TOML text under
 /// `"scenario"`) and the stages passed.
 #[pyfunction]
-#[pyo3(signature = (scenario, sets, labelled, out, ignore_unlisted, gain_prior, max_iterations))]
+#[pyo3(signature = (scenario, sets, labelled, out, ignore_unlisted, gain_prior, max_iterations, finalists))]
 #[allow(clippy::too_many_arguments)]
 fn calibrate(
     py: Python<'_>,
@@ -803,10 +803,12 @@ fn calibrate(
     ignore_unlisted: bool,
     gain_prior: Option<f64>,
     max_iterations: Option<usize>,
+    finalists: Option<usize>,
 ) -> PyResult<(String, Vec<String>)> {
     use vibrissa_infer::calibrate::{calibrate, Settings};
     let gain_prior = gain_prior.unwrap_or(Settings::default().gain_prior);
     let max_iterations = max_iterations.unwrap_or(Settings::default().max_iterations);
+    let finalists = finalists.unwrap_or(Settings::default().finalists);
     if let Some(out) = out {
         if !out.ends_with(".toml") {
             return Err(value_error(format!(
@@ -816,6 +818,9 @@ fn calibrate(
     }
     if max_iterations == 0 {
         return Err(value_error("max_iterations: at least 1"));
+    }
+    if finalists == 0 {
+        return Err(value_error("finalists: at least 1"));
     }
     if !(gain_prior >= 0.0 && gain_prior.is_finite()) {
         return Err(value_error(format!(
@@ -834,6 +839,7 @@ fn calibrate(
     let settings = Settings {
         max_iterations,
         gain_prior,
+        finalists,
         ..Settings::default()
     };
     let mut stages: Vec<String> = set
@@ -878,6 +884,7 @@ fn calibrate(
         "iterations": fit.iterations,
         "fits": fit.fits,
         "simulations": fit.simulations,
+        "other_minima": fit.other_minima,
         "overrides": fit.overrides,
         "seconds": seconds,
         "scenario": text,

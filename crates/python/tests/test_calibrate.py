@@ -32,6 +32,7 @@ def test_the_fit_and_the_fitted_file_are_the_command_line_s(labelled, tmp_path):
     theirs = json.loads(out.stdout)
     assert mine["parameters"] == theirs["parameters"]
     assert mine["channels"] == theirs["channels"]
+    assert mine["other_minima"] == theirs["other_minima"]
     assert (tmp_path / "py.toml").read_text() == (tmp_path / "cli.toml").read_text()
     assert mine["scenario"] == (tmp_path / "py.toml").read_text()
     modulus = next(p for p in mine["parameters"] if p["key"] == "whisker.youngs_modulus")
@@ -52,5 +53,7 @@ def test_bad_input_raises_and_writes_nothing(labelled, tmp_path):
     assert not (tmp_path / "fitted.toml").exists()
     with pytest.raises(ValueError, match="max_iterations = 0"):
         vibrissa.calibrate("e1", labelled, max_iterations=0)
+    with pytest.raises(ValueError, match="finalists = 0"):
+        vibrissa.calibrate("e1", labelled, finalists=0)
     with pytest.raises(TypeError, match="labelled"):
         vibrissa.calibrate("e1", 3)

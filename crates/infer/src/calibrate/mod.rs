@@ -232,6 +232,9 @@ pub struct Fit {
     pub simulations: usize,
     /// Fits run (noise rounds and refits without undetermined parameters).
     pub fits: usize,
+    /// Other minima of the cost, of the search's finalists, whose spread is in the standard
+    /// errors (those within twice the best cost).
+    pub other_minima: usize,
     /// `key=value` overrides that turn the nominal scenario into the fitted one.
     pub overrides: Vec<String>,
 }
@@ -382,7 +385,7 @@ pub fn calibrate(
     )?;
     let (mut z, mut resp) = (best.z.clone(), best.resp);
     setup.gain_prior = settings.gain_prior;
-    let (solution, cov) = loop {
+    let (solution, cov, other_minima) = loop {
         let sol = fit_with_noise(
             &mut setup,
             &z,
@@ -398,8 +401,8 @@ pub fn calibrate(
         match worst_undetermined(&setup, &sol, &cov, settings, &reference) {
             None => {
                 fit::add_roughness(&setup, &sol, &mut cov, &count)?;
-                add_other_minima(&setup, &sol, &mut cov, &best, &others);
-                break (sol, cov);
+                let counted = add_other_minima(&setup, &sol, &mut cov, &best, &others);
+                break (sol, cov, counted);
             }
             Some((Held::Param(i), note)) => {
                 let x = setup.full_x(&sol.z);
@@ -429,7 +432,7 @@ pub fn calibrate(
         }
     };
 
-    Ok(assemble(
+    let mut fit = assemble(
         &setup,
         &solution,
         &cov,
@@ -442,7 +445,9 @@ pub fn calibrate(
         iterations,
         fits,
         count.load(Ordering::Relaxed),
-    ))
+    );
+    fit.other_minima = other_minima;
+    Ok(fit)
 }
 
 /// Density steps of the starting scan, ln ρ/ρ_nominal: −0.6 to 0.6 in steps of 0.15 (the first
@@ -651,7 +656,7 @@ const OTHER_MINIMA_COST: f64 = 2.0;
 /// Adds to `cov` the spread of the other minima the search converged to (`others`, beside the
 /// `best` one that led to `sol`): the mean of `(x_k − x̂)(x_k − x̂)ᵀ` over those whose cost is
 /// within [`OTHER_MINIMA_COST`] of the best's, over the free whisker parameters, the gains and
-/// the offsets.
+/// the offsets. Returns how many minima it counted.
 ///
 /// The cost is rough and its minima many (docs/calibration.md, "Parameter recovery"): which one
 /// the search ends in depends on where it started, and among minima of about the same cost a
@@ -663,7 +668,7 @@ fn add_other_minima(
     cov: &mut fit::Covariance,
     best: &Minimum,
     others: &[Minimum],
-) {
+) -> usize {
     let free = setup.free_indices();
     let gains = setup.gains();
     let x = setup.full_x(&sol.z);
@@ -672,7 +677,7 @@ fn add_other_minima(
         .filter(|m| m.cost <= OTHER_MINIMA_COST * best.cost)
         .collect();
     if near.is_empty() {
-        return;
+        return 0;
     }
     let p = free.len() + gains.len() + setup.channels.len();
     let deviations: Vec<nalgebra::DVector<f64>> = near
@@ -696,6 +701,7 @@ fn add_other_minima(
     let extra = spread(&deviations, p);
     let mut view = cov.cov.view_mut((0, 0), (p, p));
     view += extra;
+    near.len()
 }
 
 /// The mean of `d dᵀ` over `deviations` (each of length `p`): the spread of points about a
@@ -1073,6 +1079,7 @@ fn assemble(
         iterations,
         simulations,
         fits,
+        other_minima: 0,
     }
 }
 

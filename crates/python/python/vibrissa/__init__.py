@@ -465,6 +465,7 @@ def calibrate(
     ignore_unlisted=False,
     gain_prior=None,
     max_iterations=None,
+    finalists=None,
     verbose=False,
     overrides=None,
     **keys,
@@ -492,6 +493,9 @@ def calibrate(
         to 10%; 0 = none). Default: the command line's.
     max_iterations : int, optional
         Most Levenberg–Marquardt iterations of one fit. Default: the command line's.
+    finalists : int, optional
+        Starting points carried on to convergence; the lowest minimum is the fit, and the others
+        within twice its cost widen the standard errors. Default: the command line's (4).
     verbose : bool
         Print the fit's stages as they pass.
     overrides, **keys
@@ -503,6 +507,7 @@ def calibrate(
         The command line's ``--json`` report: ``parameters`` (per parameter ``key``, ``unit``,
         ``nominal``, ``value``, ``std_error``, ``determined``, ``note``), ``channels`` (residual
         RMS before and after, noise), ``recordings``, ``iterations``, ``fits``, ``simulations``,
+        ``other_minima`` (how many other minima of the cost the standard errors count),
         ``seconds``; plus ``overrides`` (the ``key=value`` texts that make the nominal the fitted
         scenario) and ``scenario``, the fitted scenario's TOML text.
     """
@@ -510,6 +515,8 @@ def calibrate(
         gain_prior = _number("gain_prior", gain_prior)
     if max_iterations is not None:
         max_iterations = _count("max_iterations", max_iterations, 1)
+    if finalists is not None:
+        finalists = _count("finalists", finalists, 1)
     if not isinstance(labelled, (str, os.PathLike)):
         raise TypeError(f"labelled: expected a folder's path, not {type(labelled).__name__}")
     if out is not None and not isinstance(out, (str, os.PathLike)):
@@ -522,6 +529,7 @@ def calibrate(
         bool(ignore_unlisted),
         gain_prior,
         max_iterations,
+        finalists,
     )
     if verbose:
         import sys
