@@ -698,9 +698,8 @@ fn add_other_minima(
             d
         })
         .collect();
-    let extra = spread(&deviations, p);
-    let mut view = cov.cov.view_mut((0, 0), (p, p));
-    view += extra;
+    // The covariance's order is the same: free parameters, free gains, every offset.
+    cov.cov += spread(&deviations, p);
     near.len()
 }
 
