@@ -9,7 +9,7 @@
 
 use crate::error::{Error, Result};
 use crate::experiment::{Noise, Sample, Variant, CHANNELS, SENSOR_NOISE_FRACTION};
-use crate::randomise::{Around, Randomisation};
+use crate::randomise::{Around, FittedSpread, Randomisation};
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::sync::{Mutex, OnceLock};
@@ -41,6 +41,8 @@ pub struct Family {
     randomised: Option<Around>,
     /// Whether the file was written by calibration (it has a `[calibration]` record).
     calibrated: bool,
+    /// The calibration's joint uncertainty of whisker and gains, where the record gives it.
+    spread: Option<std::sync::Arc<FittedSpread>>,
     /// The file's `[[whiskers]]` kept (empty: the one whisker of `base`, at the origin), each
     /// with its place in the file's array (which seeds its random streams).
     mounts: Vec<(usize, Mount)>,
@@ -98,6 +100,11 @@ impl Family {
             stated_noise: loaded.stated_sensor_noise,
             randomised: None,
             calibrated: loaded.calibration.is_some(),
+            spread: loaded
+                .calibration
+                .as_ref()
+                .and_then(FittedSpread::of)
+                .map(std::sync::Arc::new),
             mounts: loaded.whiskers.into_iter().enumerate().collect(),
             start_jitter: 0.0,
         })
@@ -364,12 +371,17 @@ impl Family {
     }
 
     /// The family with its runs randomised when `randomise` is set, else the family itself: a
-    /// calibrated scenario ([`Family::is_calibrated`]) with the narrow prior of what calibration
-    /// leaves uncertain ([`Randomisation::calibrated`]), any other with the default prior of a
+    /// calibrated scenario ([`Family::is_calibrated`]) with what calibration left uncertain (the
+    /// fit's own spread where its file records the correlations, [`FittedSpread`], else the
+    /// narrow prior [`Randomisation::calibrated`]), any other with the default prior of a
     /// whisker known only roughly ([`Randomisation::default`]).
     pub fn randomised_if(self, randomise: bool) -> Result<Family> {
         if randomise && self.is_calibrated() {
-            self.randomised(Randomisation::calibrated())
+            let mut f = self.randomised(Randomisation::calibrated())?;
+            if let Some(spread) = f.spread.clone() {
+                f.randomised = f.randomised.take().map(|a| a.with_fitted(spread));
+            }
+            Ok(f)
         } else if randomise {
             self.randomised(Randomisation::default())
         } else {
@@ -393,14 +405,19 @@ impl Family {
 
     /// The prior of randomised runs, if the family's runs are randomised.
     pub fn randomisation(&self) -> Option<Randomisation> {
-        self.randomised.map(|a| a.prior)
+        self.randomised.as_ref().map(|a| a.prior)
+    }
+
+    /// How randomised runs are drawn, if the family's runs are randomised.
+    pub fn around(&self) -> Option<&Around> {
+        self.randomised.as_ref()
     }
 
     /// A digest of the family and its timing, for caches of training runs.
     pub fn digest(&self) -> u64 {
         let mut h = self.doc.digest();
         if let Some(around) = &self.randomised {
-            h = (h ^ 0x7a11_d0e5 ^ around.prior.digest()).wrapping_mul(0x0000_0100_0000_01b3);
+            h = (h ^ 0x7a11_d0e5 ^ around.digest()).wrapping_mul(0x0000_0100_0000_01b3);
         }
         for x in [self.base.sample_rate, self.base.duration] {
             h = (h ^ x.to_bits()).wrapping_mul(0x0000_0100_0000_01b3);

@@ -26,6 +26,11 @@
 //! A randomised family trains on three times as many random runs as the scenario's own
 //! ([`Randomisation::runs`]).
 //!
+//! On a calibrated scenario whose file records the fit's correlations, the runs' whiskers and
+//! gains are drawn from the fit's own uncertainty instead ([`FittedSpread`]): jointly normal in
+//! the logarithms of the determined parameters, with the standard errors and correlations of
+//! `[calibration]`. Without that record, [`Randomisation::calibrated`] is the prior.
+//!
 //! The last two stand for the recording's own chain, which a user rarely knows. Another engine,
 //! or a rig whose angles are read off a tracked shape, measures `theta01` and `theta12` between
 //! its own segments, and a joint angle is the curvature times the joint spacing: the same strike
@@ -39,6 +44,7 @@ use vibrissa_core::chain::{Discretisation, MAX_SEGMENTS};
 use vibrissa_core::rng::Rng;
 use vibrissa_core::sim::{Response, Scenario, SensorResponse};
 use vibrissa_core::whisker::{Damping, Follicle};
+use vibrissa_io::scenario::Calibration;
 
 /// How the whisker and sensors of randomised runs are drawn (see the module's documentation).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -149,8 +155,8 @@ impl Randomisation {
 }
 
 /// What a randomisation needs of the nominal whisker: its chain's base-joint stiffness and the
-/// damping time constant of its first mode.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// damping time constant of its first mode; and, around a calibrated whisker, the fit's spread.
+#[derive(Debug, Clone, PartialEq)]
 pub struct Around {
     /// The draws.
     pub prior: Randomisation,
@@ -158,6 +164,153 @@ pub struct Around {
     k0: f64,
     /// The whisker's own damping time constant, s.
     tau0: f64,
+    /// The calibration's joint uncertainty, drawn from instead of the prior's factors.
+    fitted: Option<std::sync::Arc<FittedSpread>>,
+}
+
+/// Largest log standard deviation drawn for one parameter of a [`FittedSpread`]: a standard
+/// error above the value itself (a follicle's damping, say) is a factor of e either way.
+pub const MAX_LOG_SD: f64 = 1.0;
+
+/// What one coordinate of a [`FittedSpread`] scales.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Target {
+    Modulus,
+    Density,
+    TipRadius,
+    FollicleStiffness,
+    FollicleDamping,
+    Damping,
+    /// A channel's gain, by its index in the contract's order.
+    Gain(usize),
+}
+
+impl Target {
+    /// The target that a `[[calibration.parameters]]` key sets, if draws vary it.
+    fn of(key: &str) -> Option<Target> {
+        Some(match key {
+            "whisker.youngs_modulus" => Target::Modulus,
+            "whisker.density" => Target::Density,
+            "whisker.tip_radius" => Target::TipRadius,
+            "whisker.follicle.stiffness" => Target::FollicleStiffness,
+            "whisker.follicle.damping" => Target::FollicleDamping,
+            "whisker.damping.ratio" | "whisker.damping.q" | "whisker.damping.beta" => {
+                Target::Damping
+            }
+            _ => {
+                let channel = key.strip_prefix("sensors.")?.strip_suffix(".gain")?;
+                Target::Gain(
+                    vibrissa_core::sensors::CHANNELS
+                        .iter()
+                        .position(|c| *c == channel)?,
+                )
+            }
+        })
+    }
+}
+
+/// A calibration's joint uncertainty of the whisker and the sensor gains, to draw whiskers
+/// from: the logarithms of the determined parameters jointly normal about the fitted values,
+/// each with its relative standard error (at most [`MAX_LOG_SD`]) and their recorded
+/// correlations. Offsets and the time offset are not drawn.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FittedSpread {
+    /// The coordinates: what each scales and its log standard deviation.
+    targets: Vec<(Target, f64)>,
+    /// Lower Cholesky factor of their correlation matrix, row-major.
+    factor: Vec<Vec<f64>>,
+}
+
+impl FittedSpread {
+    /// The spread a fitted scenario's `[calibration]` record gives, if it records the fit's
+    /// correlations and any drawable parameter.
+    pub fn of(record: &Calibration) -> Option<FittedSpread> {
+        let correlation = record.correlation.as_ref()?;
+        let mut picked = Vec::new();
+        for (i, key) in correlation.keys.iter().enumerate() {
+            let Some(target) = Target::of(key) else {
+                continue;
+            };
+            let p = record.parameters.iter().find(|p| &p.key == key)?;
+            let (Some(se), true) = (p.std_error, p.value.is_finite() && p.value > 0.0) else {
+                continue;
+            };
+            picked.push((i, target, (se / p.value).min(MAX_LOG_SD)));
+        }
+        if picked.is_empty() {
+            return None;
+        }
+        let n = picked.len();
+        let matrix = nalgebra::DMatrix::from_fn(n, n, |a, b| {
+            correlation.matrix[picked[a].0][picked[b].0]
+        });
+        // A correlation matrix recorded to finite precision may be singular or, by rounding,
+        // slightly indefinite: a little is added to its diagonal until it factors.
+        let factor = [0.0, 1e-9, 1e-6, 1e-3, 1e-2, 1e-1]
+            .iter()
+            .find_map(|&jitter| {
+                let m = &matrix + nalgebra::DMatrix::identity(n, n) * jitter;
+                nalgebra::Cholesky::new(m).map(|c| c.l())
+            })
+            .unwrap_or_else(|| nalgebra::DMatrix::identity(n, n));
+        Some(FittedSpread {
+            targets: picked.iter().map(|&(_, t, sd)| (t, sd)).collect(),
+            factor: (0..n)
+                .map(|a| (0..n).map(|b| factor[(a, b)]).collect())
+                .collect(),
+        })
+    }
+
+    /// `s` with its whisker and gains drawn by `rng`.
+    fn apply(&self, s: &mut Scenario, rng: &mut Rng) {
+        let z: Vec<f64> = self.targets.iter().map(|_| rng.normal()).collect();
+        let mut gains = s.sensor_response.to_array();
+        for (a, &(target, sd)) in self.targets.iter().enumerate() {
+            let u: f64 = self.factor[a].iter().zip(&z).map(|(l, z)| l * z).sum();
+            let f = (sd * u).exp();
+            let w = &mut s.whisker;
+            match target {
+                Target::Modulus => w.youngs_modulus *= f,
+                Target::Density => w.density *= f,
+                Target::TipRadius => w.tip_radius = (w.tip_radius * f).min(w.base_radius),
+                Target::FollicleStiffness | Target::FollicleDamping => {
+                    if let Follicle::Spring { stiffness, damping } = &mut w.follicle {
+                        if target == Target::FollicleStiffness {
+                            *stiffness *= f;
+                        } else {
+                            *damping *= f;
+                        }
+                    }
+                }
+                Target::Damping => scale_damping(&mut w.damping, f),
+                Target::Gain(c) => gains[c].gain *= f,
+            }
+        }
+        s.sensor_response = SensorResponse::from_array(gains);
+    }
+
+    /// A digest, for caches of training runs.
+    fn digest(&self) -> u64 {
+        self.targets
+            .iter()
+            .map(|(_, sd)| *sd)
+            .chain(self.factor.iter().flatten().copied())
+            .fold(0x5b7e_adu64, |h, x| {
+                (h ^ x.to_bits()).wrapping_mul(0x0000_0100_0000_01b3)
+            })
+    }
+}
+
+/// Scales a damping law's coefficient by `f` (a modal ratio at most 0.9).
+fn scale_damping(d: &mut Damping, f: f64) {
+    *d = match *d {
+        Damping::ModalRatio { ratio } => Damping::ModalRatio {
+            ratio: (ratio * f).min(0.9),
+        },
+        Damping::SegmentQ { q } => Damping::SegmentQ { q: q * f },
+        Damping::StiffnessProportional { beta } => Damping::StiffnessProportional { beta: beta * f },
+        Damping::None => Damping::None,
+    };
 }
 
 impl Around {
@@ -218,7 +371,31 @@ impl Around {
             prior,
             k0: reference.k0,
             tau0: reference.beta0,
+            fitted: None,
         })
+    }
+
+    /// Draws from a calibration's `spread` instead of the prior's factors of the modulus,
+    /// density, damping, follicle and gains (the prior's structural draws, of follicle, taper
+    /// and chain, still apply where it makes them).
+    pub fn with_fitted(self, spread: std::sync::Arc<FittedSpread>) -> Around {
+        Around {
+            fitted: Some(spread),
+            ..self
+        }
+    }
+
+    /// Whether draws come from a calibration's spread.
+    pub fn is_fitted(&self) -> bool {
+        self.fitted.is_some()
+    }
+
+    /// A digest of the draws, for caches of training runs.
+    pub fn digest(&self) -> u64 {
+        match &self.fitted {
+            None => self.prior.digest(),
+            Some(f) => (self.prior.digest() ^ f.digest()).wrapping_mul(0x0000_0100_0000_01b3),
+        }
     }
 
     /// `s` with its whisker and sensor gains drawn from the prior by `seed` (the same seed gives
@@ -226,22 +403,18 @@ impl Around {
     pub fn apply(&self, s: &mut Scenario, seed: u64) {
         let p = &self.prior;
         let mut rng = Rng::stream(seed, 0xD0_A1A5);
-        let mut factor = |half: f64| (half * (2.0 * rng.uniform() - 1.0)).exp();
+        if let Some(fitted) = &self.fitted {
+            fitted.apply(s, &mut rng);
+        }
+        // Around a fitted spread, the prior's own factors are 1.
+        let unfitted = if self.fitted.is_some() { 0.0 } else { 1.0 };
+        let mut factor = |half: f64| (unfitted * half * (2.0 * rng.uniform() - 1.0)).exp();
         let (fe, fr, fd) = (factor(p.modulus), factor(p.density), factor(p.damping));
         let fs = factor(p.spring);
         let w = &mut s.whisker;
         w.youngs_modulus *= fe;
         w.density *= fr;
-        w.damping = match w.damping {
-            Damping::ModalRatio { ratio } => Damping::ModalRatio {
-                ratio: (ratio * fd).min(0.9),
-            },
-            Damping::SegmentQ { q } => Damping::SegmentQ { q: q * fd },
-            Damping::StiffnessProportional { beta } => {
-                Damping::StiffnessProportional { beta: beta * fd }
-            }
-            Damping::None => Damping::None,
-        };
+        scale_damping(&mut w.damping, fd);
         let (u_follicle, u_compliance, u_tau) = (rng.uniform(), rng.uniform(), rng.uniform());
         w.follicle = match w.follicle {
             Follicle::Clamped if u_follicle < p.follicle => {
@@ -271,7 +444,7 @@ impl Around {
         }
         let nominal = s.sensor_response.to_array();
         s.sensor_response = SensorResponse::from_array(std::array::from_fn(|c| Response {
-            gain: nominal[c].gain * (1.0 + p.gain * (2.0 * rng.uniform() - 1.0)),
+            gain: nominal[c].gain * (1.0 + unfitted * p.gain * (2.0 * rng.uniform() - 1.0)),
             offset: nominal[c].offset,
         }));
         let (u_resegment, u_segments, u_rule) = (rng.uniform(), rng.uniform(), rng.uniform());
@@ -377,6 +550,106 @@ mod tests {
             moved > 30,
             "{moved} of 100 draws moved the modulus by over 5%"
         );
+    }
+
+    /// A fitted file whose record gives the modulus and density 5% errors correlated 0.9, the
+    /// follicle's damping a standard error twice its value, `m0`'s gain 3%, and an offset.
+    const FITTED_WITH_CORRELATION: &str = r#"
+experiment = "e2"
+whisker.follicle = { kind = "spring", stiffness = 3e-4, damping = 3e-8 }
+[calibration]
+[[calibration.parameters]]
+key = "whisker.youngs_modulus"
+value = 3.3e9
+std_error = 1.65e8
+determined = true
+[[calibration.parameters]]
+key = "whisker.density"
+value = 1100.0
+std_error = 55.0
+determined = true
+[[calibration.parameters]]
+key = "whisker.follicle.damping"
+value = 3e-8
+std_error = 6e-8
+determined = true
+[[calibration.parameters]]
+key = "sensors.m0.gain"
+value = 1.0
+std_error = 0.03
+determined = true
+[[calibration.parameters]]
+key = "sensors.m0.offset"
+value = 0.0
+std_error = 1e-7
+determined = true
+[calibration.correlation]
+keys = ["whisker.youngs_modulus", "whisker.density", "whisker.follicle.damping", "sensors.m0.gain", "sensors.m0.offset"]
+matrix = [[1.0, 0.9, 0.0, 0.0, 0.5], [0.9, 1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0, 0.0], [0.5, 0.0, 0.0, 0.0, 1.0]]
+"#;
+
+    #[test]
+    fn a_recorded_fit_is_drawn_with_its_standard_errors_and_correlations() {
+        let calibrated = Family::open_str(FITTED_WITH_CORRELATION, "fitted.toml", &[]).unwrap();
+        let randomised = calibrated.clone().randomised_if(true).unwrap();
+        let around = randomised.around().unwrap();
+        assert!(around.is_fitted());
+        assert_ne!(
+            randomised.digest(),
+            calibrated
+                .randomised(Randomisation::calibrated())
+                .unwrap()
+                .digest()
+        );
+        let base = calibrated.base().clone();
+        let n = 4000;
+        let (mut le, mut lr, mut ld, mut lg) = (vec![], vec![], vec![], vec![]);
+        for seed in 0..n {
+            let mut s = base.clone();
+            around.apply(&mut s, seed);
+            le.push((s.whisker.youngs_modulus / base.whisker.youngs_modulus).ln());
+            lr.push((s.whisker.density / base.whisker.density).ln());
+            let (Follicle::Spring { stiffness, damping }, Follicle::Spring { damping: d0, .. }) =
+                (s.whisker.follicle, base.whisker.follicle)
+            else {
+                panic!("the fitted follicle spring is kept");
+            };
+            assert_eq!(stiffness, 3e-4, "not in the record: not drawn");
+            ld.push((damping / d0).ln());
+            let (r, r0) = (s.sensor_response.m0, base.sensor_response.m0);
+            lg.push((r.gain / r0.gain).ln());
+            assert_eq!(r.offset, r0.offset, "offsets are not drawn");
+            assert_eq!(s.sensor_response.fx, base.sensor_response.fx);
+            assert_eq!(s.whisker.tip_radius, base.whisker.tip_radius);
+            assert_eq!(s.segments, base.segments);
+        }
+        let mean = |x: &[f64]| x.iter().sum::<f64>() / x.len() as f64;
+        let sd = |x: &[f64]| {
+            let m = mean(x);
+            (x.iter().map(|v| (v - m).powi(2)).sum::<f64>() / x.len() as f64).sqrt()
+        };
+        let corr = |x: &[f64], y: &[f64]| {
+            let (mx, my) = (mean(x), mean(y));
+            x.iter().zip(y).map(|(a, b)| (a - mx) * (b - my)).sum::<f64>()
+                / (x.len() as f64 * sd(x) * sd(y))
+        };
+        // Sampling error of an sd over 4000 draws is about 1.1%, of a correlation of 0.9 about 0.003.
+        for (what, x, want) in [
+            ("modulus", &le, 0.05),
+            ("density", &lr, 0.05),
+            ("follicle damping", &ld, MAX_LOG_SD),
+            ("m0 gain", &lg, 0.03),
+        ] {
+            assert!((sd(x) / want - 1.0).abs() < 0.05, "{what}: sd {}", sd(x));
+            assert!(mean(x).abs() < 4.0 * want / (n as f64).sqrt(), "{what}: mean {}", mean(x));
+        }
+        assert!((corr(&le, &lr) - 0.9).abs() < 0.015, "{}", corr(&le, &lr));
+        assert!(corr(&le, &lg).abs() < 0.06, "{}", corr(&le, &lg));
+        // The same seed, the same draw.
+        let (mut a, mut b) = (base.clone(), base.clone());
+        around.apply(&mut a, 7);
+        around.apply(&mut b, 7);
+        assert_eq!(a, b);
     }
 
     #[test]

@@ -139,7 +139,7 @@ mod family;
 mod overrides;
 mod schema;
 
-pub use calibration::{CalibratedParameter, Calibration, ChannelValues};
+pub use calibration::{CalibratedParameter, Calibration, ChannelValues, Correlation};
 pub use classes::read_classes;
 pub use document::Document;
 pub use family::{FamilySpec, UnknownSpec, DEFAULT_GRID_COUNT, DEFAULT_MARGIN_FRACTION};

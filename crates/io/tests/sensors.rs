@@ -130,6 +130,7 @@ fn sample_calibration() -> Calibration {
                 note: Some("stiffer than the recordings resolve: kept clamped".into()),
             },
         ],
+        correlation: None,
     }
 }
 
@@ -171,6 +172,86 @@ note = "stiffer than the recordings resolve: kept clamped"
     assert!(e.contains("calibration.parameters[0].std_error"), "{e}");
     let e = err("[[calibration.parameters]]\nkey = \"x\"\ndetermined = true\n");
     assert!(e.contains("value"), "{e}");
+}
+
+#[test]
+fn a_correlation_of_the_determined_parameters_is_read_back_and_checked() {
+    let head = r#"
+experiment = "e2"
+[[calibration.parameters]]
+key = "whisker.youngs_modulus"
+value = 3.1e9
+std_error = 2e7
+determined = true
+[[calibration.parameters]]
+key = "whisker.density"
+value = 1000.0
+std_error = 30.0
+determined = true
+[[calibration.parameters]]
+key = "sensors.m0.gain"
+value = 1.0
+determined = false
+"#;
+    let with = |table: &str| format!("{head}[calibration.correlation]\n{table}");
+    let good = with("keys = [\"whisker.youngs_modulus\", \"whisker.density\"]\nmatrix = [[1.0, 0.9], [0.9, 1.0]]\n");
+    let dir = temp_dir("correlation");
+    let path = dir.join("fitted.toml");
+    fs::write(&path, &good).unwrap();
+    let loaded = load_full(path.to_str().unwrap(), &[]).unwrap();
+    let record = loaded.calibration.unwrap();
+    let c = record.correlation.clone().unwrap();
+    assert_eq!(c.get("whisker.density", "whisker.youngs_modulus"), Some(0.9));
+    assert_eq!(c.get("whisker.density", "sensors.m0.gain"), None);
+    // Written back by a document, it reads the same.
+    let mut doc = Document::load(path.to_str().unwrap(), &[]).unwrap();
+    doc.set_calibration(&record).unwrap();
+    let out = dir.join("out.toml");
+    doc.write(&out).unwrap();
+    let again = load_full(out.to_str().unwrap(), &[]).unwrap();
+    assert_eq!(again.calibration.unwrap(), record);
+
+    for (table, field, what) in [
+        (
+            "keys = [\"whisker.youngs_modulus\", \"sensors.m0.gain\"]\nmatrix = [[1.0, 0.0], [0.0, 1.0]]\n",
+            "correlation.keys[1]",
+            "determined",
+        ),
+        (
+            "keys = [\"whisker.density\", \"whisker.density\"]\nmatrix = [[1.0, 0.0], [0.0, 1.0]]\n",
+            "correlation.keys[1]",
+            "once",
+        ),
+        (
+            "keys = [\"whisker.youngs_modulus\", \"whisker.density\"]\nmatrix = [[1.0, 0.9]]\n",
+            "correlation.matrix",
+            "one row per key",
+        ),
+        (
+            "keys = [\"whisker.youngs_modulus\", \"whisker.density\"]\nmatrix = [[1.0, 0.9], [0.9]]\n",
+            "correlation.matrix[1]",
+            "one entry per key",
+        ),
+        (
+            "keys = [\"whisker.youngs_modulus\", \"whisker.density\"]\nmatrix = [[1.0, 0.9], [0.8, 1.0]]\n",
+            "correlation.matrix[0][1]",
+            "symmetric",
+        ),
+        (
+            "keys = [\"whisker.youngs_modulus\", \"whisker.density\"]\nmatrix = [[1.0, 1.5], [1.5, 1.0]]\n",
+            "correlation.matrix[0][1]",
+            "[-1, 1]",
+        ),
+        (
+            "keys = [\"whisker.youngs_modulus\", \"whisker.density\"]\nmatrix = [[0.5, 0.0], [0.0, 1.0]]\n",
+            "correlation.matrix[0][0]",
+            "diagonal",
+        ),
+    ] {
+        fs::write(&path, with(table)).unwrap();
+        let e = load_full(path.to_str().unwrap(), &[]).unwrap_err().to_string();
+        assert!(e.contains(field) && e.contains(what), "{table}: {e}");
+    }
 }
 
 #[test]

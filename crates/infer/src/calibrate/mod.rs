@@ -102,7 +102,9 @@ use vibrissa_core::sensors::CHANNELS as NAMES;
 use vibrissa_core::sim::{Response, SensorNoise, SensorResponse};
 use vibrissa_core::whisker::Damping;
 use vibrissa_io::labelled::Labelled;
-use vibrissa_io::scenario::{CalibratedParameter, Calibration, ChannelValues, Document};
+use vibrissa_io::scenario::{
+    CalibratedParameter, Calibration, ChannelValues, Correlation, Document,
+};
 
 /// Units of the observed channels, in [`NAMES`] order.
 pub const UNITS: [&str; CHANNELS] = ["rad", "rad", "N·m", "N", "N"];
@@ -237,6 +239,9 @@ pub struct Fit {
     pub other_minima: usize,
     /// `key=value` overrides that turn the nominal scenario into the fitted one.
     pub overrides: Vec<String>,
+    /// Correlations of the determined parameters' errors, from the same covariance as their
+    /// standard errors.
+    pub correlation: Correlation,
 }
 
 impl Fit {
@@ -265,6 +270,7 @@ impl Fit {
                     note: p.note.clone(),
                 })
                 .collect(),
+            correlation: Some(self.correlation.clone()),
         }
     }
 
@@ -965,7 +971,10 @@ fn assemble(
     let free = setup.free_indices();
     let p = free.len();
 
-    // Whisker parameters: values, and standard errors by the delta method.
+    // Whisker parameters: values, and standard errors by the delta method. Every determined
+    // parameter's row of derivatives by the covariance's coordinates, for their correlations.
+    let dim = cov.cov.nrows();
+    let mut rows: Vec<(String, Vec<f64>)> = Vec::new();
     let mut parameters = Vec::new();
     for (i, param) in params.iter().enumerate() {
         let (value, grad) = &phys[i];
@@ -978,6 +987,13 @@ fn assemble(
             }
             var.max(0.0).sqrt()
         });
+        if setup.free[i] {
+            let mut row = vec![0.0; dim];
+            for (a, &ia) in free.iter().enumerate() {
+                row[a] = grad[ia];
+            }
+            rows.push((param.key.clone(), row));
+        }
         let value = match (param.kind, setup.free[i], param.nominal) {
             (Kind::FollicleCompliance, false, None) => f64::INFINITY,
             _ => *value,
@@ -1005,6 +1021,11 @@ fn assemble(
         .collect();
     for &c in &setup.channels {
         let k = gains.iter().position(|&g| g == c);
+        if let Some(k) = k {
+            let mut row = vec![0.0; dim];
+            row[p + k] = 1.0;
+            rows.push((format!("sensors.{}.gain", NAMES[c]), row));
+        }
         let note = if Some(c) == reference_channel {
             Some(
                 "reference of the force scale, held: the recordings cannot tell a common gain \
@@ -1026,6 +1047,9 @@ fn assemble(
     }
     for (k, &c) in setup.channels.iter().enumerate() {
         let j = p + gains.len() + k;
+        let mut row = vec![0.0; dim];
+        row[j] = 1.0;
+        rows.push((format!("sensors.{}.offset", NAMES[c]), row));
         parameters.push(ParameterFit {
             key: format!("sensors.{}.offset", NAMES[c]),
             unit: UNITS[c],
@@ -1079,6 +1103,38 @@ fn assemble(
         simulations,
         fits,
         other_minima: 0,
+        correlation: correlation(&rows, &cov.cov),
+    }
+}
+
+/// The correlation matrix of the quantities whose derivatives by the coordinates of `cov` are
+/// `rows` (`(key, row)`): `R·cov·Rᵀ` scaled to ones on its diagonal. A quantity without
+/// variance is uncorrelated with the others.
+fn correlation(rows: &[(String, Vec<f64>)], cov: &nalgebra::DMatrix<f64>) -> Correlation {
+    let n = rows.len();
+    let r = nalgebra::DMatrix::from_fn(n, cov.nrows(), |i, a| rows[i].1[a]);
+    let c = &r * cov * r.transpose();
+    let sd: Vec<f64> = (0..n).map(|i| c[(i, i)].max(0.0).sqrt()).collect();
+    let matrix = (0..n)
+        .map(|i| {
+            (0..n)
+                .map(|j| {
+                    if i == j {
+                        1.0
+                    } else if sd[i] > 0.0 && sd[j] > 0.0 {
+                        // Symmetric to the last bit, whatever the rounding of the product.
+                        let (a, b) = (i.min(j), i.max(j));
+                        (c[(a, b)] / (sd[a] * sd[b])).clamp(-1.0, 1.0)
+                    } else {
+                        0.0
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    Correlation {
+        keys: rows.iter().map(|(k, _)| k.clone()).collect(),
+        matrix,
     }
 }
 
@@ -1161,6 +1217,33 @@ mod tests {
         let one = spread(&[DVector::from_vec(vec![0.3])], 1);
         assert!((one[(0, 0)].sqrt() - 0.3).abs() < 1e-15);
         assert_eq!(spread(&[], 3), DMatrix::zeros(3, 3));
+    }
+
+    #[test]
+    fn correlations_are_those_of_the_quantities_the_rows_derive() {
+        // Coordinates with variances 4 and 1 and covariance 1: correlation 1/2.
+        let cov = DMatrix::from_row_slice(2, 2, &[4.0, 1.0, 1.0, 1.0]);
+        let rows = vec![
+            ("a".to_string(), vec![1.0, 0.0]),
+            ("b".to_string(), vec![0.0, 1.0]),
+            // a − 4b: variance 4 − 8 + 16 = 12; covariance with a 4 − 4 = 0, with b 1 − 4 = −3.
+            ("c".to_string(), vec![1.0, -4.0]),
+            // No variance: uncorrelated.
+            ("d".to_string(), vec![0.0, 0.0]),
+        ];
+        let c = correlation(&rows, &cov);
+        assert_eq!(c.keys, ["a", "b", "c", "d"]);
+        let m = &c.matrix;
+        assert!((m[0][1] - 0.5).abs() < 1e-15);
+        assert!(m[0][2].abs() < 1e-15);
+        assert!((m[1][2] + 3.0 / 12f64.sqrt()).abs() < 1e-15);
+        for i in 0..4 {
+            assert_eq!(m[i][i], 1.0);
+            assert_eq!(m[i][3], if i == 3 { 1.0 } else { 0.0 });
+            for j in 0..4 {
+                assert_eq!(m[i][j], m[j][i]);
+            }
+        }
     }
 
     #[test]

@@ -66,6 +66,32 @@ pub struct Calibration {
     pub noise: ChannelValues,
     /// Every parameter the fit considered, determined or not.
     pub parameters: Vec<CalibratedParameter>,
+    /// Correlations of the determined parameters' errors (absent in files written before it
+    /// was recorded).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub correlation: Option<Correlation>,
+}
+
+/// `[calibration.correlation]`: the correlation matrix of the determined parameters' errors, in
+/// the order of `keys`. With each parameter's standard error it gives their joint covariance:
+/// how the errors of, say, the modulus and the density move together.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Correlation {
+    /// The parameters' keys, as in `[[calibration.parameters]]`.
+    pub keys: Vec<String>,
+    /// One row per key, each with one entry per key: symmetric, ones on the diagonal, every
+    /// entry in [-1, 1].
+    pub matrix: Vec<Vec<f64>>,
+}
+
+impl Correlation {
+    /// The correlation of the errors of `a` and `b`, if both are recorded.
+    pub fn get(&self, a: &str, b: &str) -> Option<f64> {
+        let i = self.keys.iter().position(|k| k == a)?;
+        let j = self.keys.iter().position(|k| k == b)?;
+        Some(self.matrix[i][j])
+    }
 }
 
 /// One number per observed channel (absent where the recordings lack the channel).
@@ -164,6 +190,62 @@ impl Calibration {
             }
             if p.std_error.is_some_and(|x| !(x.is_finite() && x >= 0.0)) {
                 return bad(at("std_error"), "must be a finite number >= 0");
+            }
+        }
+        if let Some(c) = &self.correlation {
+            c.check(ctx, &self.parameters)?;
+        }
+        Ok(())
+    }
+}
+
+impl Correlation {
+    /// Checks that every key names a determined parameter once, and that the matrix is square
+    /// over the keys, symmetric, with ones on its diagonal and entries in [-1, 1].
+    fn check(&self, ctx: &Ctx, parameters: &[CalibratedParameter]) -> Result<()> {
+        let bad = |field: String, what: String| Err(ctx.field(field, what));
+        let n = self.keys.len();
+        for (i, key) in self.keys.iter().enumerate() {
+            let field = format!("calibration.correlation.keys[{i}]");
+            if !parameters.iter().any(|p| &p.key == key && p.determined) {
+                return bad(
+                    field,
+                    format!("{key:?} must name a determined parameter of [[calibration.parameters]]"),
+                );
+            }
+            if self.keys[..i].contains(key) {
+                return bad(field, format!("{key:?} must appear once"));
+            }
+        }
+        if self.matrix.len() != n {
+            return bad(
+                "calibration.correlation.matrix".into(),
+                format!("must have one row per key ({n}), has {}", self.matrix.len()),
+            );
+        }
+        for (i, row) in self.matrix.iter().enumerate() {
+            if row.len() != n {
+                return bad(
+                    format!("calibration.correlation.matrix[{i}]"),
+                    format!("must have one entry per key ({n}), has {}", row.len()),
+                );
+            }
+        }
+        for (i, row) in self.matrix.iter().enumerate() {
+            for (j, &r) in row.iter().enumerate() {
+                let field = format!("calibration.correlation.matrix[{i}][{j}]");
+                if !(r.is_finite() && (-1.0..=1.0).contains(&r)) {
+                    return bad(field, format!("= {r}: allowed is a number in [-1, 1]"));
+                }
+                if i == j && (r - 1.0).abs() > 1e-9 {
+                    return bad(field, format!("= {r}: a diagonal entry must be 1"));
+                }
+                if (r - self.matrix[j][i]).abs() > 1e-9 {
+                    return bad(
+                        field,
+                        format!("= {r}: the matrix must be symmetric (entry [{j}][{i}] differs)"),
+                    );
+                }
             }
         }
         Ok(())
