@@ -83,6 +83,8 @@ struct Report {
     simulations: usize,
     /// Other minima of the cost whose spread is in the standard errors.
     other_minima: usize,
+    /// Correlations of the determined parameters' errors.
+    correlation: vibrissa_io::scenario::Correlation,
     /// Wall-clock time of the fit, s.
     seconds: f64,
 }
@@ -175,6 +177,7 @@ pub fn run(args: &Args) -> Result<()> {
         fits: fit.fits,
         simulations: fit.simulations,
         other_minima: fit.other_minima,
+        correlation: fit.correlation.clone(),
         seconds,
     };
     args.format.format().print(&report)?;

@@ -136,12 +136,32 @@ fn a_perturbed_whisker_is_fitted_and_its_scenario_written() {
     // The search's other minima (at most three besides the best of four finalists).
     let others = report["other_minima"].as_u64().expect("other_minima");
     assert!(others <= 3, "{others}");
+    // The correlations of the determined parameters: over the same keys, ones on the diagonal.
+    let determined: Vec<&str> = report["parameters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|p| p["determined"] == true)
+        .map(|p| p["key"].as_str().unwrap())
+        .collect();
+    let keys: Vec<&str> = report["correlation"]["keys"]
+        .as_array()
+        .expect("correlation keys")
+        .iter()
+        .map(|k| k.as_str().unwrap())
+        .collect();
+    assert_eq!(keys, determined);
+    let matrix = report["correlation"]["matrix"].as_array().unwrap();
+    for (i, row) in matrix.iter().enumerate() {
+        assert_eq!(row[i].as_f64(), Some(1.0), "{row}");
+    }
 
     // The fitted file is a scenario like any other and records the fit.
     let fitted = scratch.arg("fitted.toml");
     let text = fs::read_to_string(&fitted).unwrap();
     assert!(text.contains("[calibration]") || text.contains("[[calibration.parameters]]"));
     assert!(text.contains("[sensors.theta01]"), "{text}");
+    assert!(text.contains("[calibration.correlation]"), "{text}");
     let run = vibrissa(&[
         "simulate",
         &fitted,

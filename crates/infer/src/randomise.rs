@@ -215,10 +215,27 @@ impl Target {
 /// correlations. Offsets and the time offset are not drawn.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FittedSpread {
-    /// The coordinates: what each scales and its log standard deviation.
-    targets: Vec<(Target, f64)>,
-    /// Lower Cholesky factor of their correlation matrix, row-major.
+    /// What each coordinate scales.
+    targets: Vec<Target>,
+    /// Lower Cholesky factor of the logarithms' covariance, row-major.
     factor: Vec<Vec<f64>>,
+}
+
+/// The lower Cholesky factor of the covariance `c`; a covariance recorded to finite precision
+/// may be singular or, by rounding, slightly indefinite, so a little is added to its diagonal
+/// (relative to its largest entry) until it factors.
+fn cholesky(c: &nalgebra::DMatrix<f64>) -> nalgebra::DMatrix<f64> {
+    let n = c.nrows();
+    let scale = c.diagonal().max().max(f64::MIN_POSITIVE);
+    [0.0, 1e-9, 1e-6, 1e-3, 1e-2, 1e-1]
+        .iter()
+        .find_map(|&jitter| {
+            let m = c + nalgebra::DMatrix::identity(n, n) * (jitter * scale);
+            nalgebra::Cholesky::new(m).map(|ch| ch.l())
+        })
+        .unwrap_or_else(|| {
+            nalgebra::DMatrix::from_diagonal(&c.diagonal().map(|v| v.max(0.0).sqrt()))
+        })
 }
 
 impl FittedSpread {
@@ -241,33 +258,34 @@ impl FittedSpread {
             return None;
         }
         let n = picked.len();
-        let matrix = nalgebra::DMatrix::from_fn(n, n, |a, b| {
-            correlation.matrix[picked[a].0][picked[b].0]
+        let cov = nalgebra::DMatrix::from_fn(n, n, |a, b| {
+            let ((i, _, sa), (j, _, sb)) = (picked[a], picked[b]);
+            correlation.matrix[i][j] * sa * sb
         });
-        // A correlation matrix recorded to finite precision may be singular or, by rounding,
-        // slightly indefinite: a little is added to its diagonal until it factors.
-        let factor = [0.0, 1e-9, 1e-6, 1e-3, 1e-2, 1e-1]
-            .iter()
-            .find_map(|&jitter| {
-                let m = &matrix + nalgebra::DMatrix::identity(n, n) * jitter;
-                nalgebra::Cholesky::new(m).map(|c| c.l())
-            })
-            .unwrap_or_else(|| nalgebra::DMatrix::identity(n, n));
-        Some(FittedSpread {
-            targets: picked.iter().map(|&(_, t, sd)| (t, sd)).collect(),
+        Some(FittedSpread::from_cov(
+            picked.iter().map(|&(_, t, _)| t).collect(),
+            &cov,
+        ))
+    }
+
+    fn from_cov(targets: Vec<Target>, cov: &nalgebra::DMatrix<f64>) -> FittedSpread {
+        let l = cholesky(cov);
+        let n = targets.len();
+        FittedSpread {
+            targets,
             factor: (0..n)
-                .map(|a| (0..n).map(|b| factor[(a, b)]).collect())
+                .map(|a| (0..n).map(|b| l[(a, b)]).collect())
                 .collect(),
-        })
+        }
     }
 
     /// `s` with its whisker and gains drawn by `rng`.
     fn apply(&self, s: &mut Scenario, rng: &mut Rng) {
         let z: Vec<f64> = self.targets.iter().map(|_| rng.normal()).collect();
         let mut gains = s.sensor_response.to_array();
-        for (a, &(target, sd)) in self.targets.iter().enumerate() {
+        for (a, &target) in self.targets.iter().enumerate() {
             let u: f64 = self.factor[a].iter().zip(&z).map(|(l, z)| l * z).sum();
-            let f = (sd * u).exp();
+            let f = u.exp();
             let w = &mut s.whisker;
             match target {
                 Target::Modulus => w.youngs_modulus *= f,
@@ -291,10 +309,10 @@ impl FittedSpread {
 
     /// A digest, for caches of training runs.
     fn digest(&self) -> u64 {
-        self.targets
+        self.factor
             .iter()
-            .map(|(_, sd)| *sd)
-            .chain(self.factor.iter().flatten().copied())
+            .flatten()
+            .copied()
             .fold(0x5b7e_adu64, |h, x| {
                 (h ^ x.to_bits()).wrapping_mul(0x0000_0100_0000_01b3)
             })
@@ -308,7 +326,9 @@ fn scale_damping(d: &mut Damping, f: f64) {
             ratio: (ratio * f).min(0.9),
         },
         Damping::SegmentQ { q } => Damping::SegmentQ { q: q * f },
-        Damping::StiffnessProportional { beta } => Damping::StiffnessProportional { beta: beta * f },
+        Damping::StiffnessProportional { beta } => {
+            Damping::StiffnessProportional { beta: beta * f }
+        }
         Damping::None => Damping::None,
     };
 }
@@ -630,7 +650,10 @@ matrix = [[1.0, 0.9, 0.0, 0.0, 0.5], [0.9, 1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 
         };
         let corr = |x: &[f64], y: &[f64]| {
             let (mx, my) = (mean(x), mean(y));
-            x.iter().zip(y).map(|(a, b)| (a - mx) * (b - my)).sum::<f64>()
+            x.iter()
+                .zip(y)
+                .map(|(a, b)| (a - mx) * (b - my))
+                .sum::<f64>()
                 / (x.len() as f64 * sd(x) * sd(y))
         };
         // Sampling error of an sd over 4000 draws is about 1.1%, of a correlation of 0.9 about 0.003.
@@ -641,7 +664,11 @@ matrix = [[1.0, 0.9, 0.0, 0.0, 0.5], [0.9, 1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 
             ("m0 gain", &lg, 0.03),
         ] {
             assert!((sd(x) / want - 1.0).abs() < 0.05, "{what}: sd {}", sd(x));
-            assert!(mean(x).abs() < 4.0 * want / (n as f64).sqrt(), "{what}: mean {}", mean(x));
+            assert!(
+                mean(x).abs() < 4.0 * want / (n as f64).sqrt(),
+                "{what}: mean {}",
+                mean(x)
+            );
         }
         assert!((corr(&le, &lr) - 0.9).abs() < 0.015, "{}", corr(&le, &lr));
         assert!(corr(&le, &lg).abs() < 0.06, "{}", corr(&le, &lg));

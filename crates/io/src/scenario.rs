@@ -70,6 +70,9 @@
 //! std_error = 2.1e7          # standard error, same unit (absent if not determined)
 //! determined = true          # false: the recordings did not determine it; held
 //! note = "..."               # optional: why it was held, how to read it
+//! [calibration.correlation]  # correlations of the determined parameters' errors
+//! keys = ["whisker.youngs_modulus", "whisker.density"]  # determined parameters' keys
+//! matrix = [[1.0, 0.95], [0.95, 1.0]]  # symmetric, ones on the diagonal, entries in [-1, 1]
 //!
 //! [base]                     # prescribed base rotation (active whisking)
 //! kind = "sinusoid"          # required: "fixed" | "sinusoid" | "ramp" | "trajectory"

@@ -201,7 +201,10 @@ determined = false
     let loaded = load_full(path.to_str().unwrap(), &[]).unwrap();
     let record = loaded.calibration.unwrap();
     let c = record.correlation.clone().unwrap();
-    assert_eq!(c.get("whisker.density", "whisker.youngs_modulus"), Some(0.9));
+    assert_eq!(
+        c.get("whisker.density", "whisker.youngs_modulus"),
+        Some(0.9)
+    );
     assert_eq!(c.get("whisker.density", "sensors.m0.gain"), None);
     // Written back by a document, it reads the same.
     let mut doc = Document::load(path.to_str().unwrap(), &[]).unwrap();

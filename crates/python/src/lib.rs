@@ -885,6 +885,7 @@ fn calibrate(
         "fits": fit.fits,
         "simulations": fit.simulations,
         "other_minima": fit.other_minima,
+        "correlation": fit.correlation,
         "overrides": fit.overrides,
         "seconds": seconds,
         "scenario": text,

@@ -33,6 +33,9 @@ def test_the_fit_and_the_fitted_file_are_the_command_line_s(labelled, tmp_path):
     assert mine["parameters"] == theirs["parameters"]
     assert mine["channels"] == theirs["channels"]
     assert mine["other_minima"] == theirs["other_minima"]
+    assert mine["correlation"] == theirs["correlation"]
+    determined = [p["key"] for p in mine["parameters"] if p["determined"]]
+    assert mine["correlation"]["keys"] == determined
     assert (tmp_path / "py.toml").read_text() == (tmp_path / "cli.toml").read_text()
     assert mine["scenario"] == (tmp_path / "py.toml").read_text()
     modulus = next(p for p in mine["parameters"] if p["key"] == "whisker.youngs_modulus")

@@ -1108,8 +1108,8 @@ fn assemble(
 }
 
 /// The correlation matrix of the quantities whose derivatives by the coordinates of `cov` are
-/// `rows` (`(key, row)`): `R·cov·Rᵀ` scaled to ones on its diagonal. A quantity without
-/// variance is uncorrelated with the others.
+/// `rows` (`(key, row)`): `R·cov·Rᵀ` scaled to ones on its diagonal, to four decimals. A
+/// quantity without variance is uncorrelated with the others.
 fn correlation(rows: &[(String, Vec<f64>)], cov: &nalgebra::DMatrix<f64>) -> Correlation {
     let n = rows.len();
     let r = nalgebra::DMatrix::from_fn(n, cov.nrows(), |i, a| rows[i].1[a]);
@@ -1124,7 +1124,8 @@ fn correlation(rows: &[(String, Vec<f64>)], cov: &nalgebra::DMatrix<f64>) -> Cor
                     } else if sd[i] > 0.0 && sd[j] > 0.0 {
                         // Symmetric to the last bit, whatever the rounding of the product.
                         let (a, b) = (i.min(j), i.max(j));
-                        (c[(a, b)] / (sd[a] * sd[b])).clamp(-1.0, 1.0)
+                        // Four decimals, for a file that people read.
+                        ((c[(a, b)] / (sd[a] * sd[b])).clamp(-1.0, 1.0) * 1e4).round() / 1e4
                     } else {
                         0.0
                     }
@@ -1234,9 +1235,10 @@ mod tests {
         let c = correlation(&rows, &cov);
         assert_eq!(c.keys, ["a", "b", "c", "d"]);
         let m = &c.matrix;
-        assert!((m[0][1] - 0.5).abs() < 1e-15);
-        assert!(m[0][2].abs() < 1e-15);
-        assert!((m[1][2] + 3.0 / 12f64.sqrt()).abs() < 1e-15);
+        assert_eq!(m[0][1], 0.5);
+        assert_eq!(m[0][2], 0.0);
+        // −3/√12 = −0.866025…
+        assert_eq!(m[1][2], -0.866);
         for i in 0..4 {
             assert_eq!(m[i][i], 1.0);
             assert_eq!(m[i][3], if i == 3 { 1.0 } else { 0.0 });

@@ -150,25 +150,30 @@ pub const CALIBRATED_TEMPER: f64 = 1.3;
 /// follicle springs ([`super::coarse_segments`]).
 pub const RANDOMISED_SEGMENTS: usize = 8;
 
-/// `count` whiskers drawn as `family`'s randomised runs draw theirs, for the filter's
-/// alternatives (none on a family whose runs are not randomised): the draws of its whisker alone
-/// (modulus, density, damping, follicle, taper). The recording's chain and the sensors' gains,
-/// which the draws also vary for training runs, are the filter's sensor unknowns instead
-/// ([`SensorSpread`]). The same family gives the same whiskers.
+/// `count` whiskers drawn from the randomisation `prior` around `family`'s, for the filter's
+/// alternatives: the draws of its whisker alone (modulus, density, damping, follicle, taper).
+/// The recording's chain and the sensors' gains, which the prior also draws for training runs,
+/// are the filter's sensor unknowns instead ([`SensorSpread`]). The same family gives the same
+/// whiskers.
+///
+/// On a calibrated family the draws come from the narrow prior
+/// ([`crate::randomise::Randomisation::calibrated`]), not from the fit's own spread that its
+/// training runs use: the filter holds the fitted gains, and the fit's spread given those gains
+/// is under 1% in every whisker parameter but the follicle's damping, which left the filter
+/// 0.25 mm biased on another engine's recordings (docs/calibration.md).
 pub fn alternative_whiskers(
     family: &crate::Family,
+    prior: crate::randomise::Randomisation,
     count: usize,
-) -> Vec<vibrissa_core::whisker::WhiskerParams> {
-    let Some(around) = family.around() else {
-        return Vec::new();
-    };
-    (0..count as u64)
+) -> Result<Vec<vibrissa_core::whisker::WhiskerParams>> {
+    let around = crate::randomise::Around::new(family.base(), prior)?;
+    Ok((0..count as u64)
         .map(|i| {
             let mut s = family.base().clone();
             around.apply(&mut s, ALTERNATIVE_SEED + i);
             s.whisker
         })
-        .collect()
+        .collect())
 }
 
 /// Seed of the first alternative whisker's draw.
@@ -287,8 +292,8 @@ impl Pf {
         };
         c.shrink = self.shrink;
         c.sensor_spread = self.sensor_spread.unwrap_or_default();
-        if family.randomisation().is_some() {
-            c.alternatives = alternative_whiskers(family, self.alternatives);
+        if let Some(prior) = family.randomisation() {
+            c.alternatives = alternative_whiskers(family, prior, self.alternatives)?;
             // A calibrated scenario's sensors and chain are fitted: only its whisker varies.
             if !family.is_calibrated() {
                 c.sensor_spread = self.sensor_spread.unwrap_or_else(SensorSpread::rough);

@@ -210,7 +210,9 @@ impl Correlation {
             if !parameters.iter().any(|p| &p.key == key && p.determined) {
                 return bad(
                     field,
-                    format!("{key:?} must name a determined parameter of [[calibration.parameters]]"),
+                    format!(
+                        "{key:?} must name a determined parameter of [[calibration.parameters]]"
+                    ),
                 );
             }
             if self.keys[..i].contains(key) {
