@@ -313,7 +313,7 @@ impl FittedSpread {
             .iter()
             .flatten()
             .copied()
-            .fold(0x5b7e_adu64, |h, x| {
+            .fold(0x005b_7ead_u64, |h, x| {
                 (h ^ x.to_bits()).wrapping_mul(0x0000_0100_0000_01b3)
             })
     }

@@ -1239,11 +1239,11 @@ mod tests {
         assert_eq!(m[0][2], 0.0);
         // −3/√12 = −0.866025…
         assert_eq!(m[1][2], -0.866);
-        for i in 0..4 {
-            assert_eq!(m[i][i], 1.0);
-            assert_eq!(m[i][3], if i == 3 { 1.0 } else { 0.0 });
-            for j in 0..4 {
-                assert_eq!(m[i][j], m[j][i]);
+        for (i, row) in m.iter().enumerate() {
+            assert_eq!(row[i], 1.0);
+            assert_eq!(row[3], if i == 3 { 1.0 } else { 0.0 });
+            for (j, &r) in row.iter().enumerate() {
+                assert_eq!(r, m[j][i]);
             }
         }
     }
