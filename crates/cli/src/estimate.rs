@@ -271,13 +271,19 @@ pub fn run(args: &Args) -> Result<()> {
     // A fitted whisker is known only as well as its fit: on a calibrated scenario every method
     // trains over what the calibration leaves uncertain, unless told not to.
     let randomise = args.randomise || (family.is_calibrated() && !args.no_randomise);
-    if randomise && !args.randomise {
+    let family = family.randomised_if(randomise)?;
+    if family.is_calibrated() && randomise {
+        let fitted = family.around().is_some_and(|a| a.is_fitted());
         eprintln!(
             "the scenario is calibrated: training over what its calibration leaves uncertain \
-             (--no-randomise: on the fitted whisker alone)"
+             ({}); --no-randomise trains on the fitted whisker alone",
+            if fitted {
+                "whiskers drawn from the fit's standard errors and correlations"
+            } else {
+                "a narrow prior: the file records no correlations; calibrate again to record them"
+            }
         );
     }
-    let family = family.randomised_if(randomise)?;
     if args.method.as_deref() == Some("pf") {
         check_arguments(args)?;
         return crate::estimate_pf::run(args, &family, &stated);

@@ -195,8 +195,9 @@ fn a_perturbed_whisker_is_fitted_and_its_scenario_written() {
     for (extra, randomised) in [(&[][..], true), (&["--no-randomise"][..], false)] {
         let out = estimate(extra);
         assert!(out.status.success(), "{}", stderr(&out));
+        // The file just written records the fit's correlations: the whiskers come from them.
         assert_eq!(
-            stderr(&out).contains("the scenario is calibrated: training over"),
+            stderr(&out).contains("whiskers drawn from the fit's standard errors and correlations"),
             randomised,
             "{extra:?}: {}",
             stderr(&out)
