@@ -272,16 +272,19 @@ pub fn run(args: &Args) -> Result<()> {
     // trains over what the calibration leaves uncertain, unless told not to.
     let randomise = args.randomise || (family.is_calibrated() && !args.no_randomise);
     let family = family.randomised_if(randomise)?;
-    if family.is_calibrated() && randomise {
+    if family.is_calibrated() && randomise && !args.randomise {
         let fitted = family.around().is_some_and(|a| a.is_fitted());
+        let how = if args.method.as_deref() == Some("pf") {
+            // The filter holds the fitted gains; its alternatives come from the narrow prior.
+            "the filter's alternative whiskers from a narrow prior around the fitted one"
+        } else if fitted {
+            "whiskers drawn from the fit's standard errors and correlations"
+        } else {
+            "a narrow prior: the file records no correlations; calibrate again to record them"
+        };
         eprintln!(
             "the scenario is calibrated: training over what its calibration leaves uncertain \
-             ({}); --no-randomise trains on the fitted whisker alone",
-            if fitted {
-                "whiskers drawn from the fit's standard errors and correlations"
-            } else {
-                "a narrow prior: the file records no correlations; calibrate again to record them"
-            }
+             ({how}); --no-randomise trains on the fitted whisker alone"
         );
     }
     if args.method.as_deref() == Some("pf") {

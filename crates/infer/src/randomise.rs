@@ -186,6 +186,19 @@ enum Target {
 }
 
 impl Target {
+    /// A number that tells targets apart, for digests.
+    fn code(&self) -> f64 {
+        match self {
+            Target::Modulus => 1.0,
+            Target::Density => 2.0,
+            Target::TipRadius => 3.0,
+            Target::FollicleStiffness => 4.0,
+            Target::FollicleDamping => 5.0,
+            Target::Damping => 6.0,
+            Target::Gain(c) => 7.0 + *c as f64,
+        }
+    }
+
     /// The target that a `[[calibration.parameters]]` key sets, if draws vary it.
     fn of(key: &str) -> Option<Target> {
         Some(match key {
@@ -212,7 +225,10 @@ impl Target {
 /// A calibration's joint uncertainty of the whisker and the sensor gains, to draw whiskers
 /// from: the logarithms of the determined parameters jointly normal about the fitted values,
 /// each with its relative standard error (at most [`MAX_LOG_SD`]) and their recorded
-/// correlations. Offsets and the time offset are not drawn.
+/// correlations. Offsets and the time offset are not drawn, nor are the parameters the fit held:
+/// the recordings either barely see them or cannot tell them from others (the force channels'
+/// common gain, held as the reference, trades against the whisker's stiffness, so varying it
+/// alone would draw whiskers the recordings rule out).
 #[derive(Debug, Clone, PartialEq)]
 pub struct FittedSpread {
     /// What each coordinate scales.
@@ -221,21 +237,19 @@ pub struct FittedSpread {
     factor: Vec<Vec<f64>>,
 }
 
-/// The lower Cholesky factor of the covariance `c`; a covariance recorded to finite precision
-/// may be singular or, by rounding, slightly indefinite, so a little is added to its diagonal
-/// (relative to its largest entry) until it factors.
-fn cholesky(c: &nalgebra::DMatrix<f64>) -> nalgebra::DMatrix<f64> {
-    let n = c.nrows();
-    let scale = c.diagonal().max().max(f64::MIN_POSITIVE);
+/// The lower Cholesky factor of the correlation matrix `r`. A matrix recorded to finite
+/// precision may be singular or, by rounding, slightly indefinite: a little is added to its
+/// diagonal until it factors (the same for every parameter, whatever its scale), and without a
+/// factor at all the parameters are drawn independently.
+fn cholesky(r: &nalgebra::DMatrix<f64>) -> nalgebra::DMatrix<f64> {
+    let n = r.nrows();
     [0.0, 1e-9, 1e-6, 1e-3, 1e-2, 1e-1]
         .iter()
         .find_map(|&jitter| {
-            let m = c + nalgebra::DMatrix::identity(n, n) * (jitter * scale);
-            nalgebra::Cholesky::new(m).map(|ch| ch.l())
+            let m = r + nalgebra::DMatrix::identity(n, n) * jitter;
+            nalgebra::Cholesky::new(m).map(|ch| ch.l() / (1.0 + jitter).sqrt())
         })
-        .unwrap_or_else(|| {
-            nalgebra::DMatrix::from_diagonal(&c.diagonal().map(|v| v.max(0.0).sqrt()))
-        })
+        .unwrap_or_else(|| nalgebra::DMatrix::identity(n, n))
 }
 
 impl FittedSpread {
@@ -248,35 +262,31 @@ impl FittedSpread {
             let Some(target) = Target::of(key) else {
                 continue;
             };
-            let p = record.parameters.iter().find(|p| &p.key == key)?;
-            let (Some(se), true) = (p.std_error, p.value.is_finite() && p.value > 0.0) else {
+            let Some(p) = record.parameters.iter().find(|p| &p.key == key) else {
                 continue;
             };
-            picked.push((i, target, (se / p.value).min(MAX_LOG_SD)));
+            // A gain may be negative (a channel wired the other way): its relative error is
+            // that of its size.
+            let value = p.value.abs();
+            let (Some(se), true) = (p.std_error, value.is_finite() && value > 0.0) else {
+                continue;
+            };
+            picked.push((i, target, (se / value).min(MAX_LOG_SD)));
         }
         if picked.is_empty() {
             return None;
         }
         let n = picked.len();
-        let cov = nalgebra::DMatrix::from_fn(n, n, |a, b| {
-            let ((i, _, sa), (j, _, sb)) = (picked[a], picked[b]);
-            correlation.matrix[i][j] * sa * sb
-        });
-        Some(FittedSpread::from_cov(
-            picked.iter().map(|&(_, t, _)| t).collect(),
-            &cov,
-        ))
-    }
-
-    fn from_cov(targets: Vec<Target>, cov: &nalgebra::DMatrix<f64>) -> FittedSpread {
-        let l = cholesky(cov);
-        let n = targets.len();
-        FittedSpread {
-            targets,
+        let r =
+            nalgebra::DMatrix::from_fn(n, n, |a, b| correlation.matrix[picked[a].0][picked[b].0]);
+        // The covariance's factor: the correlation's, each row scaled by its standard deviation.
+        let l = cholesky(&r);
+        Some(FittedSpread {
+            targets: picked.iter().map(|&(_, t, _)| t).collect(),
             factor: (0..n)
-                .map(|a| (0..n).map(|b| l[(a, b)]).collect())
+                .map(|a| (0..n).map(|b| picked[a].2 * l[(a, b)]).collect())
                 .collect(),
-        }
+        })
     }
 
     /// `s` with its whisker and gains drawn by `rng`.
@@ -309,10 +319,10 @@ impl FittedSpread {
 
     /// A digest, for caches of training runs.
     fn digest(&self) -> u64 {
-        self.factor
+        self.targets
             .iter()
-            .flatten()
-            .copied()
+            .map(|t| t.code())
+            .chain(self.factor.iter().flatten().copied())
             .fold(0x005b_7ead_u64, |h, x| {
                 (h ^ x.to_bits()).wrapping_mul(0x0000_0100_0000_01b3)
             })
@@ -677,6 +687,32 @@ matrix = [[1.0, 0.9, 0.0, 0.0, 0.5], [0.9, 1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 
         around.apply(&mut a, 7);
         around.apply(&mut b, 7);
         assert_eq!(a, b);
+    }
+
+    #[test]
+    fn a_negative_gain_is_drawn_by_its_size_and_keeps_its_sign() {
+        let text = FITTED_WITH_CORRELATION
+            .replace(
+                "key = \"sensors.m0.gain\"\nvalue = 1.0",
+                "key = \"sensors.m0.gain\"\nvalue = -1.0",
+            )
+            .replace(
+                "[calibration]\n",
+                "[sensors.m0]\ngain = -1.0\n[calibration]\n",
+            );
+        let f = Family::open_str(&text, "fitted.toml", &[]).unwrap();
+        let f = f.randomised_if(true).unwrap();
+        let around = f.around().unwrap();
+        let mut logs = Vec::new();
+        for seed in 0..400 {
+            let mut s = f.base().clone();
+            around.apply(&mut s, seed);
+            let g = s.sensor_response.m0.gain;
+            assert!(g < 0.0, "{g}");
+            logs.push((-g).ln());
+        }
+        let sd = (logs.iter().map(|x| x * x).sum::<f64>() / logs.len() as f64).sqrt();
+        assert!((sd / 0.03 - 1.0).abs() < 0.15, "{sd}");
     }
 
     #[test]

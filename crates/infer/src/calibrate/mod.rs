@@ -1108,13 +1108,30 @@ fn assemble(
 }
 
 /// The correlation matrix of the quantities whose derivatives by the coordinates of `cov` are
-/// `rows` (`(key, row)`): `R·cov·Rᵀ` scaled to ones on its diagonal, to four decimals. A
-/// quantity without variance is uncorrelated with the others.
+/// `rows` (`(key, row)`): `R·cov·Rᵀ` scaled to ones on its diagonal, to six decimals. A
+/// quantity without variance, or with an infinite one, is uncorrelated with the others.
 fn correlation(rows: &[(String, Vec<f64>)], cov: &nalgebra::DMatrix<f64>) -> Correlation {
     let n = rows.len();
+    // A coordinate the recordings do not see at all has an infinite variance: the quantities
+    // that load it are uncorrelated with the rest (and it is kept out of the product, where
+    // 0·∞ would spoil every entry).
+    let unseen: Vec<bool> = (0..cov.nrows()).map(|a| !cov[(a, a)].is_finite()).collect();
+    let seen = cov.map(|v| if v.is_finite() { v } else { 0.0 });
+    let loads_unseen: Vec<bool> = rows
+        .iter()
+        .map(|(_, row)| row.iter().zip(&unseen).any(|(&w, &u)| u && w != 0.0))
+        .collect();
     let r = nalgebra::DMatrix::from_fn(n, cov.nrows(), |i, a| rows[i].1[a]);
-    let c = &r * cov * r.transpose();
-    let sd: Vec<f64> = (0..n).map(|i| c[(i, i)].max(0.0).sqrt()).collect();
+    let c = &r * seen * r.transpose();
+    let sd: Vec<f64> = (0..n)
+        .map(|i| {
+            if loads_unseen[i] {
+                0.0
+            } else {
+                c[(i, i)].max(0.0).sqrt()
+            }
+        })
+        .collect();
     let matrix = (0..n)
         .map(|i| {
             (0..n)
@@ -1124,8 +1141,9 @@ fn correlation(rows: &[(String, Vec<f64>)], cov: &nalgebra::DMatrix<f64>) -> Cor
                     } else if sd[i] > 0.0 && sd[j] > 0.0 {
                         // Symmetric to the last bit, whatever the rounding of the product.
                         let (a, b) = (i.min(j), i.max(j));
-                        // Four decimals, for a file that people read.
-                        ((c[(a, b)] / (sd[a] * sd[b])).clamp(-1.0, 1.0) * 1e4).round() / 1e4
+                        // Six decimals: a file that people read, precise enough for the
+                        // spread of ratios of parameters correlated near 1.
+                        ((c[(a, b)] / (sd[a] * sd[b])).clamp(-1.0, 1.0) * 1e6).round() / 1e6
                     } else {
                         0.0
                     }
@@ -1237,8 +1255,8 @@ mod tests {
         let m = &c.matrix;
         assert_eq!(m[0][1], 0.5);
         assert_eq!(m[0][2], 0.0);
-        // −3/√12 = −0.866025…
-        assert_eq!(m[1][2], -0.866);
+        // −3/√12 = −0.8660254…
+        assert_eq!(m[1][2], -0.866025);
         for (i, row) in m.iter().enumerate() {
             assert_eq!(row[i], 1.0);
             assert_eq!(row[3], if i == 3 { 1.0 } else { 0.0 });
@@ -1246,6 +1264,24 @@ mod tests {
                 assert_eq!(r, m[j][i]);
             }
         }
+    }
+
+    #[test]
+    fn a_coordinate_of_infinite_variance_leaves_the_others_correlated() {
+        let cov = DMatrix::from_row_slice(
+            3,
+            3,
+            &[4.0, 1.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0, f64::INFINITY],
+        );
+        let rows = vec![
+            ("a".to_string(), vec![1.0, 0.0, 0.0]),
+            ("b".to_string(), vec![0.0, 1.0, 0.0]),
+            ("unseen".to_string(), vec![0.0, 0.0, 1.0]),
+        ];
+        let c = correlation(&rows, &cov);
+        assert_eq!(c.matrix[0][1], 0.5);
+        assert_eq!(c.matrix[2], [0.0, 0.0, 1.0]);
+        assert!(c.matrix.iter().flatten().all(|r| r.is_finite()));
     }
 
     #[test]
