@@ -60,6 +60,12 @@ pub struct Args {
     pub format: FormatArgs,
 }
 
+/// Size of a correlation between two parameters' errors that the report names.
+const STRONG_CORRELATION: f64 = 0.9;
+
+/// How many such pairs the report names (the rest are counted).
+const SHOWN_CORRELATIONS: usize = 4;
+
 /// What `calibrate` prints.
 #[derive(Debug, Serialize)]
 struct Report {
@@ -237,6 +243,28 @@ impl Render for Report {
                 ""
             }
         )?;
+        // The pairs whose errors move together most, among the whisker's parameters and the
+        // gains (the offsets' correlations are in the file and the JSON).
+        let strong = self.correlation.strongest(STRONG_CORRELATION, |k| {
+            k.starts_with("whisker.") || k.ends_with(".gain")
+        });
+        if !strong.is_empty() {
+            let shown: Vec<String> = strong
+                .iter()
+                .take(SHOWN_CORRELATIONS)
+                .map(|(a, b, r)| format!("{a} and {b} {r:+.2}"))
+                .collect();
+            writeln!(
+                out,
+                "  errors correlated by {STRONG_CORRELATION} or more: {}{}",
+                shown.join(", "),
+                match strong.len().saturating_sub(SHOWN_CORRELATIONS) {
+                    0 => String::new(),
+                    1 => " and 1 more pair".to_string(),
+                    more => format!(" and {more} more pairs"),
+                }
+            )?;
+        }
         writeln!(out, "\nresidual RMS per channel:")?;
         let mut table = Table::new(&[
             ("channel", Align::Left),
@@ -329,4 +357,63 @@ fn draw(png: &Path, fit: &Fit, nominal: &str) -> Result<Pending> {
         &panels,
         None,
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use vibrissa_io::scenario::Correlation;
+
+    fn report(matrix: Vec<Vec<f64>>) -> Report {
+        Report {
+            nominal: "nominal.toml".into(),
+            labelled: "calib".into(),
+            out: "fitted.toml".into(),
+            recordings: 9,
+            ignored: Vec::new(),
+            parameters: Vec::new(),
+            channels: Vec::new(),
+            iterations: 10,
+            fits: 2,
+            simulations: 100,
+            other_minima: 1,
+            correlation: Correlation {
+                keys: vec![
+                    "whisker.youngs_modulus".into(),
+                    "whisker.density".into(),
+                    "sensors.m0.offset".into(),
+                ],
+                matrix,
+            },
+            seconds: 1.0,
+        }
+    }
+
+    fn text(r: &Report) -> String {
+        let mut out = Vec::new();
+        r.render(&mut out).unwrap();
+        String::from_utf8(out).unwrap()
+    }
+
+    #[test]
+    fn the_report_names_the_strongly_correlated_whisker_parameters_and_gains() {
+        let strong = report(vec![
+            vec![1.0, 0.95, 0.99],
+            vec![0.95, 1.0, 0.0],
+            vec![0.99, 0.0, 1.0],
+        ]);
+        let t = text(&strong);
+        assert!(
+            t.contains("errors correlated by 0.9 or more: whisker.youngs_modulus and whisker.density +0.95"),
+            "{t}"
+        );
+        // Offsets are left to the file and the JSON.
+        assert!(!t.contains("sensors.m0.offset and"), "{t}");
+        let weak = report(vec![
+            vec![1.0, 0.5, 0.99],
+            vec![0.5, 1.0, 0.0],
+            vec![0.99, 0.0, 1.0],
+        ]);
+        assert!(!text(&weak).contains("errors correlated"));
+    }
 }

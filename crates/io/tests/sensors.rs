@@ -206,6 +206,12 @@ determined = false
         Some(0.9)
     );
     assert_eq!(c.get("whisker.density", "sensors.m0.gain"), None);
+    assert_eq!(
+        c.strongest(0.5, |_| true),
+        [("whisker.youngs_modulus", "whisker.density", 0.9)]
+    );
+    assert!(c.strongest(0.95, |_| true).is_empty());
+    assert!(c.strongest(0.5, |k| k != "whisker.density").is_empty());
     // Written back by a document, it reads the same.
     let mut doc = Document::load(path.to_str().unwrap(), &[]).unwrap();
     doc.set_calibration(&record).unwrap();

@@ -86,6 +86,22 @@ pub struct Correlation {
 }
 
 impl Correlation {
+    /// The pairs of recorded parameters, both passing `keep`, whose errors are correlated by at
+    /// least `min` in size, strongest first: `(a, b, r)` with `a` before `b` in `keys`.
+    pub fn strongest(&self, min: f64, keep: impl Fn(&str) -> bool) -> Vec<(&str, &str, f64)> {
+        let mut pairs = Vec::new();
+        for (i, a) in self.keys.iter().enumerate() {
+            for (j, b) in self.keys.iter().enumerate().skip(i + 1) {
+                let r = self.matrix[i][j];
+                if r.abs() >= min && keep(a) && keep(b) {
+                    pairs.push((a.as_str(), b.as_str(), r));
+                }
+            }
+        }
+        pairs.sort_by(|x, y| y.2.abs().total_cmp(&x.2.abs()));
+        pairs
+    }
+
     /// The correlation of the errors of `a` and `b`, if both are recorded.
     pub fn get(&self, a: &str, b: &str) -> Option<f64> {
         let i = self.keys.iter().position(|k| k == a)?;
