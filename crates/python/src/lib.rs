@@ -382,20 +382,21 @@ fn estimate(
     }
     // A calibrated scenario trains over what its calibration leaves uncertain unless told not to.
     let auto = randomise.is_none();
-    let randomise = match randomise {
-        Some(r) => r,
-        None => {
-            if family.is_calibrated() {
-                messages.push(
-                    "the scenario is calibrated: training over what its calibration leaves \
-                     uncertain (randomise=False: on the fitted whisker alone)"
-                        .into(),
-                );
-            }
-            family.is_calibrated()
-        }
-    };
+    let randomise = randomise.unwrap_or(family.is_calibrated());
     let family = family.randomised_if(randomise).map_err(value_error)?;
+    if auto && family.is_calibrated() {
+        let how = if pf {
+            "the filter's alternative whiskers from a narrow prior around the fitted one"
+        } else if family.around().is_some_and(|a| a.is_fitted()) {
+            "whiskers drawn from the fit's standard errors and correlations"
+        } else {
+            "a narrow prior: the file records no correlations; calibrate again to record them"
+        };
+        messages.push(format!(
+            "the scenario is calibrated: training over what its calibration leaves uncertain \
+             ({how}); randomise=False trains on the fitted whisker alone"
+        ));
+    }
     let several = names.len() > 1;
     let rows = py.detach(|| -> vibrissa_infer::Result<Vec<String>> {
         let noise = batch_noise(&names, &recordings, &needs, &stated, "noise={...}")?;

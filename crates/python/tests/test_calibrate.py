@@ -22,7 +22,7 @@ def labelled(tmp_path_factory):
     return folder
 
 
-def test_the_fit_and_the_fitted_file_are_the_command_line_s(labelled, tmp_path):
+def test_the_fit_and_the_fitted_file_are_the_command_line_s(labelled, tmp_path, capsys):
     mine = vibrissa.calibrate("e1", labelled, out=tmp_path / "py.toml")
     out = subprocess.run(
         [cli(), "calibrate", "--scenario", "e1", "--labelled", labelled, "--out",
@@ -42,8 +42,10 @@ def test_the_fit_and_the_fitted_file_are_the_command_line_s(labelled, tmp_path):
     assert modulus["determined"] and modulus["value"] > 3.0e9
     # The fitted file is a scenario every function takes.
     est = vibrissa.estimate(labelled / "r0.csv", tmp_path / "py.toml", method="krr-local",
-                            noise="none")
+                            noise="none", verbose=True)
     assert abs(est["d"]["mean"] - 0.017) < 1e-3
+    # It trains on whiskers drawn from the correlations the fitted file records.
+    assert "drawn from the fit's standard errors and correlations" in capsys.readouterr().err
 
 
 def test_bad_input_raises_and_writes_nothing(labelled, tmp_path):
