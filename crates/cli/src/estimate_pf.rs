@@ -181,9 +181,13 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
                 let parts: Vec<String> = est
                     .iter()
                     .map(|(n, e)| {
+                        use crate::output::sig;
                         format!(
-                            "{n} = {:.5} ± {:.5} (90%: {:.5}…{:.5})",
-                            e.mean, e.std, e.ci90[0], e.ci90[1]
+                            "{n} = {} ± {} (90%: {}…{})",
+                            sig(e.mean, 4),
+                            sig(e.std, 2),
+                            sig(e.ci90[0], 4),
+                            sig(e.ci90[1], 4)
                         )
                     })
                     .collect();

@@ -407,3 +407,98 @@ fn a_randomised_filter_widens_its_intervals_to_hold_on_held_out_whiskers() {
     let nominal = fitted(&Family::builtin("e2").unwrap(), &level, &Options::new(50)).unwrap();
     assert!(nominal.interval_scale.is_empty());
 }
+
+#[test]
+fn a_randomised_filter_reports_its_belief_over_the_whiskers() {
+    use vibrissa_core::whisker::{Damping, Follicle};
+    use vibrissa_infer::pf::recording::{estimate, fitted, Options};
+    use vibrissa_infer::randomise::Randomisation;
+    let family = Family::builtin("e2")
+        .unwrap()
+        .randomised(Randomisation::default())
+        .unwrap();
+    let level = [2e-3, 5e-3, 8e-7, 5e-5, 4e-5];
+    let mut options = Options::new(800);
+    options.alternatives = 7;
+    options.interval_runs = 0;
+    let filter = fitted(&family, &level, &options).unwrap();
+    let config = filter.config(&family, filter.sigma().unwrap()).unwrap();
+    let whiskers: Vec<_> = std::iter::once(&config.whisker)
+        .chain(&config.alternatives)
+        .collect();
+    // The recording's whisker: the clamped alternative whose modulus is farthest from the
+    // scenario's (the other parameters it differs in go into the scenario too).
+    let e0 = config.whisker.youngs_modulus;
+    let truth = config
+        .alternatives
+        .iter()
+        .filter(|w| w.follicle == Follicle::Clamped)
+        .max_by(|a, b| {
+            let far =
+                |w: &&vibrissa_core::whisker::WhiskerParams| (w.youngs_modulus / e0).ln().abs();
+            far(a).total_cmp(&far(b))
+        })
+        .expect("a clamped alternative");
+    let Damping::ModalRatio { ratio } = truth.damping else {
+        panic!("the prior keeps the damping's kind");
+    };
+    let text = format!(
+        "experiment = \"e2\"\n[whisker]\npreset = \"w30\"\nyoungs_modulus = {}\ndensity = {}\n\
+         tip_radius = {}\n[whisker.damping]\nkind = \"modal_ratio\"\nratio = {ratio}\n",
+        truth.youngs_modulus, truth.density, truth.tip_radius
+    );
+    let recorded = Family::open_str(&text, "test", &[]).unwrap();
+    let s = recorded.simulate(&[0.022, 0.8], &Noise::NONE, 3).unwrap();
+    let t: Vec<f64> = (0..s.series[0].len()).map(|k| k as f64 * 1e-3).collect();
+    let rec = vibrissa_infer::Recording::from_columns(
+        "strike",
+        t,
+        s.series.into_iter().map(Some).collect(),
+        None,
+        &options.channels,
+        vibrissa_infer::Reader::Filter,
+    )
+    .unwrap();
+    let est = estimate(&filter, &family, &rec, &options).unwrap();
+    let named = est.named();
+    let get = |key: &str| {
+        named
+            .iter()
+            .find(|(k, _)| k == key)
+            .unwrap_or_else(|| panic!("{key} missing from {named:?}"))
+            .1
+    };
+    // Every whisker parameter the prior varies is reported, finite, within the whiskers' range.
+    for key in [
+        "whisker.youngs_modulus",
+        "whisker.density",
+        "whisker.damping.ratio",
+    ] {
+        let e = get(key);
+        assert!(
+            e.mean.is_finite() && e.std.is_finite() && e.ci90[0] <= e.ci90[1],
+            "{key}: {e:?}"
+        );
+    }
+    let c = get("whisker.follicle.compliance");
+    assert!(c.ci90[0] >= 0.0 && c.mean.is_finite(), "{c:?}");
+    // The belief over the modulus moved from the prior's (equal weights on the eight whiskers)
+    // towards the recording's, and its interval holds it.
+    let prior_mean = whiskers.iter().map(|w| w.youngs_modulus).sum::<f64>() / whiskers.len() as f64;
+    let e = get("whisker.youngs_modulus");
+    assert!(
+        (e.mean - truth.youngs_modulus).abs() < 0.5 * (prior_mean - truth.youngs_modulus).abs(),
+        "posterior {e:?}, prior mean {prior_mean}, truth {}",
+        truth.youngs_modulus
+    );
+    assert!(
+        e.covers(truth.youngs_modulus),
+        "{e:?} vs {}",
+        truth.youngs_modulus
+    );
+    // A filter told its whisker reports none.
+    let nominal = Family::builtin("e2").unwrap();
+    let told = fitted(&nominal, &level, &Options::new(100)).unwrap();
+    let est = estimate(&told, &nominal, &rec, &Options::new(100)).unwrap();
+    assert!(est.named().iter().all(|(k, _)| !k.starts_with("whisker.")));
+}

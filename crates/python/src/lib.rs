@@ -70,19 +70,24 @@ fn row_dict<'py>(
 }
 
 /// Adds the posterior of the sensors' gains and offsets, when the filter carries them, under
-/// the scenario keys `sensors.<channel>.gain` and `.offset`.
+/// the scenario keys `sensors.<channel>.gain` and `.offset`, and of the whisker parameters that
+/// differ between the whiskers it entertains (`whisker.youngs_modulus`, …).
 fn add_sensors(py: Python<'_>, d: &Bound<'_, PyDict>, post: &pf::Posterior) -> PyResult<()> {
-    let Some(s) = &post.sensors else {
-        return Ok(());
+    let put = |key: String, e: &vibrissa_infer::Estimate| -> PyResult<()> {
+        let u = PyDict::new(py);
+        u.set_item("mean", e.mean)?;
+        u.set_item("std", e.std)?;
+        u.set_item("ci90", (e.ci90[0], e.ci90[1]))?;
+        d.set_item(key, u)
     };
-    for (c, ch) in CHANNELS.iter().enumerate() {
-        for (what, e) in [("gain", &s.gain[c]), ("offset", &s.offset[c])] {
-            let u = PyDict::new(py);
-            u.set_item("mean", e.mean)?;
-            u.set_item("std", e.std)?;
-            u.set_item("ci90", (e.ci90[0], e.ci90[1]))?;
-            d.set_item(format!("sensors.{ch}.{what}"), u)?;
+    if let Some(s) = &post.sensors {
+        for (c, ch) in CHANNELS.iter().enumerate() {
+            put(format!("sensors.{ch}.gain"), &s.gain[c])?;
+            put(format!("sensors.{ch}.offset"), &s.offset[c])?;
         }
+    }
+    for (key, e) in &post.whisker {
+        put(key.to_string(), e)?;
     }
     Ok(())
 }

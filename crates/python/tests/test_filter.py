@@ -114,7 +114,9 @@ def test_a_whisker_known_roughly_sample_by_sample_equals_the_command_line(tmp_pa
     run = vibrissa.simulate("e2", d=0.021, v=0.7, **{"sensors.theta12.gain": 0.5})
     f = vibrissa.Filter("e2", particles=300, noise=NOISE, seed=2, randomise=True)
     post, theirs = filter_and_command_line(f, run, tmp_path, "--randomise")
-    for name in ("d", "v", "sensors.theta12.gain", "sensors.m0.offset"):
+    names = ("d", "v", "sensors.theta12.gain", "sensors.m0.offset", "whisker.youngs_modulus",
+             "whisker.follicle.compliance")
+    for name in names:
         assert post[name]["mean"] == theirs[name]["mean"], name
         assert list(post[name]["ci90"]) == theirs[name]["ci90"], name
     # The recorded theta12 is half the scenario's: the filter learned it (with 300 particles its

@@ -9,6 +9,7 @@ use super::posterior::{summarise, Observations, Posterior, TraceRow};
 use super::sampling::{systematic, LiuWest};
 use super::sensors::SensorBelief;
 use super::transition::{advance, map_joints, param, Hypothesis, ObjState};
+use super::whiskers::WhiskerValues;
 use crate::error::{Error, Result};
 use crate::experiment::CHANNELS;
 use rayon::prelude::*;
@@ -84,6 +85,8 @@ pub struct Filter {
     objs: Vec<ObjState>,
     /// Each particle's whisker, an index into `hyps`.
     hyp: Vec<u16>,
+    /// The whisker parameters that differ between `hyps`.
+    whisker_values: WhiskerValues,
     spare_hyp: Vec<u16>,
     /// Each particle's belief over the sensors' gains and offsets (unchanging when they are
     /// known).
@@ -168,6 +171,9 @@ impl Filter {
                 rate_widening: widening,
                 ..Posterior::empty(config.unknowns())
             },
+            whisker_values: WhiskerValues::new(
+                std::iter::once(&config.whisker).chain(&config.alternatives),
+            ),
             hyps,
             stepper,
             spare_hyp: hyp.clone(),
@@ -372,6 +378,9 @@ impl Filter {
         post.trace.push(TraceRow { t, ess, estimates });
         if !config.sensor_spread.is_fixed() {
             post.sensors = Some(SensorBelief::mixture(&self.sensors, &w));
+        }
+        if !self.whisker_values.is_empty() {
+            post.whisker = self.whisker_values.posterior(&self.hyp, &w);
         }
         self.logw
             .iter_mut()

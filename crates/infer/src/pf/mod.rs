@@ -40,6 +40,7 @@ pub mod recording;
 mod sampling;
 mod sensors;
 mod transition;
+mod whiskers;
 
 pub use config::{coarse_segments, Config, Injection, Prior, PARAMS};
 pub use filter::{run, Filter, Particles};

@@ -82,6 +82,10 @@ pub struct Posterior {
     /// [`crate::experiment::CHANNELS`], when the filter was not told them exactly
     /// ([`super::Config::sensor_spread`]).
     pub sensors: Option<SensorPosterior>,
+    /// The whisker parameters that differ between the whiskers the filter entertains, after
+    /// the last sample, by their keys (`whisker.youngs_modulus`, …, the follicle by
+    /// `whisker.follicle.compliance`); empty when it was told its whisker.
+    pub whisker: Vec<(&'static str, Estimate)>,
 }
 
 /// The posterior of the sensors' gains and offsets (their mean and standard deviation over the
@@ -109,6 +113,7 @@ impl Posterior {
             log_evidence: 0.0,
             rate_widening: 1.0,
             sensors: None,
+            whisker: Vec::new(),
         }
     }
 

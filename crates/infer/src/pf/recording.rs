@@ -106,7 +106,8 @@ impl Estimate {
 
     /// The posterior after the last sample, named by unknown (the object's `d`, `v`, and any
     /// further unknown the filter carried; the sensors' gains and offsets by their scenario keys,
-    /// `sensors.<channel>.gain` and `.offset`, when the filter was not told them exactly).
+    /// `sensors.<channel>.gain` and `.offset`, when the filter was not told them exactly; the
+    /// whisker's parameters that differ between the whiskers it entertained, `whisker.<key>`).
     pub fn named(&self) -> Vec<(String, crate::Estimate)> {
         let post = &self.posterior;
         let mut named: Vec<(String, crate::Estimate)> = post
@@ -122,6 +123,7 @@ impl Estimate {
                 named.push((format!("sensors.{ch}.offset"), s.offset[c]));
             }
         }
+        named.extend(post.whisker.iter().map(|(k, e)| (k.to_string(), *e)));
         named
     }
 
