@@ -81,58 +81,69 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
         }
         methods::by_name(name)?;
     }
+    if args.pool {
+        if args.obs.len() < 2 {
+            bail!(
+                "--pool learns the whisker from several recordings of it: give at least 2 (got 1)"
+            );
+        }
+        if args.inject.is_some() {
+            bail!("--pool and --inject do not go together");
+        }
+        if family.randomisation().is_none() {
+            bail!(
+                "--pool needs a filter that entertains several whiskers: add --randomise (the \
+                 scenario's whisker is taken as known)"
+            );
+        }
+        // Each round's whiskers are the batch's, not the prior's: no held-out widening.
+        options.interval_runs = 0;
+    }
     let mut inject = Trained::default();
+    let mut ests = filter_all(
+        args,
+        family,
+        &recordings,
+        &levels,
+        &leads,
+        &options,
+        &mut inject,
+        true,
+    )?;
+    if args.pool {
+        ests = pf::pool::refine(
+            ests,
+            &options,
+            args.seed,
+            &mut |o| {
+                filter_all(
+                    args,
+                    family,
+                    &recordings,
+                    &levels,
+                    &leads,
+                    o,
+                    &mut inject,
+                    false,
+                )
+                .map_err(|e| vibrissa_infer::Error::Observation(format!("{e:#}")))
+            },
+            &mut |round, favourite, n| {
+                eprintln!(
+                    "pooling round {round} of {}: the batch favours {}; filtering again among {n} \
+                     whiskers drawn around it",
+                    pf::pool::ROUNDS,
+                    pf::pool::describe(favourite)
+                )
+            },
+        )?;
+    }
 
     let mut rows: Vec<FileEstimate> = Vec::new();
     let mut posteriors = Vec::new();
     let mut checks = Vec::new();
     let mut figure = None;
-    let mut fitted: Option<([f64; 5], pf::Pf)> = None;
-    for (((file, rec), level), &lead) in args.obs.iter().zip(&recordings).zip(&levels).zip(&leads) {
-        if fitted.as_ref().map(|f| f.0) != Some(*level) {
-            let filter = pf::recording::fitted(family, level, &options)?;
-            let sigma = filter.sigma().context("the filter was not fitted")?;
-            eprintln!(
-                "pf ({} particles): observation noise {}",
-                particles,
-                channels
-                    .iter()
-                    .map(|&c| format!("{} {:.3e}", CHANNELS[c], sigma[c]))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            );
-            if !filter.interval_scale.is_empty() {
-                eprintln!(
-                    "pf: intervals widened ({}) to hold {:.0}% of the errors on {} held-out runs \
-                     of whiskers drawn around the scenario",
-                    filter
-                        .interval_scale
-                        .iter()
-                        .map(|(k, f)| format!("{k} ×{f:.2}"))
-                        .collect::<Vec<_>>()
-                        .join(", "),
-                    pf::recording::INTERVAL_QUANTILE * 100.0,
-                    options.interval_runs
-                );
-            }
-            fitted = Some((*level, filter));
-        }
-        let filter = &fitted.as_ref().expect("fitted above").1;
-        options.inject = match &args.inject {
-            Some(name) => {
-                let m = trained_for(&mut inject, family, rec, level, name, args.seed, lead)?;
-                Some(m.predict(&rec.values).with_context(|| {
-                    format!(
-                        "--inject {}: cannot estimate from `{}`",
-                        m.name(),
-                        file.display()
-                    )
-                })?)
-            }
-            None => None,
-        };
-        let est = pf::recording::estimate(filter, family, rec, &options)
-            .with_context(|| format!("filtering `{}`", file.display()))?;
+    for ((file, rec), est) in args.obs.iter().zip(&recordings).zip(ests) {
         for w in est.warnings(&file.display().to_string()) {
             eprintln!("warning: {w}");
         }
@@ -350,4 +361,73 @@ fn write_trace(path: &Path, post: &Posterior) -> Result<()> {
     pending.commit()?;
     eprintln!("wrote {} and {}", path.display(), png.display());
     Ok(())
+}
+
+/// Filters every recording with `options` (fitting the filter once per noise level); `verbose`
+/// prints the filter's noise and widening.
+#[allow(clippy::too_many_arguments)]
+fn filter_all(
+    args: &Args,
+    family: &Family,
+    recordings: &[vibrissa_infer::Recording],
+    levels: &[[f64; 5]],
+    leads: &[usize],
+    options: &pf::recording::Options,
+    inject: &mut Trained,
+    verbose: bool,
+) -> Result<Vec<pf::recording::Estimate>> {
+    let mut options = options.clone();
+    let mut fitted: Option<([f64; 5], pf::Pf)> = None;
+    let mut out = Vec::with_capacity(recordings.len());
+    for (((file, rec), level), &lead) in args.obs.iter().zip(recordings).zip(levels).zip(leads) {
+        if fitted.as_ref().map(|f| f.0) != Some(*level) {
+            let filter = pf::recording::fitted(family, level, &options)?;
+            let sigma = filter.sigma().context("the filter was not fitted")?;
+            if verbose {
+                eprintln!(
+                    "pf ({} particles): observation noise {}",
+                    options.particles,
+                    options
+                        .channels
+                        .iter()
+                        .map(|&c| format!("{} {:.3e}", CHANNELS[c], sigma[c]))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                );
+            }
+            if verbose && !filter.interval_scale.is_empty() {
+                eprintln!(
+                    "pf: intervals widened ({}) to hold {:.0}% of the errors on {} held-out runs \
+                     of whiskers drawn around the scenario",
+                    filter
+                        .interval_scale
+                        .iter()
+                        .map(|(k, f)| format!("{k} ×{f:.2}"))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    pf::recording::INTERVAL_QUANTILE * 100.0,
+                    options.interval_runs
+                );
+            }
+            fitted = Some((*level, filter));
+        }
+        let filter = &fitted.as_ref().expect("fitted above").1;
+        options.inject = match &args.inject {
+            Some(name) => {
+                let m = trained_for(inject, family, rec, level, name, args.seed, lead)?;
+                Some(m.predict(&rec.values).with_context(|| {
+                    format!(
+                        "--inject {}: cannot estimate from `{}`",
+                        m.name(),
+                        file.display()
+                    )
+                })?)
+            }
+            None => None,
+        };
+        let est = pf::recording::estimate(filter, family, rec, &options)
+            .with_context(|| format!("filtering `{}`", file.display()))?;
+        out.push(est);
+    }
+    Ok(out)
 }

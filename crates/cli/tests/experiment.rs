@@ -1367,3 +1367,91 @@ fn experiment_e3_scores_shapes_and_exports_every_evaluated_run() {
     assert!(String::from_utf8_lossy(&bad.stderr).contains("--bank"));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn estimate_pool_learns_one_whisker_from_several_recordings() {
+    let dir = temp("pool");
+    // Four strikes by one whisker a quarter softer than the scenario says.
+    let strikes: Vec<PathBuf> = [
+        ("0.018", "0.5"),
+        ("0.021", "0.9"),
+        ("0.025", "1.2"),
+        ("0.027", "0.7"),
+    ]
+    .iter()
+    .enumerate()
+    .map(|(k, (d, v))| {
+        let csv = dir.join(format!("strike{k}.csv"));
+        let seed = format!("seed={}", 11 + k);
+        let (d, v) = (format!("d={d}"), format!("v={v}"));
+        noisy_e2_strike(&csv, &[&seed, &d, &v, "whisker.youngs_modulus=2.25e9"]);
+        csv
+    })
+    .collect();
+    let run = |extra: &[&str], files: &[PathBuf]| {
+        vibrissa()
+            .args(["estimate", "--experiment", "e2", "--method", "pf", "--json"])
+            .args(["--particles", "640", "--alternatives", "15"])
+            .args(extra)
+            .args(
+                files
+                    .iter()
+                    .flat_map(|f| [std::ffi::OsStr::new("--obs"), f.as_os_str()]),
+            )
+            .output()
+            .unwrap()
+    };
+    let out = run(&["--randomise", "--pool"], &strikes);
+    let err = String::from_utf8_lossy(&out.stderr).to_string();
+    assert!(out.status.success(), "{err}");
+    let rows: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(rows.len(), 4);
+    for r in &rows {
+        for key in ["d", "v", "sensors.m0.gain", "whisker.youngs_modulus"] {
+            assert!(r[key]["mean"].as_f64().unwrap().is_finite(), "{key}: {r}");
+        }
+    }
+    // Every round names the whisker the batch favours. What every strike shows is the ringing,
+    // whose frequency goes as the square root of modulus over density: the last round's
+    // favourite has a ratio nearer the recordings' (2.25 GPa over 1100 kg/m³) than the
+    // scenario's 3 GPa over 1100 is.
+    let last = err
+        .lines()
+        .find(|l| l.starts_with("pooling round 3 of 3"))
+        .unwrap_or_else(|| panic!("{err}"));
+    let number = |after: &str| -> f64 {
+        last.split(after)
+            .nth(1)
+            .and_then(|s| s.split(' ').next())
+            .and_then(|s| s.parse().ok())
+            .unwrap_or_else(|| panic!("{after}: {last}"))
+    };
+    let ratio = number("modulus ") * 1e9 / number("density ");
+    let truth = 2.25e9 / 1100.0;
+    assert!(
+        (ratio / truth).ln().abs() < 0.5 * (3e9 / 1100.0 / truth).ln().abs(),
+        "{last}"
+    );
+    // Refused: one recording, a whisker taken as known, and --inject.
+    for (extra, files, why) in [
+        (&["--randomise", "--pool"][..], &strikes[..1], "at least 2"),
+        (
+            &["--no-randomise", "--pool"][..],
+            &strikes[..],
+            "--randomise",
+        ),
+        (
+            &["--randomise", "--pool", "--inject", "krr"][..],
+            &strikes[..],
+            "--inject",
+        ),
+    ] {
+        let out = run(extra, files);
+        assert!(!out.status.success(), "{extra:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(why), "{extra:?}: {err}");
+    }
+}

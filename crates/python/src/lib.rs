@@ -315,11 +315,37 @@ enum Input<'py> {
     ),
 }
 
+/// The pooling rounds of `vibrissa estimate --pool` ([`vibrissa_infer::pf::pool::refine`]),
+/// each round's favourite whisker reported in `messages`.
+fn recording_pool(
+    first: Vec<recording::Estimate>,
+    options: &recording::Options,
+    seed: u64,
+    filter_all: &dyn Fn(&recording::Options) -> vibrissa_infer::Result<Vec<recording::Estimate>>,
+    messages: &mut Vec<String>,
+) -> vibrissa_infer::Result<Vec<recording::Estimate>> {
+    use vibrissa_infer::pf::pool;
+    pool::refine(
+        first,
+        options,
+        seed,
+        &mut |o| filter_all(o),
+        &mut |round, favourite, n| {
+            messages.push(format!(
+            "pooling round {round} of {}: the batch favours {}; filtering again among {n} whiskers \
+             drawn around it",
+            pool::ROUNDS,
+            pool::describe(favourite)
+        ))
+        },
+    )
+}
+
 /// Estimates the scenario's unknowns from each recording with `method`, as
 /// `vibrissa estimate --json` does; returns one estimate object per recording as JSON text,
 /// and the messages the command line prints on standard error (warnings, what is trained).
 #[pyfunction]
-#[pyo3(signature = (scenario, scenario_json, sets, inputs, method, noise, seed, randomise, particles, check, whisker=None, max_delay=0.0))]
+#[pyo3(signature = (scenario, scenario_json, sets, inputs, method, noise, seed, randomise, particles, check, whisker=None, max_delay=0.0, pool=false))]
 #[allow(clippy::too_many_arguments)]
 fn estimate(
     py: Python<'_>,
@@ -335,8 +361,20 @@ fn estimate(
     check: bool,
     whisker: Option<&str>,
     max_delay: f64,
+    pool: bool,
 ) -> PyResult<(Vec<String>, Vec<String>)> {
     let pf = method == "pf";
+    if pool && !pf {
+        return Err(value_error(
+            "pool: the filter's option (method=\"pf\"): it learns one whisker from the recordings",
+        ));
+    }
+    if pool && inputs.len() < 2 {
+        return Err(value_error(format!(
+            "pool: learns the whisker from several recordings of it: give at least 2 (got {})",
+            inputs.len()
+        )));
+    }
     let family = family(scenario, scenario_json, &sets)?
         .for_whisker(whisker, pf)
         .map_err(value_error)?;
@@ -465,18 +503,45 @@ fn estimate(
             )?
         };
         let mut discriminative = discriminative.into_iter();
-        let mut filtered: Option<([f64; 5], Pf)> = None;
+        // The filter on every recording, fitted once per noise level as on the command line.
+        let filter_all =
+            |options: &recording::Options| -> vibrissa_infer::Result<Vec<recording::Estimate>> {
+                let mut filtered: Option<([f64; 5], Pf)> = None;
+                let mut out = Vec::new();
+                for (rec, level) in recordings.iter().zip(&noise.levels) {
+                    if filtered.as_ref().map(|f| f.0) != Some(*level) {
+                        filtered = Some((*level, recording::fitted(&family, level, options)?));
+                    }
+                    let fitted = &filtered.as_ref().expect("fitted above").1;
+                    out.push(recording::estimate(fitted, &family, rec, options)?);
+                }
+                Ok(out)
+            };
+        let mut options = options;
+        let filtered = if !pf {
+            Vec::new()
+        } else if pool {
+            if family.randomisation().is_none() {
+                return Err(vibrissa_infer::Error::Observation(
+                    "pool: the filter must entertain several whiskers: randomise=True (or leave it \
+                     None on a scenario the recordings defy)"
+                        .into(),
+                ));
+            }
+            // Each round's whiskers are the batch's, not the prior's: no held-out widening.
+            options.interval_runs = 0;
+            let first = filter_all(&options)?;
+            recording_pool(first, &options, seed, &filter_all, &mut messages)?
+        } else {
+            filter_all(&options)?
+        };
+        let mut filtered = filtered.into_iter();
         let mut rows = Vec::new();
         for (((name, rec), level), &lead) in
             names.iter().zip(&recordings).zip(&noise.levels).zip(&leads)
         {
             let (estimates, seconds, filter, sensor) = if pf {
-                // The filter is fitted once per noise level, as on the command line.
-                if filtered.as_ref().map(|f| f.0) != Some(*level) {
-                    filtered = Some((*level, recording::fitted(&family, level, &options)?));
-                }
-                let fitted = &filtered.as_ref().expect("fitted above").1;
-                let est = recording::estimate(fitted, &family, rec, &options)?;
+                let est = filtered.next().expect("one filtering per recording");
                 messages.extend(
                     est.warnings(name)
                         .into_iter()

@@ -83,6 +83,22 @@ def test_the_filter_on_a_whisker_known_roughly(recordings):
     assert abs(mine["d"]["mean"] - 0.021) < 2.5e-3
 
 
+def test_pooling_a_batch_gives_the_command_line_s_estimates(recordings):
+    args = dict(method="pf", particles=320, randomise=True, pool=True)
+    mine = vibrissa.estimate(recordings, "e2", **args)
+    theirs = cli_estimates(recordings, "--method", "pf", "--particles", "320", "--randomise",
+                           "--pool")
+    for m, t in zip(mine, theirs):
+        assert same(m, t), (m, t)
+        assert "whisker.youngs_modulus" in m
+    with pytest.raises(ValueError, match="at least 2"):
+        vibrissa.estimate(recordings[:1], "e2", **args)
+    with pytest.raises(ValueError, match="method=.pf"):
+        vibrissa.estimate(recordings, "e2", method="knn", pool=True)
+    with pytest.raises(ValueError, match="randomise=True"):
+        vibrissa.estimate(recordings, "e2", method="pf", particles=50, randomise=False, pool=True)
+
+
 def test_arrays_a_frame_and_a_path_give_the_same_estimate(recordings):
     run = noisy_run(0.021, 0.7, 0)
     from_path = vibrissa.estimate(recordings[0], method="knn")

@@ -281,6 +281,20 @@ impl Filter {
         let fixed_sensors = config.sensor_spread.is_fixed();
         // Weight mass the particles carry into this sample (for the evidence).
         let prior_mass: f64 = self.logw.iter().map(|l| l.exp()).sum();
+        // The same per whisker (for each whisker's evidence).
+        let mut whisker_mass = vec![
+            0.0f64;
+            if self.hyps.len() > 1 {
+                self.hyps.len()
+            } else {
+                0
+            }
+        ];
+        if !whisker_mass.is_empty() {
+            for (l, &h) in self.logw.iter().zip(&self.hyp) {
+                whisker_mass[h as usize] += l.exp();
+            }
+        }
         let ringing_before = self.cleared.iter().filter(|c| **c).count();
         let undone = AtomicUsize::new(0);
         // Predict (after the first sample) and weight every particle, in parallel.
@@ -363,6 +377,26 @@ impl Filter {
         // The weights entered this sample normalised (or equal after resampling), so their new
         // sum is the sample's likelihood averaged over the particles.
         post.log_evidence += max + (total / prior_mass).ln();
+        if !whisker_mass.is_empty() {
+            let mut after = vec![0.0f64; whisker_mass.len()];
+            for (x, &h) in w.iter().zip(&self.hyp) {
+                after[h as usize] += x;
+            }
+            post.whisker_log_evidence.resize(whisker_mass.len(), 0.0);
+            for ((ev, a), b) in post
+                .whisker_log_evidence
+                .iter_mut()
+                .zip(&after)
+                .zip(&whisker_mass)
+            {
+                // A whisker whose particles are all gone has no evidence left to update.
+                *ev = if *b > 0.0 {
+                    *ev + max + (a * total / b).ln()
+                } else {
+                    f64::NEG_INFINITY
+                };
+            }
+        }
         w.iter_mut().for_each(|x| *x /= total);
         let ess = 1.0 / w.iter().map(|x| x * x).sum::<f64>();
 

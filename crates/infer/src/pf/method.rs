@@ -56,6 +56,10 @@ pub struct Pf {
     /// Whiskers besides the scenario's that the filter entertains on a randomised family
     /// ([`Config::alternatives`], drawn from the family's randomisation).
     pub alternatives: usize,
+    /// The whiskers to entertain on a randomised family instead of the scenario's and its
+    /// drawn alternatives (the first in the scenario's place): those that pooling several
+    /// recordings of one whisker settled on ([`super::pool`]). `None`: the family's.
+    pub whiskers: Option<Vec<vibrissa_core::whisker::WhiskerParams>>,
     /// Unknowns (by name) whose posterior intervals are widened, and the factor of each (empty:
     /// none): set by [`super::recording::fitted`] from held-out runs of a randomised family, so
     /// that they hold on whiskers it has not seen.
@@ -202,6 +206,7 @@ impl Pf {
             model: TransitionModel::Coarse,
             sensor_spread: None,
             alternatives: ALTERNATIVES,
+            whiskers: None,
             interval_scale: Vec::new(),
             randomised: false,
             calibrated: false,
@@ -293,7 +298,13 @@ impl Pf {
         c.shrink = self.shrink;
         c.sensor_spread = self.sensor_spread.unwrap_or_default();
         if let Some(prior) = family.randomisation() {
-            c.alternatives = alternative_whiskers(family, prior, self.alternatives)?;
+            match &self.whiskers {
+                Some(w) if !w.is_empty() => {
+                    c.whisker = w[0].clone();
+                    c.alternatives = w[1..].to_vec();
+                }
+                _ => c.alternatives = alternative_whiskers(family, prior, self.alternatives)?,
+            }
             // A calibrated scenario's sensors and chain are fitted: only its whisker varies.
             if !family.is_calibrated() {
                 c.sensor_spread = self.sensor_spread.unwrap_or_else(SensorSpread::rough);

@@ -35,6 +35,7 @@ mod draws;
 mod filter;
 mod likelihood;
 mod method;
+pub mod pool;
 mod posterior;
 pub mod recording;
 mod sampling;

@@ -86,6 +86,11 @@ pub struct Posterior {
     /// the last sample, by their keys (`whisker.youngs_modulus`, …, the follicle by
     /// `whisker.follicle.compliance`); empty when it was told its whisker.
     pub whisker: Vec<(&'static str, Estimate)>,
+    /// Log evidence of each whisker the filter entertains (the scenario's first, then its
+    /// alternatives): the (tempered) likelihood of the samples so far given that whisker, up to
+    /// the constant of [`Posterior::log_evidence`]; `-inf` once the whisker has lost every
+    /// particle. Empty when the filter was told its whisker.
+    pub whisker_log_evidence: Vec<f64>,
 }
 
 /// The posterior of the sensors' gains and offsets (their mean and standard deviation over the
@@ -114,6 +119,7 @@ impl Posterior {
             rate_widening: 1.0,
             sensors: None,
             whisker: Vec::new(),
+            whisker_log_evidence: Vec::new(),
         }
     }
 

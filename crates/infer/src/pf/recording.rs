@@ -54,6 +54,8 @@ pub struct Options {
     pub alternatives: usize,
     /// Held-out runs that calibrate the intervals on a randomised family ([`fitted`]; 0: none).
     pub interval_runs: usize,
+    /// The whiskers to entertain instead of the family's ([`super::Pf::whiskers`]).
+    pub whiskers: Option<Vec<vibrissa_core::whisker::WhiskerParams>>,
 }
 
 impl Options {
@@ -69,6 +71,7 @@ impl Options {
             inject: None,
             alternatives: super::ALTERNATIVES,
             interval_runs: INTERVAL_RUNS,
+            whiskers: None,
         }
     }
 }
@@ -218,6 +221,7 @@ pub fn fitted(family: &Family, level: &[f64; 5], options: &Options) -> Result<Pf
     filter.seed = options.seed;
     filter.max_delay = options.max_delay;
     filter.alternatives = options.alternatives;
+    filter.whiskers = options.whiskers.clone();
     let noise = family.training_noise(*level);
     let training = training_for(family, &noise, &filter, options.seed)?;
     filter.fit(&training)?;

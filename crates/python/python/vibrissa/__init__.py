@@ -248,6 +248,7 @@ def estimate(
     check=False,
     whisker=None,
     max_delay=0.0,
+    pool=False,
     overrides=None,
     verbose=False,
     **keys,
@@ -296,6 +297,12 @@ def estimate(
         discriminative methods read them aligned at the contact's onset, the filter takes the
         start delay ``t0`` as an unknown. With 0 (the default), a batch in which a recording
         leaves rest later than any run of the scenario is read so, with a warning.
+    pool : bool
+        ``method="pf"`` on a list of recordings made with one whisker known only roughly: the
+        filter learns that whisker from all of them together (three rounds, each filtering the
+        batch among whiskers drawn around those the whole batch favours), as ``vibrissa
+        estimate --pool`` does. Needs the filter's alternative whiskers (``randomise=True``, or a
+        scenario the recordings defy).
     verbose : bool
         Print what is trained and every warning (they are also attached as ``"warnings"``).
     overrides, **keys
@@ -335,6 +342,7 @@ def estimate(
         bool(check),
         whisker,
         max_delay,
+        bool(pool),
     )
     if verbose:
         import sys

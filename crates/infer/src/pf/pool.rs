@@ -1,0 +1,351 @@
+//! Several recordings of one whisker: learning that whisker from all of them together.
+//!
+//! A filter that entertains many whiskers weighs each by how well it explains one recording
+//! ([`super::Posterior::whisker_log_evidence`]). Recordings made with the same whisker share it,
+//! so the sum of their log evidences weighs each whisker by the whole batch, which one strike
+//! alone cannot: the batch's favourite is close to the recordings' whisker even where each
+//! strike's favourite is not. Pooling proceeds in rounds: filter every recording, sum the
+//! evidences ([`scores`]), draw the next round's whiskers around those the batch favours
+//! ([`next_whiskers`]), and filter again. The last round's posteriors are the estimates.
+
+use super::recording::{Estimate, Options};
+use crate::error::{Error, Result};
+use vibrissa_core::rng::Rng;
+use vibrissa_core::whisker::{Damping, Follicle, WhiskerParams};
+
+/// Rounds of pooling after the first filtering of the batch.
+pub const ROUNDS: usize = 3;
+
+/// Least log-sd of the whisker parameters drawn around the batch's favourites: each round looks
+/// at least 5% around them, so that the rounds keep moving towards the whisker the batch
+/// favours instead of settling on the first one found.
+pub const FLOOR: f64 = 0.05;
+
+/// A whisker that lost every particle on a recording counts as this many nats below the least
+/// whisker that kept some (its evidence there is lower than theirs but was not measured): a
+/// single recording then weighs against it without vetoing it.
+pub const LOST_MARGIN: f64 = 5.0;
+
+/// Each whisker's log evidence summed over the recordings: `evidence[r][h]` is recording `r`'s
+/// log evidence of whisker `h` (`-inf` where it lost every particle, counted as
+/// [`LOST_MARGIN`] below the recording's least finite one).
+pub fn scores(evidence: &[Vec<f64>]) -> Result<Vec<f64>> {
+    let bad = |detail: String| Error::Observation(format!("pooling the recordings: {detail}"));
+    let Some(first) = evidence.first() else {
+        return Err(bad("no recordings".into()));
+    };
+    let n = first.len();
+    if n < 2 {
+        return Err(bad(
+            "the filter entertained one whisker: nothing to pool (it needs alternative whiskers, as --randomise gives)".into(),
+        ));
+    }
+    let mut total = vec![0.0; n];
+    for (r, ev) in evidence.iter().enumerate() {
+        if ev.len() != n {
+            return Err(bad(format!(
+                "recording {r} weighed {} whiskers, the first {n}",
+                ev.len()
+            )));
+        }
+        if ev.iter().any(|x| x.is_nan() || *x == f64::INFINITY) {
+            return Err(bad(format!(
+                "recording {r} has a log evidence that is not a number"
+            )));
+        }
+        let least = ev
+            .iter()
+            .copied()
+            .filter(|x| x.is_finite())
+            .fold(f64::INFINITY, f64::min);
+        if !least.is_finite() {
+            return Err(bad(format!("recording {r} kept no whisker")));
+        }
+        for (t, &x) in total.iter_mut().zip(ev) {
+            *t += if x.is_finite() {
+                x
+            } else {
+                least - LOST_MARGIN
+            };
+        }
+    }
+    Ok(total)
+}
+
+/// The damping's one parameter, if it has one.
+fn damping_value(d: &Damping) -> Option<f64> {
+    match *d {
+        Damping::ModalRatio { ratio } => Some(ratio),
+        Damping::SegmentQ { q } => Some(q),
+        Damping::StiffnessProportional { beta } => Some(beta),
+        Damping::None => None,
+    }
+}
+
+/// `d` with its parameter set to `x`.
+fn with_damping_value(d: &Damping, x: f64) -> Damping {
+    match d {
+        Damping::ModalRatio { .. } => Damping::ModalRatio { ratio: x },
+        Damping::SegmentQ { .. } => Damping::SegmentQ { q: x },
+        Damping::StiffnessProportional { .. } => Damping::StiffnessProportional { beta: x },
+        Damping::None => Damping::None,
+    }
+}
+
+/// Weighted mean and covariance of the rows of `x` with weights `p` (summing to 1).
+fn moments<const K: usize>(x: &[[f64; K]], p: &[f64]) -> ([f64; K], [[f64; K]; K]) {
+    let mut mean = [0.0; K];
+    for (row, &w) in x.iter().zip(p) {
+        for k in 0..K {
+            mean[k] += w * row[k];
+        }
+    }
+    let mut cov = [[0.0; K]; K];
+    for (row, &w) in x.iter().zip(p) {
+        for i in 0..K {
+            for j in 0..K {
+                cov[i][j] += w * (row[i] - mean[i]) * (row[j] - mean[j]);
+            }
+        }
+    }
+    (mean, cov)
+}
+
+/// `count` whiskers for the next round, given this round's `whiskers` and their pooled
+/// [`scores`]: the favourite first, then draws around the favoured ones. The batch's weights
+/// are `exp(score − max)`. The logarithms of the modulus, density, tip radius and damping are
+/// drawn jointly normal with the weighted mean and covariance of the whiskers of the favourite's
+/// damping kind, plus [`FLOOR`]² on the diagonal; the follicle is a spring with the weighted
+/// share of sprung whiskers (its stiffness and damping log-normal about theirs, with twice the
+/// floor), clamped otherwise. Everything else is the favourite's.
+pub fn next_whiskers(
+    whiskers: &[WhiskerParams],
+    scores: &[f64],
+    count: usize,
+    seed: u64,
+) -> Result<Vec<WhiskerParams>> {
+    let bad = |detail: &str| Error::Observation(format!("pooling the recordings: {detail}"));
+    if whiskers.len() != scores.len() || whiskers.is_empty() {
+        return Err(bad("one score per whisker needed"));
+    }
+    if scores.iter().any(|s| !s.is_finite()) {
+        return Err(bad("a pooled score is not finite"));
+    }
+    let max = scores.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let best = scores
+        .iter()
+        .position(|&s| s == max)
+        .expect("the maximum is one of the scores");
+    let favourite = &whiskers[best];
+    let kind = std::mem::discriminant(&favourite.damping);
+    // The whiskers whose continuous parameters enter the fit: the favourite's damping kind.
+    let mut rows = Vec::new();
+    let mut p = Vec::new();
+    for (w, &s) in whiskers.iter().zip(scores) {
+        let damping = if std::mem::discriminant(&w.damping) == kind {
+            damping_value(&w.damping).map_or(0.0, f64::ln)
+        } else {
+            continue;
+        };
+        rows.push([
+            w.youngs_modulus.ln(),
+            w.density.ln(),
+            w.tip_radius.ln(),
+            damping,
+        ]);
+        p.push((s - max).exp());
+    }
+    let total: f64 = p.iter().sum();
+    p.iter_mut().for_each(|x| *x /= total);
+    let (mean, mut cov) = moments(&rows, &p);
+    for (i, row) in cov.iter_mut().enumerate() {
+        row[i] += FLOOR * FLOOR;
+    }
+    let chol = nalgebra::Matrix4::from_fn(|i, j| cov[i][j])
+        .cholesky()
+        .ok_or_else(|| bad("the favoured whiskers' spread is not positive definite"))?
+        .l();
+    // The follicle: the weighted share of springs, and their parameters' log-moments.
+    let weights: Vec<f64> = scores.iter().map(|s| (s - max).exp() / total).collect();
+    let springs: Vec<([f64; 2], f64)> = whiskers
+        .iter()
+        .zip(&weights)
+        .filter_map(|(w, &p)| match w.follicle {
+            Follicle::Spring { stiffness, damping } => {
+                Some(([stiffness.ln(), damping.max(1e-300).ln()], p))
+            }
+            Follicle::Clamped => None,
+        })
+        .collect();
+    let spring_share: f64 =
+        springs.iter().map(|(_, p)| p).sum::<f64>() / weights.iter().sum::<f64>();
+    let (spring_mean, spring_sd) = if springs.is_empty() {
+        ([0.0; 2], [0.0; 2])
+    } else {
+        let sw: f64 = springs.iter().map(|(_, p)| p).sum();
+        let x: Vec<[f64; 2]> = springs.iter().map(|(x, _)| *x).collect();
+        let q: Vec<f64> = springs.iter().map(|(_, p)| p / sw.max(1e-300)).collect();
+        let (m, c) = moments(&x, &q);
+        let floor = 2.0 * FLOOR;
+        (
+            m,
+            [
+                (c[0][0] + floor * floor).sqrt(),
+                (c[1][1] + floor * floor).sqrt(),
+            ],
+        )
+    };
+    let undamped_springs = springs.iter().all(|(x, _)| x[1] < -600.0);
+    let mut rng = Rng::stream(seed, 0x9001);
+    let mut out = vec![favourite.clone()];
+    while out.len() < count {
+        let z: [f64; 4] = std::array::from_fn(|_| rng.normal());
+        let x: [f64; 4] =
+            std::array::from_fn(|i| mean[i] + (0..=i).map(|j| chol[(i, j)] * z[j]).sum::<f64>());
+        let mut w = favourite.clone();
+        w.youngs_modulus = x[0].exp();
+        w.density = x[1].exp();
+        w.tip_radius = x[2].exp().min(w.base_radius);
+        if damping_value(&w.damping).is_some() {
+            w.damping = with_damping_value(&w.damping, x[3].exp());
+        }
+        w.follicle = if !springs.is_empty() && rng.uniform() < spring_share {
+            let stiffness = (spring_mean[0] + spring_sd[0] * rng.normal()).exp();
+            let damping = if undamped_springs {
+                0.0
+            } else {
+                (spring_mean[1] + spring_sd[1] * rng.normal()).exp()
+            };
+            Follicle::Spring { stiffness, damping }
+        } else {
+            Follicle::Clamped
+        };
+        out.push(w);
+    }
+    out.truncate(count.max(1));
+    Ok(out)
+}
+
+/// The pooling rounds: from `first`, the batch's estimates with the family's whiskers, each
+/// round draws the next whiskers around those the batch favours ([`scores`],
+/// [`next_whiskers`]) and has `filter_all` filter every recording again with them
+/// ([`Options::whiskers`]). Reports each round's favourite to `progress`. Returns the last
+/// round's estimates.
+pub fn refine(
+    first: Vec<Estimate>,
+    options: &Options,
+    seed: u64,
+    filter_all: &mut dyn FnMut(&Options) -> Result<Vec<Estimate>>,
+    progress: &mut dyn FnMut(usize, &WhiskerParams, usize),
+) -> Result<Vec<Estimate>> {
+    let mut estimates = first;
+    let mut options = options.clone();
+    for round in 1..=ROUNDS {
+        let evidence: Vec<Vec<f64>> = estimates
+            .iter()
+            .map(|e| e.posterior.whisker_log_evidence.clone())
+            .collect();
+        let scores = scores(&evidence)?;
+        let config = &estimates[0].config;
+        let whiskers: Vec<WhiskerParams> = std::iter::once(config.whisker.clone())
+            .chain(config.alternatives.iter().cloned())
+            .collect();
+        let next = next_whiskers(
+            &whiskers,
+            &scores,
+            whiskers.len(),
+            seed.wrapping_add(round as u64),
+        )?;
+        progress(round, &next[0], next.len());
+        options.whiskers = Some(next);
+        estimates = filter_all(&options)?;
+    }
+    Ok(estimates)
+}
+
+/// A whisker in a few words (modulus, density, tip radius, follicle), for progress messages.
+pub fn describe(w: &WhiskerParams) -> String {
+    let follicle = match w.follicle {
+        Follicle::Clamped => "a clamped follicle".to_string(),
+        Follicle::Spring { stiffness, .. } => {
+            format!("a follicle spring of {stiffness:.3e} N·m/rad")
+        }
+    };
+    format!(
+        "modulus {:.3} GPa, density {:.0} kg/m³, tip radius {:.1} µm, {follicle}",
+        w.youngs_modulus / 1e9,
+        w.density,
+        w.tip_radius * 1e6
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scores_sum_the_recordings_and_count_a_lost_whisker_below_the_least_kept() {
+        let inf = f64::NEG_INFINITY;
+        let s = scores(&[vec![-10.0, -12.0, inf], vec![-20.0, -15.0, -16.0]]).unwrap();
+        assert_eq!(s, vec![-30.0, -27.0, -12.0 - LOST_MARGIN - 16.0]);
+        assert!(scores(&[]).is_err());
+        assert!(scores(&[vec![-1.0]]).is_err(), "one whisker");
+        assert!(
+            scores(&[vec![-1.0, -2.0], vec![-1.0]]).is_err(),
+            "lengths differ"
+        );
+        assert!(scores(&[vec![inf, inf]]).is_err(), "no whisker kept");
+        assert!(scores(&[vec![f64::NAN, -1.0]]).is_err());
+    }
+
+    #[test]
+    fn the_next_whiskers_gather_around_the_batch_s_favourites() {
+        let base = WhiskerParams::w30();
+        let mut whiskers = Vec::new();
+        for k in 0..8 {
+            let mut w = base.clone();
+            w.youngs_modulus = base.youngs_modulus * (0.7 + 0.1 * k as f64);
+            w.density = base.density * (1.3 - 0.05 * k as f64);
+            if k % 2 == 1 {
+                w.follicle = Follicle::Spring {
+                    stiffness: 1e-4 * (1.0 + k as f64),
+                    damping: 1e-8,
+                };
+            }
+            whiskers.push(w);
+        }
+        // Whisker 4 (clamped, modulus 1.1 times the base's) is far ahead of the others.
+        let mut s = vec![-100.0; 8];
+        s[4] = 0.0;
+        let next = next_whiskers(&whiskers, &s, 400, 7).unwrap();
+        assert_eq!(next.len(), 400);
+        assert_eq!(next[0], whiskers[4]);
+        let logs: Vec<f64> = next[1..]
+            .iter()
+            .map(|w| (w.youngs_modulus / whiskers[4].youngs_modulus).ln())
+            .collect();
+        let m = logs.iter().sum::<f64>() / logs.len() as f64;
+        let sd = (logs.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / logs.len() as f64).sqrt();
+        assert!(m.abs() < 0.015, "mean log-ratio {m}");
+        assert!((sd - FLOOR).abs() < 0.01, "log-sd {sd}");
+        assert!(next.iter().all(|w| w.follicle == Follicle::Clamped));
+        assert!(next.iter().all(|w| w.tip_radius <= w.base_radius));
+        assert!(next.iter().all(|w| w.check().is_ok()));
+        // Two favourites, one sprung: both kinds drawn, about half each, and the spread spans
+        // the two moduli.
+        s[5] = 0.0;
+        let next = next_whiskers(&whiskers, &s, 400, 7).unwrap();
+        let sprung = next
+            .iter()
+            .filter(|w| matches!(w.follicle, Follicle::Spring { .. }))
+            .count();
+        assert!((150..250).contains(&sprung), "{sprung}");
+        let e: Vec<f64> = next.iter().map(|w| w.youngs_modulus).collect();
+        let lo = e.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = e.iter().copied().fold(0.0, f64::max);
+        assert!(lo < whiskers[4].youngs_modulus && hi > whiskers[5].youngs_modulus);
+        // The same seed draws the same whiskers.
+        assert_eq!(next, next_whiskers(&whiskers, &s, 400, 7).unwrap());
+        assert!(next_whiskers(&whiskers, &s[..3], 10, 7).is_err());
+    }
+}
