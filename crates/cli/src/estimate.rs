@@ -101,10 +101,14 @@ pub struct Args {
     pub(crate) alternatives: usize,
     /// pf: the recordings come from one whisker, which the filter learns from all of them
     /// together: it filters the batch, draws the whiskers it entertains around those the whole
-    /// batch favours, and filters again (3 rounds; no labels needed). For a whisker known only
-    /// roughly (--randomise, or a scenario the recordings defy); at least 2 recordings.
+    /// batch favours, and filters again (--pool-rounds times; no labels needed). For a whisker
+    /// known only roughly (--randomise, or a scenario the recordings defy); at least 2
+    /// recordings.
     #[arg(long)]
     pub(crate) pool: bool,
+    /// pf --pool: rounds of pooling after the first filtering of the batch.
+    #[arg(long, default_value_t = vibrissa_infer::pf::pool::ROUNDS, value_name = "N")]
+    pub(crate) pool_rounds: usize,
     /// pf: write the posterior (mean, std, 90% interval of every unknown, and the effective sample
     /// size) at every sample to this CSV, and its plot beside it (same name, .png). One file only.
     #[arg(long, value_name = "FILE.csv")]

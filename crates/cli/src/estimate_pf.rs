@@ -90,6 +90,9 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
         if args.inject.is_some() {
             bail!("--pool and --inject do not go together");
         }
+        if args.pool_rounds == 0 {
+            bail!("--pool-rounds must be at least 1 (got 0)");
+        }
         if family.randomisation().is_none() {
             bail!(
                 "--pool needs a filter that entertains several whiskers: add --randomise (the \
@@ -114,6 +117,7 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
         ests = pf::pool::refine(
             ests,
             &options,
+            args.pool_rounds,
             args.seed,
             &mut |o| {
                 filter_all(
@@ -132,7 +136,7 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
                 eprintln!(
                     "pooling round {round} of {}: the batch favours {}; filtering again among {n} \
                      whiskers drawn around it",
-                    pf::pool::ROUNDS,
+                    args.pool_rounds,
                     pf::pool::describe(favourite)
                 )
             },

@@ -1401,7 +1401,7 @@ fn estimate_pool_learns_one_whisker_from_several_recordings() {
             .output()
             .unwrap()
     };
-    let out = run(&["--randomise", "--pool"], &strikes);
+    let out = run(&["--randomise", "--pool", "--pool-rounds", "3"], &strikes);
     let err = String::from_utf8_lossy(&out.stderr).to_string();
     assert!(out.status.success(), "{err}");
     let rows: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout)
@@ -1435,7 +1435,7 @@ fn estimate_pool_learns_one_whisker_from_several_recordings() {
         (ratio / truth).ln().abs() < 0.5 * (3e9 / 1100.0 / truth).ln().abs(),
         "{last}"
     );
-    // Refused: one recording, a whisker taken as known, and --inject.
+    // Refused: one recording, a whisker taken as known, --inject, and no rounds.
     for (extra, files, why) in [
         (&["--randomise", "--pool"][..], &strikes[..1], "at least 2"),
         (
@@ -1447,6 +1447,11 @@ fn estimate_pool_learns_one_whisker_from_several_recordings() {
             &["--randomise", "--pool", "--inject", "krr"][..],
             &strikes[..],
             "--inject",
+        ),
+        (
+            &["--randomise", "--pool", "--pool-rounds", "0"][..],
+            &strikes[..],
+            "--pool-rounds",
         ),
     ] {
         let out = run(extra, files);

@@ -328,6 +328,7 @@ fn recording_pool(
     pool::refine(
         first,
         options,
+        pool::ROUNDS,
         seed,
         &mut |o| filter_all(o),
         &mut |round, favourite, n| {

@@ -13,8 +13,8 @@ use crate::error::{Error, Result};
 use vibrissa_core::rng::Rng;
 use vibrissa_core::whisker::{Damping, Follicle, WhiskerParams};
 
-/// Rounds of pooling after the first filtering of the batch.
-pub const ROUNDS: usize = 3;
+/// Rounds of pooling after the first filtering of the batch, by default.
+pub const ROUNDS: usize = 6;
 
 /// Least log-sd of the whisker parameters drawn around the batch's favourites: each round looks
 /// at least 5% around them, so that the rounds keep moving towards the whisker the batch
@@ -226,7 +226,7 @@ pub fn next_whiskers(
     Ok(out)
 }
 
-/// The pooling rounds: from `first`, the batch's estimates with the family's whiskers, each
+/// `rounds` pooling rounds: from `first`, the batch's estimates with the family's whiskers, each
 /// round draws the next whiskers around those the batch favours ([`scores`],
 /// [`next_whiskers`]) and has `filter_all` filter every recording again with them
 /// ([`Options::whiskers`]). Reports each round's favourite to `progress`. Returns the last
@@ -234,13 +234,14 @@ pub fn next_whiskers(
 pub fn refine(
     first: Vec<Estimate>,
     options: &Options,
+    rounds: usize,
     seed: u64,
     filter_all: &mut dyn FnMut(&Options) -> Result<Vec<Estimate>>,
     progress: &mut dyn FnMut(usize, &WhiskerParams, usize),
 ) -> Result<Vec<Estimate>> {
     let mut estimates = first;
     let mut options = options.clone();
-    for round in 1..=ROUNDS {
+    for round in 1..=rounds {
         let evidence: Vec<Vec<f64>> = estimates
             .iter()
             .map(|e| e.posterior.whisker_log_evidence.clone())

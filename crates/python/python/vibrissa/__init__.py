@@ -299,7 +299,7 @@ def estimate(
         leaves rest later than any run of the scenario is read so, with a warning.
     pool : bool
         ``method="pf"`` on a list of recordings made with one whisker known only roughly: the
-        filter learns that whisker from all of them together (three rounds, each filtering the
+        filter learns that whisker from all of them together (six rounds, each filtering the
         batch among whiskers drawn around those the whole batch favours), as ``vibrissa
         estimate --pool`` does. Needs the filter's alternative whiskers (``randomise=True``, or a
         scenario the recordings defy).
