@@ -89,7 +89,9 @@ pub struct Posterior {
     /// Log evidence of each whisker the filter entertains (the scenario's first, then its
     /// alternatives): the (tempered) likelihood of the samples so far given that whisker, up to
     /// the constant of [`Posterior::log_evidence`]; `-inf` once the whisker has lost every
-    /// particle. Empty when the filter was told its whisker.
+    /// particle. Empty when the filter was told its whisker. Not serialised (JSON has no
+    /// infinity).
+    #[serde(skip)]
     pub whisker_log_evidence: Vec<f64>,
 }
 
