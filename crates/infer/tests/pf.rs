@@ -355,15 +355,37 @@ fn a_faster_recording_says_what_its_decimation_says() {
     }
 }
 
+/// The default prior of whiskers around `e2`'s.
+fn randomised_e2() -> Family {
+    Family::builtin("e2")
+        .unwrap()
+        .randomised(vibrissa_infer::randomise::Randomisation::default())
+        .unwrap()
+}
+
+/// Sensor noise of the randomised filters' tests.
+const LEVEL: [f64; 5] = [2e-3, 5e-3, 8e-7, 5e-5, 4e-5];
+
+/// A clean strike of `family` at d = 22 mm, v = 0.8 m/s (seed 3), read for the filter.
+fn clean_strike(family: &Family, channels: &[usize]) -> vibrissa_infer::Recording {
+    let s = family.simulate(&[0.022, 0.8], &Noise::NONE, 3).unwrap();
+    let t: Vec<f64> = (0..s.series[0].len()).map(|k| k as f64 * 1e-3).collect();
+    vibrissa_infer::Recording::from_columns(
+        "strike",
+        t,
+        s.series.into_iter().map(Some).collect(),
+        None,
+        channels,
+        vibrissa_infer::Reader::Filter,
+    )
+    .unwrap()
+}
+
 #[test]
 fn a_randomised_filter_widens_its_intervals_to_hold_on_held_out_whiskers() {
     use vibrissa_infer::pf::recording::{estimate, fitted, Options};
-    use vibrissa_infer::randomise::Randomisation;
-    let family = Family::builtin("e2")
-        .unwrap()
-        .randomised(Randomisation::default())
-        .unwrap();
-    let level = [2e-3, 5e-3, 8e-7, 5e-5, 4e-5];
+    let family = randomised_e2();
+    let level = LEVEL;
     let mut options = Options::new(100);
     options.alternatives = 7;
     options.interval_runs = 6;
@@ -380,17 +402,7 @@ fn a_randomised_filter_widens_its_intervals_to_hold_on_held_out_whiskers() {
     options.interval_runs = 0;
     let plain = fitted(&family, &level, &options).unwrap();
     assert!(plain.interval_scale.is_empty());
-    let s = family.simulate(&[0.022, 0.8], &Noise::NONE, 3).unwrap();
-    let t: Vec<f64> = (0..s.series[0].len()).map(|k| k as f64 * 1e-3).collect();
-    let rec = vibrissa_infer::Recording::from_columns(
-        "strike",
-        t,
-        s.series.into_iter().map(Some).collect(),
-        None,
-        &options.channels,
-        vibrissa_infer::Reader::Filter,
-    )
-    .unwrap();
+    let rec = clean_strike(&family, &options.channels);
     let (a, b) = (
         estimate(&widened, &family, &rec, &options).unwrap(),
         estimate(&plain, &family, &rec, &options).unwrap(),
@@ -412,12 +424,8 @@ fn a_randomised_filter_widens_its_intervals_to_hold_on_held_out_whiskers() {
 fn a_randomised_filter_reports_its_belief_over_the_whiskers() {
     use vibrissa_core::whisker::{Damping, Follicle};
     use vibrissa_infer::pf::recording::{estimate, fitted, Options};
-    use vibrissa_infer::randomise::Randomisation;
-    let family = Family::builtin("e2")
-        .unwrap()
-        .randomised(Randomisation::default())
-        .unwrap();
-    let level = [2e-3, 5e-3, 8e-7, 5e-5, 4e-5];
+    let family = randomised_e2();
+    let level = LEVEL;
     let mut options = Options::new(800);
     options.alternatives = 7;
     options.interval_runs = 0;
@@ -448,17 +456,7 @@ fn a_randomised_filter_reports_its_belief_over_the_whiskers() {
         truth.youngs_modulus, truth.density, truth.tip_radius
     );
     let recorded = Family::open_str(&text, "test", &[]).unwrap();
-    let s = recorded.simulate(&[0.022, 0.8], &Noise::NONE, 3).unwrap();
-    let t: Vec<f64> = (0..s.series[0].len()).map(|k| k as f64 * 1e-3).collect();
-    let rec = vibrissa_infer::Recording::from_columns(
-        "strike",
-        t,
-        s.series.into_iter().map(Some).collect(),
-        None,
-        &options.channels,
-        vibrissa_infer::Reader::Filter,
-    )
-    .unwrap();
+    let rec = clean_strike(&recorded, &options.channels);
     let est = estimate(&filter, &family, &rec, &options).unwrap();
     let named = est.named();
     let get = |key: &str| {

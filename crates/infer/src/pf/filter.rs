@@ -281,20 +281,13 @@ impl Filter {
         let fixed_sensors = config.sensor_spread.is_fixed();
         // Weight mass the particles carry into this sample (for the evidence).
         let prior_mass: f64 = self.logw.iter().map(|l| l.exp()).sum();
-        // The same per whisker (for each whisker's evidence).
-        let mut whisker_mass = vec![
-            0.0f64;
-            if self.hyps.len() > 1 {
-                self.hyps.len()
-            } else {
-                0
-            }
-        ];
-        if !whisker_mass.is_empty() {
-            for (l, &h) in self.logw.iter().zip(&self.hyp) {
-                whisker_mass[h as usize] += l.exp();
-            }
-        }
+        // The same per whisker, when there are several (for each whisker's evidence).
+        let whiskers = if self.hyps.len() > 1 {
+            self.hyps.len()
+        } else {
+            0
+        };
+        let whisker_mass = by_whisker(&self.hyp, self.logw.iter().map(|l| l.exp()), whiskers);
         let ringing_before = self.cleared.iter().filter(|c| **c).count();
         let undone = AtomicUsize::new(0);
         // Predict (after the first sample) and weight every particle, in parallel.
@@ -377,26 +370,6 @@ impl Filter {
         // The weights entered this sample normalised (or equal after resampling), so their new
         // sum is the sample's likelihood averaged over the particles.
         post.log_evidence += max + (total / prior_mass).ln();
-        if !whisker_mass.is_empty() {
-            let mut after = vec![0.0f64; whisker_mass.len()];
-            for (x, &h) in w.iter().zip(&self.hyp) {
-                after[h as usize] += x;
-            }
-            post.whisker_log_evidence.resize(whisker_mass.len(), 0.0);
-            for ((ev, a), b) in post
-                .whisker_log_evidence
-                .iter_mut()
-                .zip(&after)
-                .zip(&whisker_mass)
-            {
-                // A whisker whose particles are all gone has no evidence left to update.
-                *ev = if *b > 0.0 {
-                    *ev + max + (a * total / b).ln()
-                } else {
-                    f64::NEG_INFINITY
-                };
-            }
-        }
         w.iter_mut().for_each(|x| *x /= total);
         let ess = 1.0 / w.iter().map(|x| x * x).sum::<f64>();
 
@@ -413,8 +386,27 @@ impl Filter {
         if !config.sensor_spread.is_fixed() {
             post.sensors = Some(SensorBelief::mixture(&self.sensors, &w));
         }
-        if !self.whisker_values.is_empty() {
-            post.whisker = self.whisker_values.posterior(&self.hyp, &w);
+        if whiskers > 0 {
+            // Each whisker's share of the weight: its evidence grew by the ratio of its mass
+            // after the sample (share × total, relative to `max`) to its mass before.
+            let share = by_whisker(&self.hyp, w.iter().copied(), whiskers);
+            post.whisker_log_evidence.resize(whiskers, 0.0);
+            for ((ev, p), m) in post
+                .whisker_log_evidence
+                .iter_mut()
+                .zip(&share)
+                .zip(&whisker_mass)
+            {
+                // A whisker whose particles are all gone has no evidence left to update.
+                *ev = if *m > 0.0 {
+                    *ev + max + (p * total / m).ln()
+                } else {
+                    f64::NEG_INFINITY
+                };
+            }
+            if !self.whisker_values.is_empty() {
+                post.whisker = self.whisker_values.posterior(&share);
+            }
         }
         self.logw
             .iter_mut()
@@ -482,6 +474,18 @@ impl Filter {
             Rng::stream(config.seed, STREAM_REDRAW + k as u64),
         );
     }
+}
+
+/// The sum of `values` (one per particle) over the particles of each of `whiskers` whiskers, by
+/// each particle's whisker `hyp` (empty for none).
+fn by_whisker(hyp: &[u16], values: impl Iterator<Item = f64>, whiskers: usize) -> Vec<f64> {
+    let mut sums = vec![0.0; whiskers];
+    if whiskers > 0 {
+        for (&h, x) in hyp.iter().zip(values) {
+            sums[h as usize] += x;
+        }
+    }
+    sums
 }
 
 /// Whether a joint of `s` is bent more than [`WHIPPED`] from its rest angle.

@@ -73,19 +73,12 @@ impl WhiskerValues {
         self.columns.is_empty()
     }
 
-    /// The posterior of each varying parameter, given each particle's whisker `hyp` (an index
-    /// into the whiskers of [`WhiskerValues::new`]) and normalised weights `w`.
-    pub(super) fn posterior(&self, hyp: &[u16], w: &[f64]) -> Vec<(&'static str, Estimate)> {
-        let Some((_, first)) = self.columns.first() else {
-            return Vec::new();
-        };
-        let mut per_whisker = vec![0.0; first.len()];
-        for (&h, &x) in hyp.iter().zip(w) {
-            per_whisker[h as usize] += x;
-        }
+    /// The posterior of each varying parameter, given the weight of each whisker of
+    /// [`WhiskerValues::new`] (summing to 1).
+    pub(super) fn posterior(&self, per_whisker: &[f64]) -> Vec<(&'static str, Estimate)> {
         self.columns
             .iter()
-            .map(|(key, col)| (*key, summarise(col, &per_whisker)))
+            .map(|(key, col)| (*key, summarise(col, per_whisker)))
             .collect()
     }
 }
@@ -109,8 +102,8 @@ mod tests {
             keys,
             ["whisker.youngs_modulus", "whisker.follicle.compliance"]
         );
-        // Three particles on whisker 0 with weight 0.1 each, one on whisker 1 with 0.7.
-        let post = values.posterior(&[0, 0, 1, 0], &[0.1, 0.1, 0.7, 0.1]);
+        // Whisker 0 weighs 0.3, whisker 1 0.7.
+        let post = values.posterior(&[0.3, 0.7]);
         let e = post[0].1;
         let want = 0.3 * a.youngs_modulus + 0.7 * b.youngs_modulus;
         assert!((e.mean - want).abs() < 1e-6 * want, "{e:?}");
@@ -121,6 +114,6 @@ mod tests {
         // One whisker, or several alike: nothing varies.
         assert!(WhiskerValues::new([&a]).is_empty());
         assert!(WhiskerValues::new([&a, &a.clone()]).is_empty());
-        assert!(WhiskerValues::new([&a]).posterior(&[0], &[1.0]).is_empty());
+        assert!(WhiskerValues::new([&a]).posterior(&[1.0]).is_empty());
     }
 }
