@@ -132,14 +132,7 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
                 )
                 .map_err(|e| vibrissa_infer::Error::Observation(format!("{e:#}")))
             },
-            &mut |round, favourite, n| {
-                eprintln!(
-                    "pooling round {round} of {}: the batch favours {}; filtering again among {n} \
-                     whiskers drawn around it",
-                    args.pool_rounds,
-                    pf::pool::describe(favourite)
-                )
-            },
+            &mut |m| eprintln!("{m}"),
         )?;
     }
 

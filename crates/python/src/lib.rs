@@ -331,14 +331,7 @@ fn recording_pool(
         pool::ROUNDS,
         seed,
         &mut |o| filter_all(o),
-        &mut |round, favourite, n| {
-            messages.push(format!(
-            "pooling round {round} of {}: the batch favours {}; filtering again among {n} whiskers \
-             drawn around it",
-            pool::ROUNDS,
-            pool::describe(favourite)
-        ))
-        },
+        &mut |m| messages.push(m),
     )
 }
 

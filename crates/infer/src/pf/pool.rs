@@ -229,7 +229,7 @@ pub fn next_whiskers(
 /// `rounds` pooling rounds: from `first`, the batch's estimates with the family's whiskers, each
 /// round draws the next whiskers around those the batch favours ([`scores`],
 /// [`next_whiskers`]) and has `filter_all` filter every recording again with them
-/// ([`Options::whiskers`]). Reports each round's favourite to `progress`. Returns the last
+/// ([`Options::whiskers`]). Tells `progress` each round's favourite. Returns the last
 /// round's estimates.
 pub fn refine(
     first: Vec<Estimate>,
@@ -237,7 +237,7 @@ pub fn refine(
     rounds: usize,
     seed: u64,
     filter_all: &mut dyn FnMut(&Options) -> Result<Vec<Estimate>>,
-    progress: &mut dyn FnMut(usize, &WhiskerParams, usize),
+    progress: &mut dyn FnMut(String),
 ) -> Result<Vec<Estimate>> {
     let mut estimates = first;
     let mut options = options.clone();
@@ -257,7 +257,12 @@ pub fn refine(
             whiskers.len(),
             seed.wrapping_add(round as u64),
         )?;
-        progress(round, &next[0], next.len());
+        progress(format!(
+            "pooling round {round} of {rounds}: the batch favours {}; filtering again among {} \
+             whiskers drawn around it",
+            describe(&next[0]),
+            next.len()
+        ));
         options.whiskers = Some(next);
         estimates = filter_all(&options)?;
     }
@@ -265,7 +270,7 @@ pub fn refine(
 }
 
 /// A whisker in a few words (modulus, density, tip radius, follicle), for progress messages.
-pub fn describe(w: &WhiskerParams) -> String {
+fn describe(w: &WhiskerParams) -> String {
     let follicle = match w.follicle {
         Follicle::Clamped => "a clamped follicle".to_string(),
         Follicle::Spring { stiffness, .. } => {
