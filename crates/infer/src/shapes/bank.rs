@@ -20,6 +20,7 @@
 //! (at its own temperature, chosen by the held-out runs' pose errors), with a 90% interval as
 //! wide as the held-out runs' errors (a split-conformal interval).
 
+use super::between::{between, Between};
 use super::estimator::{conformal_half_width, ShapeEstimate};
 use super::evaluate::subset;
 use super::family::{ShapeFamily, ShapeSample};
@@ -48,6 +49,9 @@ const NOISE_FLOOR: f64 = 0.01;
 const NOISE_SERIES: usize = 16_000;
 /// Runs projected onto the principal axes at once.
 const CHUNK: usize = 256;
+/// Neighbours tried for the fit between a class's runs (`between`; at least the class's pose
+/// unknowns plus two), 0 for none: the number with the lowest held-out log loss is kept.
+const NEIGHBOURS: [usize; 6] = [0, 6, 8, 10, 12, 16];
 
 /// Noise-free runs of a shape family for [`ShapeBank`]: twins of the training runs (the same
 /// poses and, for randomised training, the same whiskers) and further draws.
@@ -138,6 +142,10 @@ pub struct ShapeBank {
     z: Vec<Vec<f64>>,
     /// Bank runs of each class.
     counts: Vec<usize>,
+    /// Each class's bank runs nearest a recording that its fit between runs uses (0: none).
+    neighbours: usize,
+    /// Whether the pose is the fit between runs' (else the weighted mean of the bank's poses).
+    pose_between: bool,
     /// Temperature of the class evidence, the factor of its logarithm in the class softmax,
     /// and the temperature of the pose's weights.
     temperature: f64,
@@ -362,6 +370,8 @@ impl ShapeBank {
             params: bank.iter().map(|s| s.params.clone()).collect(),
             z: Vec::new(),
             counts,
+            neighbours: 0,
+            pose_between: false,
             temperature: 1.0,
             sharpness: 1.0,
             floor: 0.0,
@@ -420,46 +430,26 @@ impl ShapeBank {
         // favours the class with the fewest unknowns, whose bank is densest near any
         // recording; without the even share, the few runs whose nearest bank runs are of
         // another class, confidently named wrong, would force every posterior to be timid.)
-        let evidence: Vec<Vec<Vec<f64>>> = d2
-            .par_iter()
-            .map(|d| temperatures().map(|t| m.log_evidence(d, t)).collect())
-            .collect();
-        let fits: Vec<(f64, f64, f64, f64)> = temperatures()
-            .enumerate()
-            .collect::<Vec<_>>()
-            .par_iter()
-            .map(|&(k, t)| {
-                let mut best = (f64::INFINITY, t, 1.0, 0.0);
-                for s in sharpnesses() {
-                    let soft: Vec<Vec<f64>> = evidence.iter().map(|l| softmax(&l[k], s)).collect();
-                    for e in floors() {
-                        let loss: f64 = soft
-                            .iter()
-                            .zip(&truth)
-                            .map(|(p, &c)| {
-                                -((1.0 - e) * p[c] + e / classes as f64).max(1e-300).ln()
-                            })
-                            .sum::<f64>()
-                            / d2.len() as f64;
-                        if loss < best.0 {
-                            best = (loss, t, s, e);
-                        }
-                    }
-                }
-                best
-            })
-            .collect();
-        let best = fits
-            .into_iter()
-            .fold((f64::INFINITY, 1.0, 1.0, 0.0), |a, b| {
-                if b.0 < a.0 {
-                    b
-                } else {
-                    a
-                }
-            });
-        (m.temperature, m.sharpness, m.floor) = (best.1, best.2, best.3);
-        m.held_out_loss = best.0;
+        //
+        // Each number of neighbours for the fit between runs is tried alike (0: the bank alone),
+        // and the one with the lowest held-out log loss kept.
+        let mut chosen = (f64::INFINITY, 1.0, 1.0, 0.0, 0usize);
+        let mut between_held: Vec<Vec<Option<Between>>> = Vec::new();
+        for k in NEIGHBOURS {
+            let fitted: Vec<Vec<Option<Between>>> = d2
+                .par_iter()
+                .zip(&held_z)
+                .map(|(d, z)| m.between_all(z, d, k))
+                .collect();
+            let best = m.calibrate(&d2, &fitted, &truth);
+            if best.0 < chosen.0 {
+                chosen = (best.0, best.1, best.2, best.3, k);
+                between_held = fitted;
+            }
+        }
+        (m.temperature, m.sharpness, m.floor, m.neighbours) =
+            (chosen.1, chosen.2, chosen.3, chosen.4);
+        m.held_out_loss = chosen.0;
         // The pose temperature: the lowest held-out error in units of each range.
         let spans: Vec<Vec<f64>> = ranges
             .iter()
@@ -485,25 +475,52 @@ impl ShapeBank {
             }
         }
         m.pose_temperature = best.1;
+        // The fit between runs' pose instead, where it errs less on the held-out runs.
+        if m.neighbours > 0 {
+            let err: f64 = between_held
+                .iter()
+                .zip(&held)
+                .zip(&d2)
+                .map(|((b, &(j, _)), d)| {
+                    let s = &training[j];
+                    b[s.class]
+                        .as_ref()
+                        .map_or(&m.pose(d, s.class, m.pose_temperature), |b| &b.pose)
+                        .iter()
+                        .zip(&s.params)
+                        .zip(&spans[s.class])
+                        .map(|((p, x), w)| (p - x).abs() / w)
+                        .sum::<f64>()
+                })
+                .sum();
+            m.pose_between = err < best.0;
+        }
+        let poses: Vec<Vec<f64>> = d2
+            .iter()
+            .zip(&held)
+            .enumerate()
+            .map(|(r, (d, &(j, _)))| {
+                let c = training[j].class;
+                match between_held.get(r).and_then(|b| b[c].as_ref()) {
+                    Some(b) if m.pose_between => b.pose.clone(),
+                    _ => m.pose(d, c, m.pose_temperature),
+                }
+            })
+            .collect();
         // Split-conformal half-widths per class and unknown.
         m.half_width = (0..classes)
             .map(|c| {
-                let runs: Vec<(&Vec<f64>, &ShapeSample)> = d2
+                let runs: Vec<(&Vec<f64>, &ShapeSample)> = poses
                     .iter()
                     .zip(&held)
                     .filter(|(_, &(j, _))| training[j].class == c)
-                    .map(|(d, &(j, _))| (d, &training[j]))
-                    .collect();
-                let poses: Vec<Vec<f64>> = runs
-                    .iter()
-                    .map(|(d, _)| m.pose(d, c, m.pose_temperature))
+                    .map(|(p, &(j, _))| (p, &training[j]))
                     .collect();
                 (0..m.names[c].len())
                     .map(|u| {
-                        let mut e: Vec<f64> = poses
+                        let mut e: Vec<f64> = runs
                             .iter()
-                            .zip(&runs)
-                            .map(|(p, (_, s))| (p[u] - s.params[u]).abs())
+                            .map(|(p, s)| (p[u] - s.params[u]).abs())
                             .collect();
                         conformal_half_width(&mut e).unwrap_or(0.5 * spans[c][u])
                     })
@@ -511,6 +528,91 @@ impl ShapeBank {
             })
             .collect();
         Ok(m)
+    }
+
+    /// The temperature, sharpness and even share with the lowest held-out log loss, and that
+    /// loss: `(loss, t, s, e)`, for held-out runs with squared distances `d2`, fits between
+    /// runs `between` and true classes `truth`.
+    fn calibrate(
+        &self,
+        d2: &[Vec<f64>],
+        between: &[Vec<Option<Between>>],
+        truth: &[usize],
+    ) -> (f64, f64, f64, f64) {
+        let classes = self.counts.len();
+        let evidence: Vec<Vec<Vec<f64>>> = d2
+            .par_iter()
+            .zip(between)
+            .map(|(d, b)| {
+                let extra = Self::between_d2(b);
+                temperatures()
+                    .map(|t| self.log_evidence(d, &extra, t))
+                    .collect()
+            })
+            .collect();
+        let fits: Vec<(f64, f64, f64, f64)> = temperatures()
+            .enumerate()
+            .collect::<Vec<_>>()
+            .par_iter()
+            .map(|&(k, t)| {
+                let mut best = (f64::INFINITY, t, 1.0, 0.0);
+                for s in sharpnesses() {
+                    let soft: Vec<Vec<f64>> = evidence.iter().map(|l| softmax(&l[k], s)).collect();
+                    for e in floors() {
+                        let loss: f64 = soft
+                            .iter()
+                            .zip(truth)
+                            .map(|(p, &c)| {
+                                -((1.0 - e) * p[c] + e / classes as f64).max(1e-300).ln()
+                            })
+                            .sum::<f64>()
+                            / d2.len() as f64;
+                        if loss < best.0 {
+                            best = (loss, t, s, e);
+                        }
+                    }
+                }
+                best
+            })
+            .collect();
+        fits.into_iter()
+            .fold((f64::INFINITY, 1.0, 1.0, 0.0), |a, b| {
+                if b.0 < a.0 {
+                    b
+                } else {
+                    a
+                }
+            })
+    }
+
+    /// Every class's fit between its `k` runs nearest the recording (none when `k` is 0).
+    fn between_all(&self, z: &[f64], d2: &[f64], k: usize) -> Vec<Option<Between>> {
+        (0..self.counts.len())
+            .map(|c| {
+                (k > 0)
+                    .then(|| {
+                        // At least the class's unknowns plus two runs.
+                        let least = self.names[c].len() + 2;
+                        between(
+                            z,
+                            d2,
+                            &self.class_of,
+                            &self.params,
+                            &self.z,
+                            c,
+                            k.max(least),
+                        )
+                    })
+                    .flatten()
+            })
+            .collect()
+    }
+
+    /// The squared distance of each class's fit between runs (infinite where there is none).
+    fn between_d2(b: &[Option<Between>]) -> Vec<f64> {
+        b.iter()
+            .map(|b| b.as_ref().map_or(f64::INFINITY, |b| b.d2))
+            .collect()
     }
 
     /// Components of many runs, a chunk at a time, each chunk one matrix product with the
@@ -546,15 +648,28 @@ impl ShapeBank {
             .collect()
     }
 
-    /// Each class's log evidence at temperature `t`, up to a common constant.
-    fn log_evidence(&self, d2: &[f64], t: f64) -> Vec<f64> {
-        let lo = d2.iter().copied().fold(f64::INFINITY, f64::min);
+    /// Each class's log evidence at temperature `t`, up to a common constant, from the squared
+    /// distances `d2` to the bank's runs and `extra` to each class's fit between its runs (one
+    /// more run of the class, infinite where there is none).
+    fn log_evidence(&self, d2: &[f64], extra: &[f64], t: f64) -> Vec<f64> {
+        let lo = d2
+            .iter()
+            .chain(extra)
+            .copied()
+            .fold(f64::INFINITY, f64::min);
         let mut sum = vec![0.0f64; self.counts.len()];
         for (d, &c) in d2.iter().zip(&self.class_of) {
             sum[c] += (-(d - lo) / (2.0 * t)).exp();
         }
+        let mut runs = self.counts.clone();
+        for (c, d) in extra.iter().enumerate() {
+            if d.is_finite() {
+                sum[c] += (-(d - lo) / (2.0 * t)).exp();
+                runs[c] += 1;
+            }
+        }
         sum.iter()
-            .zip(&self.counts)
+            .zip(&runs)
             .map(|(s, &n)| (s / n as f64).ln())
             .collect()
     }
@@ -623,13 +738,21 @@ impl ShapeBank {
             .collect();
         let d2 = self.distances(&z);
         let k = self.classes.len() as f64;
-        let p: Vec<f64> = softmax(&self.log_evidence(&d2, self.temperature), self.sharpness)
-            .into_iter()
-            .map(|p| (1.0 - self.floor) * p + self.floor / k)
-            .collect();
+        let fitted = self.between_all(&z, &d2, self.neighbours);
+        let extra = Self::between_d2(&fitted);
+        let p: Vec<f64> = softmax(
+            &self.log_evidence(&d2, &extra, self.temperature),
+            self.sharpness,
+        )
+        .into_iter()
+        .map(|p| (1.0 - self.floor) * p + self.floor / k)
+        .collect();
         let best = (0..p.len()).fold(0, |b, c| if p[c] > p[b] { c } else { b });
-        let pose = self
-            .pose(&d2, best, self.pose_temperature)
+        let pose = match &fitted[best] {
+            Some(b) if self.pose_between => b.pose.clone(),
+            _ => self.pose(&d2, best, self.pose_temperature),
+        };
+        let pose = pose
             .into_iter()
             .zip(&self.half_width[best])
             .zip(&self.names[best])
@@ -686,10 +809,14 @@ impl ShapeBank {
         Ok((0..samples)
             .map(|t| {
                 let d2: Vec<f64> = cumulative.iter().map(|c| f64::from(c[t])).collect();
-                softmax(&self.log_evidence(&d2, self.temperature), self.sharpness)
-                    .into_iter()
-                    .map(|p| (1.0 - self.floor) * p + self.floor / k)
-                    .collect()
+                let none = vec![f64::INFINITY; self.counts.len()];
+                softmax(
+                    &self.log_evidence(&d2, &none, self.temperature),
+                    self.sharpness,
+                )
+                .into_iter()
+                .map(|p| (1.0 - self.floor) * p + self.floor / k)
+                .collect()
             })
             .collect())
     }
@@ -705,6 +832,11 @@ impl ShapeBank {
             ("floor".into(), self.floor),
             ("held_out_log_loss".into(), self.held_out_loss),
             ("pose_temperature".into(), self.pose_temperature),
+            ("neighbours".into(), self.neighbours as f64),
+            (
+                "pose_between".into(),
+                f64::from(u8::from(self.pose_between)),
+            ),
         ];
         for (c, x) in CHANNELS.iter().zip(self.sigma) {
             s.push((format!("noise_{c}"), x));

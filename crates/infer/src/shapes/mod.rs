@@ -9,6 +9,7 @@
 
 mod bank;
 mod batch;
+mod between;
 pub mod e3;
 mod estimator;
 mod evaluate;
