@@ -320,6 +320,7 @@ enum Input<'py> {
 fn recording_pool(
     first: Vec<recording::Estimate>,
     options: &recording::Options,
+    rounds: usize,
     seed: u64,
     filter_all: &dyn Fn(&recording::Options) -> vibrissa_infer::Result<Vec<recording::Estimate>>,
     messages: &mut Vec<String>,
@@ -328,7 +329,7 @@ fn recording_pool(
     pool::refine(
         first,
         options,
-        pool::ROUNDS,
+        rounds,
         seed,
         &mut |o| filter_all(o),
         &mut |m| messages.push(m),
@@ -339,7 +340,7 @@ fn recording_pool(
 /// `vibrissa estimate --json` does; returns one estimate object per recording as JSON text,
 /// and the messages the command line prints on standard error (warnings, what is trained).
 #[pyfunction]
-#[pyo3(signature = (scenario, scenario_json, sets, inputs, method, noise, seed, randomise, particles, check, whisker=None, max_delay=0.0, pool=false))]
+#[pyo3(signature = (scenario, scenario_json, sets, inputs, method, noise, seed, randomise, particles, check, whisker=None, max_delay=0.0, pool=false, pool_rounds=None))]
 #[allow(clippy::too_many_arguments)]
 fn estimate(
     py: Python<'_>,
@@ -356,8 +357,20 @@ fn estimate(
     whisker: Option<&str>,
     max_delay: f64,
     pool: bool,
+    pool_rounds: Option<usize>,
 ) -> PyResult<(Vec<String>, Vec<String>)> {
     let pf = method == "pf";
+    if pool_rounds.is_some() && !pool {
+        return Err(value_error(
+            "pool_rounds: the rounds of pooling, with pool=True",
+        ));
+    }
+    if pool_rounds == Some(0) {
+        return Err(value_error(
+            "pool_rounds = 0: at least 1 round of pooling (pool=False filters each recording alone)",
+        ));
+    }
+    let rounds = pool_rounds.unwrap_or(vibrissa_infer::pf::pool::ROUNDS);
     if pool && !pf {
         return Err(value_error(
             "pool: the filter's option (method=\"pf\"): it learns one whisker from the recordings",
@@ -525,7 +538,7 @@ fn estimate(
             // Each round's whiskers are the batch's, not the prior's: no held-out widening.
             options.interval_runs = 0;
             let first = filter_all(&options)?;
-            recording_pool(first, &options, seed, &filter_all, &mut messages)?
+            recording_pool(first, &options, rounds, seed, &filter_all, &mut messages)?
         } else {
             filter_all(&options)?
         };

@@ -84,10 +84,10 @@ def test_the_filter_on_a_whisker_known_roughly(recordings):
 
 
 def test_pooling_a_batch_gives_the_command_line_s_estimates(recordings):
-    args = dict(method="pf", particles=320, randomise=True, pool=True)
+    args = dict(method="pf", particles=320, randomise=True, pool=True, pool_rounds=2)
     mine = vibrissa.estimate(recordings, "e2", **args)
     theirs = cli_estimates(recordings, "--method", "pf", "--particles", "320", "--randomise",
-                           "--pool")
+                           "--pool", "--pool-rounds", "2")
     for m, t in zip(mine, theirs):
         assert same(m, t), (m, t)
         assert "whisker.youngs_modulus" in m
@@ -97,6 +97,10 @@ def test_pooling_a_batch_gives_the_command_line_s_estimates(recordings):
         vibrissa.estimate(recordings, "e2", method="knn", pool=True)
     with pytest.raises(ValueError, match="randomise=True"):
         vibrissa.estimate(recordings, "e2", method="pf", particles=50, randomise=False, pool=True)
+    with pytest.raises(ValueError, match="pool_rounds = 0: at least 1"):
+        vibrissa.estimate(recordings, "e2", **dict(args, pool_rounds=0))
+    with pytest.raises(ValueError, match="with pool=True"):
+        vibrissa.estimate(recordings, "e2", **dict(args, pool=False))
 
 
 def test_arrays_a_frame_and_a_path_give_the_same_estimate(recordings):

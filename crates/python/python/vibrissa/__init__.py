@@ -249,6 +249,7 @@ def estimate(
     whisker=None,
     max_delay=0.0,
     pool=False,
+    pool_rounds=None,
     overrides=None,
     verbose=False,
     **keys,
@@ -303,6 +304,9 @@ def estimate(
         batch among whiskers drawn around those the whole batch favours), as ``vibrissa
         estimate --pool`` does. Needs the filter's alternative whiskers (``randomise=True``, or a
         scenario the recordings defy).
+    pool_rounds : int, optional
+        With ``pool=True``: the rounds of pooling after the first filtering of the batch
+        (default 6, as ``--pool-rounds``); fewer are faster and learn the whisker less well.
     verbose : bool
         Print what is trained and every warning (they are also attached as ``"warnings"``).
     overrides, **keys
@@ -328,6 +332,8 @@ def estimate(
     if particles is not None:
         particles = _count("particles", particles, 1)
     max_delay = _seconds("max_delay", max_delay)
+    if pool_rounds is not None:
+        pool_rounds = _count("pool_rounds", pool_rounds, 1)
     name, text = _scenario_args(scenario)
     rows, messages = _vibrissa.estimate(
         name,
@@ -343,6 +349,7 @@ def estimate(
         whisker,
         max_delay,
         bool(pool),
+        pool_rounds,
     )
     if verbose:
         import sys

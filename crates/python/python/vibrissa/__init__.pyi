@@ -57,6 +57,7 @@ def estimate(
     whisker: str | None = None,
     max_delay: float = 0.0,
     pool: bool = False,
+    pool_rounds: int | None = None,
     overrides: Mapping[str, Value] | None = None,
     verbose: bool = False,
     **keys: Value,
