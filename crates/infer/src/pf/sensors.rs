@@ -83,10 +83,13 @@ impl<const N: usize> Block<N> {
         let ph: [f64; N] = std::array::from_fn(|i| self.cov[i][j] * x + self.cov[i][k + j]);
         let s = (x * ph[j] + ph[k + j] + var).max(var);
         let r = y - (self.mean[j] * x + self.mean[k + j]);
+        // The Kalman gain, ph / s.
+        let inv_s = 1.0 / s;
+        let gain: [f64; N] = std::array::from_fn(|i| ph[i] * inv_s);
         for i in 0..N {
-            self.mean[i] += ph[i] * r / s;
+            self.mean[i] += gain[i] * r;
             for l in 0..N {
-                self.cov[i][l] -= ph[i] * ph[l] / s;
+                self.cov[i][l] -= gain[i] * ph[l];
             }
         }
         for i in 0..N {
