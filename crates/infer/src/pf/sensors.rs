@@ -86,10 +86,10 @@ impl<const N: usize> Block<N> {
         // The Kalman gain, ph / s.
         let inv_s = 1.0 / s;
         let gain: [f64; N] = std::array::from_fn(|i| ph[i] * inv_s);
-        for i in 0..N {
-            self.mean[i] += gain[i] * r;
-            for l in 0..N {
-                self.cov[i][l] -= gain[i] * ph[l];
+        for ((m, row), g) in self.mean.iter_mut().zip(self.cov.iter_mut()).zip(gain) {
+            *m += g * r;
+            for (c, p) in row.iter_mut().zip(ph) {
+                *c -= g * p;
             }
         }
         for i in 0..N {
