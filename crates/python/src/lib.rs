@@ -334,6 +334,7 @@ fn recording_pool(
         &mut |o| filter_all(o),
         &mut |m| messages.push(m),
     )
+    .map(|p| p.estimates)
 }
 
 /// Estimates the scenario's unknowns from each recording with `method`, as

@@ -226,11 +226,74 @@ pub fn next_whiskers(
     Ok(out)
 }
 
+/// What pooling gives: the last round's estimates, and for each recording how much better
+/// (nats) the best whisker it met in any round explains it than the batch's favourite of the
+/// last round does (its log evidence there).
+#[derive(Debug)]
+pub struct Pooled {
+    /// The last round's estimates, one per recording.
+    pub estimates: Vec<Estimate>,
+    /// Each recording's shortfall under the batch's favourite, nats (≥ 0).
+    pub shortfall: Vec<f64>,
+}
+
+/// Recordings flagged as disagreeing with the batch's favourite whisker: those whose
+/// [`Pooled::shortfall`] is an outlier of the batch's, above its median by more than
+/// [`OUTLIER_MADS`] scaled median absolute deviations (infinite ones, where the favourite lost
+/// every particle, included). None in a batch of fewer than [`OUTLIER_LEAST`] recordings.
+pub fn disagreeing(shortfall: &[f64]) -> Vec<usize> {
+    if shortfall.len() < OUTLIER_LEAST {
+        return Vec::new();
+    }
+    let m = median(shortfall);
+    let mad = median(&shortfall.iter().map(|s| (s - m).abs()).collect::<Vec<_>>());
+    if !m.is_finite() || !mad.is_finite() {
+        return Vec::new();
+    }
+    // The normal's scale from the MAD, and a floor of one nat for batches that agree closely.
+    let limit = m + OUTLIER_MADS * (1.4826 * mad).max(1.0);
+    (0..shortfall.len())
+        .filter(|&r| shortfall[r] > limit)
+        .collect()
+}
+
+/// The median of `v` (NaN when empty; infinite values count as the largest).
+pub fn median(v: &[f64]) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_by(|a, b| a.total_cmp(b));
+    match s.len() {
+        0 => f64::NAN,
+        n if n % 2 == 1 => s[n / 2],
+        n => 0.5 * (s[n / 2 - 1] + s[n / 2]),
+    }
+}
+
+/// Scaled median absolute deviations above the median that flag a recording (see
+/// [`disagreeing`]): a conventional outlier rule, not fitted.
+pub const OUTLIER_MADS: f64 = 5.0;
+
+/// Fewest recordings for [`disagreeing`] to judge.
+pub const OUTLIER_LEAST: usize = 5;
+
+/// The best log evidence of each recording over the whiskers of one round.
+fn best_evidence(estimates: &[Estimate]) -> Vec<f64> {
+    estimates
+        .iter()
+        .map(|e| {
+            e.posterior
+                .whisker_log_evidence
+                .iter()
+                .copied()
+                .fold(f64::NEG_INFINITY, f64::max)
+        })
+        .collect()
+}
+
 /// `rounds` pooling rounds: from `first`, the batch's estimates with the family's whiskers, each
 /// round draws the next whiskers around those the batch favours ([`scores`],
 /// [`next_whiskers`]) and has `filter_all` filter every recording again with them
 /// ([`Options::whiskers`]). Tells `progress` each round's favourite. Returns the last
-/// round's estimates.
+/// round's estimates and each recording's shortfall under the last favourite ([`Pooled`]).
 pub fn refine(
     first: Vec<Estimate>,
     options: &Options,
@@ -238,7 +301,8 @@ pub fn refine(
     seed: u64,
     filter_all: &mut dyn FnMut(&Options) -> Result<Vec<Estimate>>,
     progress: &mut dyn FnMut(String),
-) -> Result<Vec<Estimate>> {
+) -> Result<Pooled> {
+    let mut best = best_evidence(&first);
     let mut estimates = first;
     let mut options = options.clone();
     for round in 1..=rounds {
@@ -265,8 +329,30 @@ pub fn refine(
         ));
         options.whiskers = Some(next);
         estimates = filter_all(&options)?;
+        for (b, e) in best.iter_mut().zip(best_evidence(&estimates)) {
+            *b = b.max(e);
+        }
     }
-    Ok(estimates)
+    // The last round's favourite: its whiskers' pooled best.
+    let evidence: Vec<Vec<f64>> = estimates
+        .iter()
+        .map(|e| e.posterior.whisker_log_evidence.clone())
+        .collect();
+    let shortfall = match scores(&evidence) {
+        Ok(total) => {
+            let fav = (0..total.len()).fold(0, |b, h| if total[h] > total[b] { h } else { b });
+            evidence
+                .iter()
+                .zip(&best)
+                .map(|(ev, b)| (b - ev[fav]).max(0.0))
+                .collect()
+        }
+        Err(_) => vec![0.0; estimates.len()],
+    };
+    Ok(Pooled {
+        estimates,
+        shortfall,
+    })
 }
 
 /// A whisker in a few words (modulus, density, tip radius, follicle), for progress messages.
@@ -288,6 +374,18 @@ fn describe(w: &WhiskerParams) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_recording_far_below_the_batch_s_favourite_is_flagged() {
+        let mut s = vec![0.7, 1.2, 1.5, 2.0, 2.2, 2.6, 3.1, 3.5, 4.1, 5.2];
+        assert!(disagreeing(&s).is_empty(), "a batch that agrees");
+        s.push(f64::INFINITY);
+        s.push(40.0);
+        assert_eq!(disagreeing(&s), vec![10, 11]);
+        // Too few recordings to judge; a batch whose median is lost says nothing.
+        assert!(disagreeing(&[0.0, 0.0, 50.0]).is_empty());
+        assert!(disagreeing(&[f64::INFINITY; 6]).is_empty());
+    }
 
     #[test]
     fn scores_sum_the_recordings_and_count_a_lost_whisker_below_the_least_kept() {
