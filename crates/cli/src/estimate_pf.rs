@@ -141,22 +141,9 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
             },
             &mut |m| eprintln!("{m}"),
         )?;
-        for r in pf::pool::disagreeing(&pooled.shortfall) {
-            let s = pooled.shortfall[r];
-            let how = if s.is_finite() {
-                format!("explains it {s:.1} nats worse than the best whisker it met")
-            } else {
-                "lost every particle on it".to_string()
-            };
-            eprintln!(
-                "warning: `{}`: the batch's favourite whisker {how}, where on half the batch it \
-                 is within {:.1} nats of the best: it may not be a recording of the batch's \
-                 whisker (a foreign recording pulls the others' estimates: pool it apart or \
-                 leave it out); on a batch of one whisker this happens to about one recording \
-                 in twenty",
-                args.obs[r].display(),
-                pf::pool::median(&pooled.shortfall)
-            );
+        let names: Vec<String> = args.obs.iter().map(|f| f.display().to_string()).collect();
+        for w in pf::pool::warnings(&pooled, &names) {
+            eprintln!("warning: {w}");
         }
         ests = pooled.estimates;
     }

@@ -319,6 +319,7 @@ enum Input<'py> {
 /// each round's favourite whisker reported in `messages`.
 fn recording_pool(
     first: Vec<recording::Estimate>,
+    names: &[String],
     options: &recording::Options,
     rounds: usize,
     seed: u64,
@@ -334,7 +335,14 @@ fn recording_pool(
         &mut |o| filter_all(o),
         &mut |m| messages.push(m),
     )
-    .map(|p| p.estimates)
+    .map(|p| {
+        messages.extend(
+            pool::warnings(&p, names)
+                .into_iter()
+                .map(|w| format!("warning: {w}")),
+        );
+        p.estimates
+    })
 }
 
 /// Estimates the scenario's unknowns from each recording with `method`, as
@@ -539,7 +547,15 @@ fn estimate(
             // Each round's whiskers are the batch's, not the prior's: no held-out widening.
             options.interval_runs = 0;
             let first = filter_all(&options)?;
-            recording_pool(first, &options, rounds, seed, &filter_all, &mut messages)?
+            recording_pool(
+                first,
+                &names,
+                &options,
+                rounds,
+                seed,
+                &filter_all,
+                &mut messages,
+            )?
         } else {
             filter_all(&options)?
         };

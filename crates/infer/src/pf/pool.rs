@@ -257,6 +257,33 @@ pub fn disagreeing(shortfall: &[f64]) -> Vec<usize> {
         .collect()
 }
 
+/// A warning for each recording of `pooled` that [`disagreeing`] flags, `names` naming the
+/// recordings in order.
+pub fn warnings(pooled: &Pooled, names: &[String]) -> Vec<String> {
+    let s = &pooled.shortfall;
+    disagreeing(s)
+        .into_iter()
+        .map(|r| {
+            let how = if s[r].is_finite() {
+                format!(
+                    "explains it {:.1} nats worse than the best whisker it met",
+                    s[r]
+                )
+            } else {
+                "lost every particle on it".to_string()
+            };
+            format!(
+                "`{}`: the batch's favourite whisker {how}, where on half the batch it is within \
+                 {:.1} nats of the best: it may not be a recording of the batch's whisker (a \
+                 foreign recording pulls the others' estimates: pool it apart or leave it out); \
+                 on a batch of one whisker this happens to about one recording in twenty",
+                names.get(r).map_or("?", String::as_str),
+                median(s)
+            )
+        })
+        .collect()
+}
+
 /// The median of `v` (NaN when empty; infinite values count as the largest).
 pub fn median(v: &[f64]) -> f64 {
     let mut s = v.to_vec();
@@ -385,6 +412,16 @@ mod tests {
         // Too few recordings to judge; a batch whose median is lost says nothing.
         assert!(disagreeing(&[0.0, 0.0, 50.0]).is_empty());
         assert!(disagreeing(&[f64::INFINITY; 6]).is_empty());
+        // The warnings name the flagged recordings.
+        let pooled = Pooled {
+            estimates: Vec::new(),
+            shortfall: s,
+        };
+        let names: Vec<String> = (0..12).map(|k| format!("r{k}.csv")).collect();
+        let w = warnings(&pooled, &names);
+        assert_eq!(w.len(), 2);
+        assert!(w[0].starts_with("`r10.csv`") && w[0].contains("lost every particle"));
+        assert!(w[1].starts_with("`r11.csv`") && w[1].contains("40.0 nats"));
     }
 
     #[test]
