@@ -455,58 +455,45 @@ impl ShapeBank {
             .iter()
             .map(|r| r.iter().map(|[lo, hi]| hi - lo).collect())
             .collect();
+        // A pose's error, summed over its unknowns in units of each one's range.
+        let error = |p: &[f64], s: &ShapeSample| -> f64 {
+            p.iter()
+                .zip(&s.params)
+                .zip(&spans[s.class])
+                .map(|((p, x), w)| (p - x).abs() / w)
+                .sum()
+        };
         let mut best = (f64::INFINITY, 1.0);
         for t in temperatures() {
             let err: f64 = d2
                 .iter()
                 .zip(&held)
-                .map(|(d, &(j, _))| {
-                    let s = &training[j];
-                    m.pose(d, s.class, t)
-                        .iter()
-                        .zip(&s.params)
-                        .zip(&spans[s.class])
-                        .map(|((p, x), w)| (p - x).abs() / w)
-                        .sum::<f64>()
-                })
+                .map(|(d, &(j, _))| error(&m.pose(d, training[j].class, t), &training[j]))
                 .sum();
             if err < best.0 {
                 best = (err, t);
             }
         }
         m.pose_temperature = best.1;
+        // Held-out run `r`'s pose: the fit between runs' (where there is one), or the weighted
+        // mean of the bank's poses.
+        let held_pose = |r: usize, between: bool| -> Vec<f64> {
+            let c = training[held[r].0].class;
+            match between_held.get(r).and_then(|b| b[c].as_ref()) {
+                Some(b) if between => b.pose.clone(),
+                _ => m.pose(&d2[r], c, m.pose_temperature),
+            }
+        };
         // The fit between runs' pose instead, where it errs less on the held-out runs.
-        if m.neighbours > 0 {
-            let err: f64 = between_held
-                .iter()
-                .zip(&held)
-                .zip(&d2)
-                .map(|((b, &(j, _)), d)| {
-                    let s = &training[j];
-                    b[s.class]
-                        .as_ref()
-                        .map_or(&m.pose(d, s.class, m.pose_temperature), |b| &b.pose)
-                        .iter()
-                        .zip(&s.params)
-                        .zip(&spans[s.class])
-                        .map(|((p, x), w)| (p - x).abs() / w)
-                        .sum::<f64>()
-                })
-                .sum();
-            m.pose_between = err < best.0;
-        }
-        let poses: Vec<Vec<f64>> = d2
-            .iter()
-            .zip(&held)
-            .enumerate()
-            .map(|(r, (d, &(j, _)))| {
-                let c = training[j].class;
-                match between_held.get(r).and_then(|b| b[c].as_ref()) {
-                    Some(b) if m.pose_between => b.pose.clone(),
-                    _ => m.pose(d, c, m.pose_temperature),
-                }
-            })
+        let pose_between = m.neighbours > 0
+            && (0..held.len())
+                .map(|r| error(&held_pose(r, true), &training[held[r].0]))
+                .sum::<f64>()
+                < best.0;
+        let poses: Vec<Vec<f64>> = (0..held.len())
+            .map(|r| held_pose(r, pose_between))
             .collect();
+        m.pose_between = pose_between;
         // Split-conformal half-widths per class and unknown.
         m.half_width = (0..classes)
             .map(|c| {
