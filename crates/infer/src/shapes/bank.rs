@@ -24,6 +24,7 @@ use super::between::{between, Between};
 use super::estimator::{conformal_half_width, ShapeEstimate};
 use super::evaluate::subset;
 use super::family::{ShapeFamily, ShapeSample};
+use super::refine::{refine, Refined};
 use super::series_noise::SeriesNoise;
 use crate::error::{Error, Result};
 use crate::experiment::{Noise, CHANNELS};
@@ -52,6 +53,13 @@ const CHUNK: usize = 256;
 /// Neighbours tried for the fit between a class's runs (`between`; at least the class's pose
 /// unknowns plus two), 0 for none: the number with the lowest held-out log loss is kept.
 const NEIGHBOURS: [usize; 6] = [0, 6, 8, 10, 12, 16];
+/// Classes whose nearest run is searched with the simulator ([`refine`]) for each recording:
+/// those nearest it in the bank (or its fit between runs).
+const REFINE_CLASSES: usize = 2;
+/// Rounds of that search (each one simulation per pose unknown and one to three more).
+const REFINE_ROUNDS: usize = 2;
+/// Most held-out runs on which the search is tried and, when kept, calibrated.
+const REFINE_HELD: usize = 240;
 
 /// Noise-free runs of a shape family for [`ShapeBank`]: twins of the training runs (the same
 /// poses and, for randomised training, the same whiskers) and further draws.
@@ -146,6 +154,16 @@ pub struct ShapeBank {
     neighbours: usize,
     /// Whether the pose is the fit between runs' (else the weighted mean of the bank's poses).
     pose_between: bool,
+    /// The family whose noise-free runs the search for a class's nearest run simulates (the
+    /// bank's whiskers and timing), each class's pose ranges, and how many classes it searches
+    /// per recording (0: none).
+    family: Option<ShapeFamily>,
+    ranges: Vec<Vec<[f64; 2]>>,
+    refine_classes: usize,
+    /// Whether the pose is the search's (where it searched the most probable class).
+    pose_refined: bool,
+    /// Mean simulations per recording on the held-out runs searched.
+    refine_runs: f64,
     /// Temperature of the class evidence, the factor of its logarithm in the class softmax,
     /// and the temperature of the pose's weights.
     temperature: f64,
@@ -372,6 +390,12 @@ impl ShapeBank {
             counts,
             neighbours: 0,
             pose_between: false,
+            family: (family.whiskers().len() == whiskers && family.samples() == samples)
+                .then(|| family.clone()),
+            ranges: family.classes().iter().map(|c| c.family.ranges()).collect(),
+            refine_classes: 0,
+            pose_refined: false,
+            refine_runs: 0.0,
             temperature: 1.0,
             sharpness: 1.0,
             floor: 0.0,
@@ -441,7 +465,8 @@ impl ShapeBank {
                 .zip(&held_z)
                 .map(|(d, z)| m.between_all(z, d, k))
                 .collect();
-            let best = m.calibrate(&d2, &fitted, &truth);
+            let extra: Vec<Vec<f64>> = fitted.iter().map(|b| Self::between_d2(b)).collect();
+            let best = m.calibrate(&d2, &extra, &truth);
             if best.0 < chosen.0 {
                 chosen = (best.0, best.1, best.2, best.3, k);
                 between_held = fitted;
@@ -450,6 +475,39 @@ impl ShapeBank {
         (m.temperature, m.sharpness, m.floor, m.neighbours) =
             (chosen.1, chosen.2, chosen.3, chosen.4);
         m.held_out_loss = chosen.0;
+        // The search for each class's nearest run with the simulator, tried on a subset of the
+        // held-out runs: kept, with its own temperature, sharpness and even share, when its log
+        // loss there is lower than the bank's (and fit between runs') on the same runs.
+        let searched: Vec<usize> = (0..held.len())
+            .step_by(held.len().div_ceil(REFINE_HELD).max(1))
+            .collect();
+        let mut refined_held: Vec<Vec<Option<Refined>>> = Vec::new();
+        if m.family.is_some() {
+            let refined: Vec<Vec<Option<Refined>>> = searched
+                .par_iter()
+                .map(|&r| m.refined_all(&held_z[r], &d2[r], &between_held[r], REFINE_CLASSES))
+                .collect();
+            let d2_sub: Vec<Vec<f64>> = searched.iter().map(|&r| d2[r].clone()).collect();
+            let truth_sub: Vec<usize> = searched.iter().map(|&r| truth[r]).collect();
+            let plain: Vec<Vec<f64>> = searched
+                .iter()
+                .map(|&r| Self::between_d2(&between_held[r]))
+                .collect();
+            let with: Vec<Vec<f64>> = searched
+                .iter()
+                .zip(&refined)
+                .map(|(&r, f)| Self::extra_d2(&between_held[r], f))
+                .collect();
+            let before = m.calibrate(&d2_sub, &plain, &truth_sub);
+            let after = m.calibrate(&d2_sub, &with, &truth_sub);
+            let runs: usize = refined.iter().flatten().flatten().map(|f| f.runs).sum();
+            m.refine_runs = runs as f64 / searched.len().max(1) as f64;
+            if after.0 < before.0 {
+                (m.held_out_loss, m.temperature, m.sharpness, m.floor) = after;
+                m.refine_classes = REFINE_CLASSES;
+                refined_held = refined;
+            }
+        }
         // The pose temperature: the lowest held-out error in units of each range.
         let spans: Vec<Vec<f64>> = ranges
             .iter()
@@ -490,18 +548,41 @@ impl ShapeBank {
                 .map(|r| error(&held_pose(r, true), &training[held[r].0]))
                 .sum::<f64>()
                 < best.0;
-        let poses: Vec<Vec<f64>> = (0..held.len())
-            .map(|r| held_pose(r, pose_between))
-            .collect();
-        m.pose_between = pose_between;
+        // The search's pose instead where it searched the true class, when that errs less on
+        // the runs searched.
+        let refined_pose = |i: usize| -> Vec<f64> {
+            let r = searched[i];
+            match refined_held[i][truth[r]].as_ref() {
+                Some(f) => f.pose.clone(),
+                None => held_pose(r, pose_between),
+            }
+        };
+        let pose_refined = !refined_held.is_empty()
+            && (0..searched.len())
+                .map(|i| error(&refined_pose(i), &training[held[searched[i]].0]))
+                .sum::<f64>()
+                < searched
+                    .iter()
+                    .map(|&r| error(&held_pose(r, pose_between), &training[held[r].0]))
+                    .sum::<f64>();
+        // The held-out runs' poses as the estimator would give them.
+        let poses: Vec<(Vec<f64>, usize)> = if pose_refined {
+            (0..searched.len())
+                .map(|i| (refined_pose(i), searched[i]))
+                .collect()
+        } else {
+            (0..held.len())
+                .map(|r| (held_pose(r, pose_between), r))
+                .collect()
+        };
+        (m.pose_between, m.pose_refined) = (pose_between, pose_refined);
         // Split-conformal half-widths per class and unknown.
         m.half_width = (0..classes)
             .map(|c| {
                 let runs: Vec<(&Vec<f64>, &ShapeSample)> = poses
                     .iter()
-                    .zip(&held)
-                    .filter(|(_, &(j, _))| training[j].class == c)
-                    .map(|(p, &(j, _))| (p, &training[j]))
+                    .map(|(p, r)| (p, &training[held[*r].0]))
+                    .filter(|(_, s)| s.class == c)
                     .collect();
                 (0..m.names[c].len())
                     .map(|u| {
@@ -518,24 +599,19 @@ impl ShapeBank {
     }
 
     /// The temperature, sharpness and even share with the lowest held-out log loss, and that
-    /// loss: `(loss, t, s, e)`, for held-out runs with squared distances `d2`, fits between
-    /// runs `between` and true classes `truth`.
+    /// loss: `(loss, t, s, e)`, for held-out runs with squared distances `d2` to the bank's runs
+    /// and `extra` to each class's one more run, and true classes `truth`.
     fn calibrate(
         &self,
         d2: &[Vec<f64>],
-        between: &[Vec<Option<Between>>],
+        extra: &[Vec<f64>],
         truth: &[usize],
     ) -> (f64, f64, f64, f64) {
         let classes = self.counts.len();
         let evidence: Vec<Vec<Vec<f64>>> = d2
             .par_iter()
-            .zip(between)
-            .map(|(d, b)| {
-                let extra = Self::between_d2(b);
-                temperatures()
-                    .map(|t| self.log_evidence(d, &extra, t))
-                    .collect()
-            })
+            .zip(extra)
+            .map(|(d, x)| temperatures().map(|t| self.log_evidence(d, x, t)).collect())
             .collect();
         let fits: Vec<(f64, f64, f64, f64)> = temperatures()
             .enumerate()
@@ -599,6 +675,99 @@ impl ShapeBank {
     fn between_d2(b: &[Option<Between>]) -> Vec<f64> {
         b.iter()
             .map(|b| b.as_ref().map_or(f64::INFINITY, |b| b.d2))
+            .collect()
+    }
+
+    /// Each class's one more run: the search's nearest run where it searched the class, else
+    /// the fit between runs' (infinite where there is neither).
+    fn extra_d2(b: &[Option<Between>], refined: &[Option<Refined>]) -> Vec<f64> {
+        b.iter()
+            .zip(refined)
+            .map(|(b, f)| match f {
+                Some(f) => f.d2,
+                None => b.as_ref().map_or(f64::INFINITY, |b| b.d2),
+            })
+            .collect()
+    }
+
+    /// The nearest run, searched with the simulator, of each of the `classes` classes that come
+    /// nearest the recording `z` (squared distances `d2` to the bank's runs, fits between runs
+    /// `between`), starting from each one's nearest bank run and trying its fit between runs'
+    /// pose first; `None` for the other classes, or without a family to simulate.
+    fn refined_all(
+        &self,
+        z: &[f64],
+        d2: &[f64],
+        between: &[Option<Between>],
+        classes: usize,
+    ) -> Vec<Option<Refined>> {
+        let k = self.counts.len();
+        let mut out = vec![None; k];
+        if self.family.is_none() || classes == 0 {
+            return out;
+        }
+        // Each class's nearest bank run, and how near the class comes.
+        let mut nearest: Vec<Option<(f64, usize)>> = vec![None; k];
+        for (i, (d, &c)) in d2.iter().zip(&self.class_of).enumerate() {
+            if d.is_finite() && nearest[c].is_none_or(|(b, _)| *d < b) {
+                nearest[c] = Some((*d, i));
+            }
+        }
+        let mut order: Vec<(f64, usize)> = (0..k)
+            .filter_map(|c| {
+                let (d, _) = nearest[c]?;
+                let plane = between[c].as_ref().map_or(f64::INFINITY, |b| b.d2);
+                Some((d.min(plane), c))
+            })
+            .collect();
+        order.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let found: Vec<(usize, Refined)> = order
+            .iter()
+            .take(classes)
+            .collect::<Vec<_>>()
+            .par_iter()
+            .filter_map(|&&(_, c)| {
+                let (_, i) = nearest[c]?;
+                let simulate = |p: &[f64]| self.simulate_z(c, p);
+                let f = refine(
+                    z,
+                    &self.ranges[c],
+                    (&self.params[i], &self.z[i]),
+                    between[c].as_ref().map(|b| &b.pose[..]),
+                    REFINE_ROUNDS,
+                    &simulate,
+                );
+                Some((c, f))
+            })
+            .collect();
+        for (c, f) in found {
+            out[c] = Some(f);
+        }
+        out
+    }
+
+    /// The components of class `c`'s noise-free run at pose `p` (`None` where it cannot be
+    /// simulated or does not have the bank's shape).
+    fn simulate_z(&self, c: usize, p: &[f64]) -> Option<Vec<f64>> {
+        let family = self.family.as_ref()?;
+        let run = family
+            .simulate_one(&(c, p.to_vec()), &Noise::NONE, 0)
+            .ok()?;
+        let fits = run.whiskers.len() == self.whiskers
+            && run
+                .whiskers
+                .iter()
+                .all(|w| w.len() == CHANNELS.len() && w.iter().all(|c| c.len() == self.samples));
+        fits.then(|| self.project(&run.whiskers))
+    }
+
+    /// The components of one run (`[whiskers][CHANNELS][samples]`).
+    fn project(&self, whiskers: &[Vec<Vec<f64>>]) -> Vec<f64> {
+        let x = scaled(whiskers, &self.sigma);
+        self.fold
+            .column_iter()
+            .zip(&self.offset)
+            .map(|(a, o)| a.iter().zip(&x).map(|(a, x)| a * x).sum::<f64>() - o)
             .collect()
     }
 
@@ -716,17 +885,12 @@ impl ShapeBank {
     /// (`[whiskers][CHANNELS][samples]`).
     pub fn predict(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<ShapeEstimate> {
         self.check(whiskers)?;
-        let x = scaled(whiskers, &self.sigma);
-        let z: Vec<f64> = self
-            .fold
-            .column_iter()
-            .zip(&self.offset)
-            .map(|(a, o)| a.iter().zip(&x).map(|(a, x)| a * x).sum::<f64>() - o)
-            .collect();
+        let z = self.project(whiskers);
         let d2 = self.distances(&z);
         let k = self.classes.len() as f64;
         let fitted = self.between_all(&z, &d2, self.neighbours);
-        let extra = Self::between_d2(&fitted);
+        let refined = self.refined_all(&z, &d2, &fitted, self.refine_classes);
+        let extra = Self::extra_d2(&fitted, &refined);
         let p: Vec<f64> = softmax(
             &self.log_evidence(&d2, &extra, self.temperature),
             self.sharpness,
@@ -735,8 +899,9 @@ impl ShapeBank {
         .map(|p| (1.0 - self.floor) * p + self.floor / k)
         .collect();
         let best = (0..p.len()).fold(0, |b, c| if p[c] > p[b] { c } else { b });
-        let pose = match &fitted[best] {
-            Some(b) if self.pose_between => b.pose.clone(),
+        let pose = match (&refined[best], &fitted[best]) {
+            (Some(f), _) if self.pose_refined => f.pose.clone(),
+            (_, Some(b)) if self.pose_between => b.pose.clone(),
             _ => self.pose(&d2, best, self.pose_temperature),
         };
         let pose = pose
@@ -823,6 +988,12 @@ impl ShapeBank {
             (
                 "pose_between".into(),
                 f64::from(u8::from(self.pose_between)),
+            ),
+            ("refine_classes".into(), self.refine_classes as f64),
+            ("refine_runs".into(), self.refine_runs),
+            (
+                "pose_refined".into(),
+                f64::from(u8::from(self.pose_refined)),
             ),
         ];
         for (c, x) in CHANNELS.iter().zip(self.sigma) {

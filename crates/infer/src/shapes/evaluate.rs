@@ -289,7 +289,12 @@ pub fn evaluate_shapes(
         .map(|(idx, names, method)| {
             let t0 = Instant::now();
             let clean = clean.as_ref().map(|c| c.subset(idx));
-            let model = fit_shape_method(method, family, &subset(&training, idx), clean.as_ref())?;
+            // The family as the subset reads it (the whiskers it holds), for an estimator that
+            // simulates runs of its own.
+            let read_by =
+                family.with_whiskers(&names.iter().map(String::as_str).collect::<Vec<_>>())?;
+            let model =
+                fit_shape_method(method, &read_by, &subset(&training, idx), clean.as_ref())?;
             let fit_seconds = t0.elapsed().as_secs_f64();
             let t1 = Instant::now();
             let read = subset(&evaluated, idx);

@@ -264,7 +264,7 @@ impl ShapeFamily {
     }
 
     /// One run of a draw.
-    fn simulate_one(
+    pub(super) fn simulate_one(
         &self,
         (class, p): &(usize, Vec<f64>),
         noise: &Noise,

@@ -16,6 +16,7 @@ mod evaluate;
 mod family;
 mod method;
 mod online;
+mod refine;
 mod series_noise;
 
 pub use bank::{CleanRuns, ShapeBank, BANK_PER_CLASS};
