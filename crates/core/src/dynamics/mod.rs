@@ -33,17 +33,22 @@
 //! - `kinematics`: forward kinematics and external forces at the evaluation point;
 //! - `articulated`: the articulated-body solve and the base reaction;
 //! - [`contact`]: contact forces as constraints, solved on the articulated factorisation;
-//! - `step`: the time step that runs these stages ([`step`], [`initialize`]);
+//! - `single`: one step of the method through these stages, halved where it diverges;
 //! - `substeps`: a step near contact taken as substeps
 //!   ([`Integrator::contact_substeps`]);
+//! - `fitted`: the chain fitted to a long step ([`Integrator::fit_first_mode`]);
+//! - `step`: the time step ([`step`], [`initialize`]): taken whole, as substeps, or on the
+//!   fitted chain;
 //! - `energy`: energies and momentum of a state.
 
 mod articulated;
 pub mod contact;
 mod energy;
+mod fitted;
 mod inputs;
 mod integrator;
 mod kinematics;
+mod single;
 mod state;
 mod step;
 mod substeps;
@@ -55,6 +60,7 @@ pub use integrator::{
     Integrator, Stepper, DEFAULT_MAX_ITERATIONS, DEFAULT_RHO_INF, DEFAULT_TOLERANCE,
     MAX_CONTACT_SUBSTEPS, MAX_DT,
 };
+pub use single::{Forcing, NoForcing, MAX_HALVINGS};
 pub use state::State;
-pub use step::{initialize, step, step_with, Forcing, NoForcing, MAX_HALVINGS};
+pub use step::{initialize, step, step_with};
 pub use workspace::Workspace;

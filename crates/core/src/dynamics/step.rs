@@ -2,28 +2,16 @@
 //! contact iterated at the intermediate time, and integration to the end of the step, with
 //! halving of steps that diverge.
 
-use super::contact;
-use super::inputs::{check_inputs, BaseMotion, Inputs};
-use super::integrator::{Integrator, Stepper, MAX_DT};
+use super::fitted::Fitted;
+use super::inputs::{check_inputs, Inputs};
+use super::integrator::{Stepper, MAX_DT};
+use super::single::{check_state, step_whole, Forcing, NoForcing};
 use super::state::State;
 use super::substeps;
 use super::workspace::Workspace;
 use crate::chain::Model;
-use crate::error::{check_finite, readable, Error, Result};
+use crate::error::Result;
 use crate::objects::bounds;
-
-/// Something that adds external forces once the step's kinematics is known (contact, fields).
-pub trait Forcing {
-    /// Adds forces for the configuration in `ws` at time `t` with [`Workspace::add_force`].
-    fn apply(&mut self, t: f64, model: &Model, ws: &mut Workspace);
-}
-
-/// No extra forces.
-pub struct NoForcing;
-
-impl Forcing for NoForcing {
-    fn apply(&mut self, _t: f64, _model: &Model, _ws: &mut Workspace) {}
-}
 
 /// Makes `state`'s accelerations consistent with its positions, rates and `inputs` (forward
 /// dynamics with no integrator terms). Call after setting a state by hand.
@@ -126,19 +114,15 @@ fn stays_at_rest(
     })
 }
 
-/// How many times a step that diverged is halved before its error is returned: a step of `dt`
-/// is retried as two steps of `dt/2`, either of which may be halved again, down to `dt/16`.
-pub const MAX_HALVINGS: u32 = 4;
-
 /// Advances `state` by one step with `inputs` and extra `forcing`.
 ///
 /// A step whose result is not finite or folds a joint past π from its rest angle is not kept:
 /// the state is restored and the step taken again as two half steps (the base motion
-/// interpolated to the middle), each halved again if it fails, up to [`MAX_HALVINGS`] times. Only
-/// when that fails too does the step return [`Error::Diverged`], and the state is then left as
+/// interpolated to the middle), each halved again if it fails, up to [`MAX_HALVINGS`](super::MAX_HALVINGS) times. Only
+/// when that fails too does the step return [`Error::Diverged`](crate::error::Error::Diverged), and the state is then left as
 /// it was before the step.
 ///
-/// With [`Integrator::contact_substeps`] above 1, a step near contact (see the `substeps`
+/// With [`Integrator::contact_substeps`](super::Integrator::contact_substeps) above 1, a step near contact (see the `substeps`
 /// module) is taken as that many equal substeps, each one step as above.
 pub fn step_with<F: Forcing + ?Sized>(
     model: &Model,
@@ -155,13 +139,14 @@ pub fn step_with<F: Forcing + ?Sized>(
         return substeps::take(model, st, state, inputs, ws, forcing);
     }
     if st.fit_first_mode {
-        return substeps::fitted_step(model, st, state, inputs, ws, forcing);
+        return fitted_step(model, st, state, inputs, ws, forcing);
     }
     step_whole(model, st, state, inputs, ws, forcing)
 }
 
-/// One step of `st`, halved where it diverges (see [`step_with`]).
-pub(super) fn step_whole<F: Forcing + ?Sized>(
+/// A whole step of `st` on the chain fitted to it ([`Integrator::fit_first_mode`]), or on
+/// `model` itself where no fit exists.
+fn fitted_step<F: Forcing + ?Sized>(
     model: &Model,
     st: &Stepper,
     state: &mut State,
@@ -169,286 +154,20 @@ pub(super) fn step_whole<F: Forcing + ?Sized>(
     ws: &mut Workspace,
     forcing: &mut F,
 ) -> Result<()> {
-    let mut backup = ws.backup.take().unwrap_or_else(|| state.clone());
-    backup.clone_from(state);
-    let result = match step_once(model, st, state, inputs, ws, forcing) {
-        Err(first @ Error::Diverged { .. }) => {
-            state.clone_from(&backup);
-            let t_end = state.t + st.dt;
-            match halves(model, st, state, inputs, ws, forcing, 1) {
-                Ok(()) => {
-                    state.t = t_end;
-                    Ok(())
-                }
-                Err(_) => {
-                    state.clone_from(&backup);
-                    Err(first)
-                }
-            }
-        }
-        Err(e) => {
-            state.clone_from(&backup);
-            Err(e)
-        }
-        ok => ok,
+    let fitted = match ws.fitted.take() {
+        Some(f) if f.fits(model, st) => f,
+        _ => Box::new(Fitted::new(model, st)),
     };
-    ws.backup = Some(backup);
+    let result = step_whole(fitted.model(), st, state, inputs, ws, forcing);
+    ws.fitted = Some(fitted);
     result
-}
-
-/// Takes the step of `st` as two half steps, halving a half that diverges again while `level`
-/// allows (see [`step_with`]). On error the state is wherever the failed half left it.
-fn halves<F: Forcing + ?Sized>(
-    model: &Model,
-    st: &Stepper,
-    state: &mut State,
-    inputs: &Inputs,
-    ws: &mut Workspace,
-    forcing: &mut F,
-    level: u32,
-) -> Result<()> {
-    let half = Integrator {
-        dt: 0.5 * st.dt,
-        ..st.integrator()
-    }
-    .check()?;
-    let (b0, b1) = (state.base, inputs.base);
-    let middle = BaseMotion {
-        angle: 0.5 * (b0.angle + b1.angle),
-        rate: 0.5 * (b0.rate + b1.rate),
-        accel: 0.5 * (b0.accel + b1.accel),
-    };
-    for base in [middle, b1] {
-        let part = Inputs { base, ..*inputs };
-        let start = state.clone();
-        match step_once(model, &half, state, &part, ws, forcing) {
-            Ok(()) => {}
-            Err(Error::Diverged { .. }) if level < MAX_HALVINGS => {
-                state.clone_from(&start);
-                halves(model, &half, state, &part, ws, forcing, level + 1)?;
-            }
-            Err(e) => return Err(e),
-        }
-    }
-    Ok(())
-}
-
-/// One step of `st`, without retries (see [`step_with`]).
-fn step_once<F: Forcing + ?Sized>(
-    model: &Model,
-    st: &Stepper,
-    state: &mut State,
-    inputs: &Inputs,
-    ws: &mut Workspace,
-    forcing: &mut F,
-) -> Result<()> {
-    let n = model.n;
-    check_inputs(model, inputs)?;
-    // A step that begins in lasting contact damps the stiff motion the contact adds
-    // (`Integrator::contact_rho_inf`).
-    let held;
-    let st = if state.touching != 0 && st.contact_rho_inf != st.rho_inf {
-        held = st.in_contact();
-        &held
-    } else {
-        st
-    };
-    let h = st.dt;
-    let t_next = state.t + h;
-    let (am, af, beta, gamma) = (st.alpha_m, st.alpha_f, st.beta, st.gamma);
-    let c1 = 1.0 - af;
-    let t_mid = state.t + c1 * h;
-    // Base motion at the intermediate time, interpolated between the step's ends.
-    let (b0, b1) = (state.base, inputs.base);
-    let base = BaseMotion {
-        angle: b0.angle + c1 * (b1.angle - b0.angle),
-        rate: b0.rate + c1 * (b1.rate - b0.rate),
-        accel: b0.accel + c1 * (b1.accel - b0.accel),
-    };
-    let (q, rest) = state.x.split_at_mut(n);
-    let (v, rest) = rest.split_at_mut(n);
-    let (a, rest) = rest.split_at_mut(n);
-    let (v_prev, a_contact) = rest.split_at_mut(n);
-    ws.draw_noise(model, inputs.noise, &mut state.rng, h);
-    if inputs.objects.is_empty() {
-        ws.contacts.clear();
-    }
-    let touching = state.touching;
-
-    for attempt in 0..2 {
-        // Stage: predict. The intermediate angles and rates are affine in the unknown
-        // b = a_{n+1-αm}: q_f = q0 + dq·b, v_f = v0 + dv·b. The geometry is first evaluated at
-        // q_n + (1-αf)·h·q̇_n and at rates extrapolated from the last two steps: both bounded for the
-        // stiff modes, and second-order accurate.
-        for i in 0..n {
-            ws.q_lin[i] = q[i] + c1 * h * v[i] + (c1 * h * h * (0.5 - beta) - st.dq * am) * a[i];
-            ws.v_lin[i] = v[i] + (c1 * h * (1.0 - gamma) - st.dv * am) * a[i];
-            ws.q[i] = q[i] + c1 * h * v[i];
-            ws.v[i] = v[i] + c1 * (v[i] - v_prev[i]);
-        }
-
-        // Stage: passive joint torques, implicit in the springs and dampers: with the armature
-        // A = K·dq + D·dv, (M + A) b = τ enforces the spring–damper law at the intermediate time.
-        for i in 0..n {
-            let (k, d) = (model.stiffness[i], model.damping[i]);
-            ws.arm[i] = k * st.dq + d * st.dv;
-            ws.tau[i] = -k * (ws.q_lin[i] - model.rest[i]) - d * ws.v_lin[i];
-        }
-
-        // Geometric iterations: kinematics, forces and solve at the latest estimate of the
-        // intermediate state, until that estimate stops moving.
-        ws.iterations = 0;
-        loop {
-            ws.iterations += 1;
-            // Stage: kinematics at the evaluation point, then external forces.
-            ws.kinematics(model, &base);
-            ws.forces(model, inputs);
-            forcing.apply(t_mid, model, ws);
-            // Stage: solve for b.
-            ws.solve(model, &base);
-            // Stage: contact forces that keep the whisker out of the objects at the end of the step.
-            if !inputs.objects.is_empty() {
-                let start = contact::StepStart {
-                    q,
-                    v,
-                    a,
-                    touching,
-                    base_turn: b1.angle - base.angle,
-                    base_rate: b1.rate,
-                };
-                contact::solve(model, st, ws, inputs, &start, state.t)?;
-            }
-            if ws.iterations >= st.max_iterations {
-                break;
-            }
-            // Stage: the intermediate state this solve implies; how far the segments moved. Contact
-            // impulses (`ac`) and the penetration correction (`fix`) move with their own weights,
-            // everything else with the method's.
-            let (mut phi, mut moved) = (0.0f64, 0.0f64);
-            let contacts = ws.contacts.count > 0;
-            let (q_lin, v_lin, qdd) = (&ws.q_lin[..n], &ws.v_lin[..n], &ws.qdd[..n]);
-            let (acc, fixes) = (&ws.contacts.acc[..n], &ws.contacts.position_fix[..n]);
-            let (qe, ve) = (&mut ws.q[..n], &mut ws.v[..n]);
-            for i in 0..n {
-                let (mut qf, mut vf) = (q_lin[i] + st.dq * qdd[i], v_lin[i] + st.dv * qdd[i]);
-                if contacts {
-                    let (ac, fix) = (acc[i], fixes[i]);
-                    qf += c1 * (0.5 * h * h * ac + fix) - st.dq * ac;
-                    vf += (c1 * h - st.dv) * ac;
-                }
-                phi += qf - qe[i];
-                moved = moved.max(phi.abs()).max(h * (vf - ve[i]).abs());
-                qe[i] = qf;
-                ve[i] = vf;
-            }
-            if moved <= st.tolerance {
-                break;
-            }
-        }
-
-        // A lasting contact that ended: take the step again without its force in the history,
-        // so the whisker is not pushed by a force that no longer acts.
-        let released = touching & !ws.contacts.touching() != 0;
-        if attempt == 0 && released && a_contact.iter().any(|x| *x != 0.0) {
-            for (ai, ci) in a.iter_mut().zip(a_contact.iter_mut()) {
-                *ai -= *ci;
-                *ci = 0.0;
-            }
-            continue;
-        }
-        break;
-    }
-
-    // Stage: integrate to the end of the step. Contact impulses (`ac`) move the rates by h·ac and
-    // the angles by h²/2·ac and stay out of the acceleration history; `fix` removes penetration
-    // (see the contact module).
-    let inv_am = 1.0 / (1.0 - am);
-    let contacts = ws.contacts.count > 0;
-    let (qdd, acc, fixes) = (
-        &ws.qdd[..n],
-        &ws.contacts.acc[..n],
-        &ws.contacts.position_fix[..n],
-    );
-    let (q, v, a, v_prev) = (&mut q[..n], &mut v[..n], &mut a[..n], &mut v_prev[..n]);
-    a_contact.copy_from_slice(&ws.contacts.acc_lasting[..n]);
-    for i in 0..n {
-        let a_new = (qdd[i] - am * a[i]) * inv_am;
-        let mut q_new = q[i] + h * v[i] + h * h * ((0.5 - beta) * a[i] + beta * a_new);
-        let mut v_new = v[i] + h * ((1.0 - gamma) * a[i] + gamma * a_new);
-        let mut a_kept = a_new;
-        if contacts {
-            // The impulses' part of the acceleration, with its own weights and out of the history.
-            let (ac, fix) = (acc[i] * inv_am, fixes[i]);
-            a_kept -= ac;
-            q_new += h * h * (0.5 - beta) * ac + fix;
-            v_new += h * (1.0 - gamma) * ac;
-        }
-        v_prev[i] = v[i];
-        q[i] = q_new;
-        v[i] = v_new;
-        a[i] = a_kept;
-    }
-    // Base reaction: solved at the intermediate time, extrapolated to the end of the step.
-    let w = ws.base_wrench();
-    let first = state.t == 0.0;
-    for ((out, wk), prev) in state.base_wrench.iter_mut().zip(w).zip(state.wrench_alpha) {
-        *out = if first { wk } else { wk + af * (wk - prev) };
-    }
-    state.wrench_alpha = w;
-    state.contact = ws.contacts.report(model, inputs.objects.is_empty());
-    state.touching = if inputs.objects.is_empty() {
-        0
-    } else {
-        ws.contacts.touching()
-    };
-    state.t = t_next;
-    state.base = inputs.base;
-    check_state(state, model)
-}
-
-/// Stage boundary check: every value finite, no joint folded past π from rest.
-fn check_state(state: &State, model: &Model) -> Result<()> {
-    let n = model.n;
-    let bad = |i: usize, what: &str, x: f64| Error::Diverged {
-        t: state.t,
-        detail: format!(
-            "joint {i} (arc length {:.4} m) {what} = {}",
-            i as f64 * model.arc,
-            readable(x)
-        ),
-    };
-    for i in 0..n {
-        let (q, v, a) = (state.x[i], state.x[n + i], state.x[2 * n + i]);
-        if !(q.is_finite() && v.is_finite() && a.is_finite()) {
-            let (what, x) = if !q.is_finite() {
-                ("angle", q)
-            } else if !v.is_finite() {
-                ("rate", v)
-            } else {
-                ("acceleration", a)
-            };
-            return Err(bad(i, what, x));
-        }
-        if (q - model.rest[i]).abs() > std::f64::consts::PI {
-            return Err(bad(i, "bent beyond pi from rest: angle", q));
-        }
-    }
-    for (k, w) in state.base_wrench.iter().enumerate() {
-        check_finite(["base moment", "base fx", "base fy"][k], *w).map_err(|_| {
-            Error::Diverged {
-                t: state.t,
-                detail: format!("base reaction is {}", readable(*w)),
-            }
-        })?;
-    }
-    Ok(())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::chain::Discretisation;
-    use crate::dynamics::Integrator;
+    use crate::dynamics::{BaseMotion, Integrator};
     use crate::objects::Object;
     use crate::scenes::e2_box;
     use crate::whisker::WhiskerParams;

@@ -66,7 +66,7 @@ pub struct Workspace {
     /// impact or a release), one per level of the bisection.
     pub(super) event_pool: Vec<State>,
     /// The chain fitted to a step's first mode: the source chain, the step and the fitted copy.
-    pub(super) fitted: Option<Box<super::substeps::Fitted>>,
+    pub(super) fitted: Option<Box<super::fitted::Fitted>>,
 }
 
 impl Workspace {
