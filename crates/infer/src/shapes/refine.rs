@@ -57,17 +57,12 @@ pub(super) fn refine(
 ) -> Refined {
     let p = ranges.len();
     let span: Vec<f64> = ranges.iter().map(|[lo, hi]| hi - lo).collect();
+    // A pose in units of the ranges (not clamped: a known run may lie beyond them).
     let to_unit = |x: &[f64]| -> Vec<f64> {
         x.iter()
             .zip(ranges)
             .zip(&span)
-            .map(|((x, [lo, _]), w)| {
-                if *w > 0.0 {
-                    ((x - lo) / w).clamp(0.0, 1.0)
-                } else {
-                    0.0
-                }
-            })
+            .map(|((x, [lo, _]), w)| if *w > 0.0 { (x - lo) / w } else { 0.0 })
             .collect()
     };
     let to_pose = |u: &[f64]| -> Vec<f64> {
@@ -78,20 +73,10 @@ pub(super) fn refine(
             .collect()
     };
     // The best run so far: its pose in units, components and squared distance.
-    let mut best = (
-        start
-            .0
-            .iter()
-            .zip(ranges)
-            .zip(&span)
-            .map(|((x, [lo, _]), w)| if *w > 0.0 { (x - lo) / w } else { 0.0 })
-            .collect::<Vec<f64>>(),
-        start.1.to_vec(),
-        dist2(z, start.1),
-    );
+    let mut best = (to_unit(start.0), start.1.to_vec(), dist2(z, start.1));
     let mut runs = 0;
     if let Some(q) = proposal {
-        let u = to_unit(q);
+        let u: Vec<f64> = to_unit(q).iter().map(|u| u.clamp(0.0, 1.0)).collect();
         if let Some(c) = simulate(&to_pose(&u)) {
             runs += 1;
             let d = dist2(z, &c);
