@@ -1,10 +1,12 @@
 //! Many whisker states stepped against one shared model, in parallel.
 //!
 //! Every state owns its random stream, so the result is bit-for-bit the same whatever the number
-//! of threads: work is split between threads, never the random numbers.
+//! of threads: work is split between threads, never the random numbers. Where nothing but base
+//! motion and random forces act, states are stepped [`LANES`] at a time in lanes
+//! ([`step_group`]), each to the same bits as alone.
 
 use crate::chain::Model;
-use crate::dynamics::{step, Inputs, State, Stepper, Workspace};
+use crate::dynamics::{step_group, Inputs, LaneWorkspace, State, Stepper, Workspace, LANES};
 use crate::error::Result;
 use rayon::prelude::*;
 use std::cell::RefCell;
@@ -13,6 +15,8 @@ thread_local! {
     /// Workspaces kept between parallel calls on this thread (a call makes one per rayon split,
     /// which for a particle filter is thousands of allocations per second otherwise).
     static SPARE: RefCell<Vec<Workspace>> = const { RefCell::new(Vec::new()) };
+    /// The same for lane groups.
+    static SPARE_LANES: RefCell<Vec<LaneWorkspace>> = const { RefCell::new(Vec::new()) };
 }
 
 /// Most workspaces a thread keeps.
@@ -52,6 +56,41 @@ impl Drop for Lent {
     }
 }
 
+/// A lane workspace lent from this thread's spares (or made), handed back when dropped.
+pub struct LentLanes(Option<LaneWorkspace>);
+
+impl LentLanes {
+    /// Lane scratch for `model`.
+    pub fn new(model: &Model) -> LentLanes {
+        let found = SPARE_LANES.with(|s| {
+            let mut s = s.borrow_mut();
+            let i = s.iter().position(|w| w.n() == model.n)?;
+            Some(s.swap_remove(i))
+        });
+        LentLanes(Some(found.unwrap_or_else(|| LaneWorkspace::new(model))))
+    }
+
+    /// The lent scratch.
+    pub fn get(&mut self) -> &mut LaneWorkspace {
+        self.0
+            .as_mut()
+            .expect("a lent workspace is present until dropped")
+    }
+}
+
+impl Drop for LentLanes {
+    fn drop(&mut self) {
+        if let Some(lw) = self.0.take() {
+            let _ = SPARE_LANES.try_with(|s| {
+                let mut s = s.borrow_mut();
+                if s.len() < SPARE_MAX {
+                    s.push(lw);
+                }
+            });
+        }
+    }
+}
+
 /// Advances every state by `steps` steps with the same `inputs`, in parallel over the current
 /// rayon pool. Stops at the first error (a diverged state) and returns it.
 pub fn step_all(
@@ -61,15 +100,19 @@ pub fn step_all(
     inputs: &Inputs,
     steps: usize,
 ) -> Result<()> {
-    states.par_iter_mut().with_min_len(8).try_for_each_init(
-        || Lent::new(model),
-        |ws, state| {
-            for _ in 0..steps {
-                step(model, st, state, inputs, ws.get())?;
-            }
-            Ok(())
-        },
-    )
+    states
+        .par_chunks_mut(LANES)
+        .with_min_len(2)
+        .try_for_each_init(
+            || (Lent::new(model), LentLanes::new(model)),
+            |(ws, lw), group| {
+                let outcomes = step_group(model, st, group, inputs, steps, lw.get(), ws.get());
+                match outcomes.into_iter().flatten().next() {
+                    Some(e) => Err(e),
+                    None => Ok(()),
+                }
+            },
+        )
 }
 
 /// Calls `f(workspace, item)` on every item of a parallel iterator (states zipped with whatever

@@ -35,7 +35,7 @@ pub(crate) fn sym_mul(a: &[f64; 6], v: [f64; 3]) -> [f64; 3] {
 }
 
 /// Taylor coefficients of sin(x)/x and cos(x) in powers of x²: (-1)^k/(2k+1)! and (-1)^k/(2k)!.
-const SIN_TAYLOR: [f64; 6] = [
+pub(crate) const SIN_TAYLOR: [f64; 6] = [
     1.0,
     -1.0 / 6.0,
     1.0 / 120.0,
@@ -43,7 +43,7 @@ const SIN_TAYLOR: [f64; 6] = [
     1.0 / 362_880.0,
     -1.0 / 39_916_800.0,
 ];
-const COS_TAYLOR: [f64; 7] = [
+pub(crate) const COS_TAYLOR: [f64; 7] = [
     1.0,
     -1.0 / 2.0,
     1.0 / 24.0,

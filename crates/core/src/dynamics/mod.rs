@@ -39,6 +39,8 @@
 //! - `fitted`: the chain fitted to a long step ([`Integrator::fit_first_mode`]);
 //! - `step`: the time step ([`step`], [`initialize`]): taken whole, as substeps, or on the
 //!   fitted chain;
+//! - `lanes`: free steps of up to [`LANES`] states of one model at once, lane by lane the same
+//!   bits as [`step`] ([`step_group`]);
 //! - `energy`: energies and momentum of a state.
 
 mod articulated;
@@ -48,6 +50,7 @@ mod fitted;
 mod inputs;
 mod integrator;
 mod kinematics;
+mod lanes;
 mod single;
 mod state;
 mod step;
@@ -60,6 +63,7 @@ pub use integrator::{
     Integrator, Stepper, DEFAULT_MAX_ITERATIONS, DEFAULT_RHO_INF, DEFAULT_TOLERANCE,
     MAX_CONTACT_SUBSTEPS, MAX_DT,
 };
+pub use lanes::{lanes_apply, step_group, LaneWorkspace, LANES};
 pub use single::{Forcing, NoForcing, MAX_HALVINGS};
 pub use state::State;
 pub use step::{initialize, step, step_with};
