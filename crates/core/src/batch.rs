@@ -57,11 +57,11 @@ impl Drop for Lent {
 }
 
 /// A lane workspace lent from this thread's spares (or made), handed back when dropped.
-pub struct LentLanes(Option<LaneWorkspace>);
+struct LentLanes(Option<LaneWorkspace>);
 
 impl LentLanes {
     /// Lane scratch for `model`.
-    pub fn new(model: &Model) -> LentLanes {
+    fn new(model: &Model) -> LentLanes {
         let found = SPARE_LANES.with(|s| {
             let mut s = s.borrow_mut();
             let i = s.iter().position(|w| w.n() == model.n)?;
@@ -71,7 +71,7 @@ impl LentLanes {
     }
 
     /// The lent scratch.
-    pub fn get(&mut self) -> &mut LaneWorkspace {
+    fn get(&mut self) -> &mut LaneWorkspace {
         self.0
             .as_mut()
             .expect("a lent workspace is present until dropped")
@@ -129,4 +129,21 @@ where
         .with_min_len(8)
         .map_init(|| Lent::new(model), |ws, item| f(ws.get(), item))
         .sum()
+}
+
+/// A workspace and lane scratch of one model, lent from this thread's spares (or made) and
+/// handed back when dropped: for stepping lane groups ([`step_group`]) inside a parallel
+/// iterator's `map_init`.
+pub struct Scratch(Lent, LentLanes);
+
+impl Scratch {
+    /// Scratch for `model`.
+    pub fn new(model: &Model) -> Scratch {
+        Scratch(Lent::new(model), LentLanes::new(model))
+    }
+
+    /// The workspace and the lane scratch.
+    pub fn get(&mut self) -> (&mut Workspace, &mut LaneWorkspace) {
+        (self.0.get(), self.1.get())
+    }
 }

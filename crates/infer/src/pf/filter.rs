@@ -8,7 +8,7 @@ use super::likelihood::per_time_factor;
 use super::posterior::{summarise, Observations, Posterior, TraceRow};
 use super::sampling::{systematic, LiuWest};
 use super::sensors::SensorBelief;
-use super::transition::{advance, map_joints, param, Hypothesis, ObjState};
+use super::transition::{advance, map_joints, param, ring_together, Hypothesis, ObjState};
 use super::whiskers::WhiskerValues;
 use crate::error::{Error, Result};
 use crate::experiment::CHANNELS;
@@ -16,9 +16,13 @@ use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use vibrissa_core::batch;
 use vibrissa_core::chain::Model;
-use vibrissa_core::dynamics::{Integrator, State, Stepper};
+use vibrissa_core::dynamics::{Integrator, State, Stepper, LANES};
 use vibrissa_core::rng::Rng;
 use vibrissa_core::sensors::Sensors;
+
+/// Fewest ringing particles of one whisker stepped together in lanes; fewer are stepped one at a
+/// time (a lane group costs about what four single steps do, whatever its size).
+const MIN_LANE_GROUP: usize = 4;
 
 /// Stream indices: particles' process noise, their moves, the resampling draws, the prior.
 const STREAM_NOISE: u64 = 1 << 40;
@@ -290,8 +294,62 @@ impl Filter {
         let whisker_mass = by_whisker(&self.hyp, self.logw.iter().map(|l| l.exp()), whiskers);
         let ringing_before = self.cleared.iter().filter(|c| **c).count();
         let undone = AtomicUsize::new(0);
-        // Predict (after the first sample) and weight every particle, in parallel.
-        let diverged = batch::sum_with_workspace(
+        // Particles whose boxes had gone for good (and were not just moved) ring on their
+        // whisker's free model: those of one whisker together in lane groups, in parallel, each
+        // to the bits it would reach alone. The rest, and whiskers with too few ringing
+        // particles to fill a group, are advanced one at a time below.
+        let mut rung = vec![false; np];
+        let mut diverged = 0;
+        if steps > 0 {
+            let mut ringing: Vec<(u16, usize, &mut State)> = self
+                .states
+                .iter_mut()
+                .enumerate()
+                .filter(|(j, _)| {
+                    self.cleared[*j]
+                        && self.unmoved[*j].is_none()
+                        && self.logw[*j] != f64::NEG_INFINITY
+                })
+                .map(|(j, s)| (self.hyp[j], j, s))
+                .collect();
+            ringing.sort_by_key(|(h, j, _)| (*h, *j));
+            let mut groups: Vec<&mut [(u16, usize, &mut State)]> = Vec::new();
+            for same in ringing.chunk_by_mut(|a, b| a.0 == b.0) {
+                for group in same.chunks_mut(LANES) {
+                    if group.len() >= MIN_LANE_GROUP {
+                        group.iter().for_each(|(_, j, _)| rung[*j] = true);
+                        groups.push(group);
+                    }
+                }
+            }
+            let failed: Vec<usize> = groups
+                .into_par_iter()
+                .map_init(
+                    || batch::Scratch::new(&hyps[0].model),
+                    |scratch, group| {
+                        let chain = &hyps[group[0].0 as usize].chain(stepper);
+                        let mut refs: Vec<&mut State> =
+                            group.iter_mut().map(|(_, _, s)| &mut **s).collect();
+                        let (ws, lw) = scratch.get();
+                        let ok =
+                            ring_together(chain, &mut refs, periods, config.process_noise, lw, ws);
+                        group
+                            .iter()
+                            .zip(ok)
+                            .filter(|(_, ok)| !ok)
+                            .map(|((_, j, _), _)| *j)
+                            .collect::<Vec<usize>>()
+                    },
+                )
+                .flatten()
+                .collect();
+            for j in failed {
+                self.logw[j] = f64::NEG_INFINITY;
+                diverged += 1;
+            }
+        }
+        // Predict every other particle, and weight every particle, in parallel.
+        diverged += batch::sum_with_workspace(
             &hyps[0].model,
             self.states
                 .par_iter_mut()
@@ -301,8 +359,8 @@ impl Filter {
                 .zip(self.unmoved.par_iter())
                 .zip(self.spare.par_iter_mut())
                 .zip(self.sensors.par_iter_mut())
-                .zip(self.hyp.par_iter()),
-            |ws, (((((((s, o), lw), gone), before), kept), belief), h)| {
+                .zip(self.hyp.par_iter().zip(rung.par_iter())),
+            |ws, (((((((s, o), lw), gone), before), kept), belief), (h, rung))| {
                 if *lw == f64::NEG_INFINITY {
                     return 0;
                 }
@@ -310,24 +368,26 @@ impl Filter {
                 let chain = &hyp.chain(stepper);
                 let (model, observed) = (&hyp.model, &hyp.observed);
                 let noise = config.process_noise;
-                // A box just moved may sit where its whisker state cannot follow (around the
-                // tip, say): keep the state (in the spare slot, free until the next
-                // resampling) to take the sample again with the unmoved box.
-                let was_gone = *gone;
-                if before.is_some() {
-                    kept.clone_from(s);
-                }
-                let mut ok = advance(chain, s, o, gone, steps, periods, noise, t, ws).is_ok()
-                    && (before.is_none() || !whipped(model, s));
-                if let (false, Some(b)) = (ok, before) {
-                    undone.fetch_add(1, Ordering::Relaxed);
-                    s.clone_from(kept);
-                    (*gone, *o) = (was_gone, *b);
-                    ok = advance(chain, s, o, gone, steps, periods, noise, t, ws).is_ok();
-                }
-                if !ok {
-                    *lw = f64::NEG_INFINITY;
-                    return 1;
+                if !*rung {
+                    // A box just moved may sit where its whisker state cannot follow (around
+                    // the tip, say): keep the state (in the spare slot, free until the next
+                    // resampling) to take the sample again with the unmoved box.
+                    let was_gone = *gone;
+                    if before.is_some() {
+                        kept.clone_from(s);
+                    }
+                    let mut ok = advance(chain, s, o, gone, steps, periods, noise, t, ws).is_ok()
+                        && (before.is_none() || !whipped(model, s));
+                    if let (false, Some(b)) = (ok, before) {
+                        undone.fetch_add(1, Ordering::Relaxed);
+                        s.clone_from(kept);
+                        (*gone, *o) = (was_gone, *b);
+                        ok = advance(chain, s, o, gone, steps, periods, noise, t, ws).is_ok();
+                    }
+                    if !ok {
+                        *lw = f64::NEG_INFINITY;
+                        return 1;
+                    }
                 }
                 let mut pred = Sensors::read(s).to_array();
                 [pred[0], pred[1]] = map_joints(model, observed, s.q());

@@ -5,7 +5,10 @@
 use super::config::Config;
 use crate::error::{Error, Result};
 use vibrissa_core::chain::Model;
-use vibrissa_core::dynamics::{initialize, step, Inputs, Integrator, State, Workspace, MAX_DT};
+use vibrissa_core::dynamics::{
+    initialize, step, step_group, Inputs, Integrator, LaneWorkspace, State, Workspace, LANES,
+    MAX_DT,
+};
 use vibrissa_core::objects::{Motion, Object, Shape};
 use vibrissa_core::whisker::{Follicle, WhiskerParams};
 
@@ -273,6 +276,37 @@ pub(super) fn advance(
         *gone = true;
     }
     Ok(())
+}
+
+/// Advances particles whose boxes have gone for good (up to [`LANES`] of them, of this chain)
+/// together in lanes by `periods` sample periods of the free-ringing model, as [`advance`] does
+/// each, to the same bits. Returns which of them could be advanced.
+pub(super) fn ring_together(
+    chain: &Chain,
+    states: &mut [&mut State],
+    periods: usize,
+    noise: f64,
+    lw: &mut LaneWorkspace,
+    ws: &mut Workspace,
+) -> [bool; LANES] {
+    let ringing = chain.ringing;
+    let inputs = Inputs {
+        base: Default::default(),
+        loads: &[],
+        noise,
+        objects: &[],
+    };
+    let steps = periods * ringing.substeps;
+    let out = step_group(
+        &ringing.model,
+        &ringing.stepper,
+        states,
+        &inputs,
+        steps,
+        lw,
+        ws,
+    );
+    out.map(|e| e.is_none())
 }
 
 #[cfg(test)]

@@ -125,9 +125,6 @@ impl LaneState {
 pub struct LaneWorkspace {
     n: usize,
     state: LaneState,
-    /// The group's state at the start of the step being taken (a lane that diverges restarts
-    /// from it on the single-state step).
-    start: LaneState,
     scratch: LaneScratch,
     /// Where the geometric iterations are at: the latest estimate of the intermediate state per
     /// lane, and the solve's results kept from each lane's last iteration.
@@ -144,7 +141,6 @@ impl LaneWorkspace {
         LaneWorkspace {
             n,
             state: LaneState::new(n),
-            start: LaneState::new(n),
             scratch: LaneScratch::new(n),
             q_lin: vec![Wide::default(); n],
             v_lin: vec![Wide::default(); n],
@@ -216,23 +212,22 @@ pub fn step_group<S: BorrowMut<State>>(
         lw.state.gather(l, states[l.min(count - 1)].borrow());
     }
     let mut live: [bool; LANES] = std::array::from_fn(|l| l < count);
-    for k in 0..steps {
+    for _ in 0..steps {
         if !live.iter().any(|x| *x) {
             break;
         }
-        lw.start.clone_from(&lw.state);
         step_lanes(model, st, lw, inputs);
         let kept = lw.state.sound(model);
         for l in 0..count {
             if !live[l] || kept[l] {
                 continue;
             }
-            // A lane that diverged goes back to its start and on with the single-state step,
-            // which halves the step where it diverges.
+            // A lane that diverged is taken again from the start by the single-state step (to
+            // the same bits up to the failed step), which halves the step where it diverges. Its
+            // state is still the one given: lanes are written back only at the end.
             live[l] = false;
             let s = states[l].borrow_mut();
-            lw.start.scatter(l, s);
-            for _ in k..steps {
+            for _ in 0..steps {
                 if let Err(e) = step(model, st, s, inputs, ws) {
                     out[l] = Some(e);
                     break;
