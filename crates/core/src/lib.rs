@@ -12,10 +12,11 @@
 //! - [`objects`]: rigid objects the whisker can strike, and their motions.
 //! - [`chain`]: the segment-chain discretisation, the immutable [`chain::Model`].
 //! - [`dynamics`]: the time step, one file per stage: settings, inputs, state, scratch,
-//!   kinematics, the articulated-body solve, [`contact`] and the step that runs them.
+//!   kinematics, the articulated-body solve, [`contact`] and the step that runs them, and free
+//!   steps of many states of one model at once in lanes.
 //! - [`statics`]: the chain's static equilibrium under point loads.
 //! - [`sensors`]: the contract's observation channels.
-//! - [`batch`]: many states stepped in parallel against one model.
+//! - [`batch`]: many states stepped in parallel against one model (free ones in lanes).
 //! - [`sim`]: whole runs of a scenario, sampled into the contract's time series; [`array`]: arrays
 //!   of whiskers striking the same objects.
 //! - `signal`: the frequency and damping ratio of a sampled oscillation.
