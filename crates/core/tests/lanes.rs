@@ -2,8 +2,8 @@
 
 use vibrissa_core::chain::Discretisation;
 use vibrissa_core::dynamics::{
-    initialize, step, step_group, BaseMotion, Inputs, Integrator, LaneWorkspace, State, Stepper,
-    Workspace, LANES,
+    initialize, step, step_group, step_group_each, BaseMotion, Inputs, Integrator, LaneWorkspace,
+    State, Stepper, Workspace, LANES,
 };
 use vibrissa_core::scenes::e2_box;
 use vibrissa_core::{Error, Model, WhiskerParams};
@@ -182,4 +182,101 @@ fn a_group_with_an_object_is_stepped_one_state_at_a_time() {
     let got = step_group(&m, &st, &mut refs, &inputs, 50, &mut lw, &mut ws);
     assert!(got.iter().all(|g| g.is_none()));
     assert_eq!(grouped, single);
+}
+
+/// States of `model` at rest, each struck by its own e2 box (distance 14–29 mm, speed 0.3–1.5 m/s,
+/// friction on every other), stepped in one lane group and one at a time for `duration` seconds
+/// in rounds of `steps` steps with process noise `noise`: the same states and outcomes after
+/// every round. Returns how many lanes were handed back to the single-state step (a lasting
+/// contact that ended, or a step that diverged), summed over rounds, and how many states were
+/// touching after some round.
+fn strikes_same_as_single(
+    model: &Model,
+    st: &Stepper,
+    count: usize,
+    noise: f64,
+    duration: f64,
+    steps: usize,
+) -> usize {
+    let boxes: Vec<[vibrissa_core::objects::Object; 1]> = (0..count)
+        .map(|k| {
+            let d = 0.014 + 0.001 * k as f64;
+            let v = 0.3 + 0.08 * k as f64;
+            let mut b = e2_box(d, v);
+            b.position[1] = -0.0055 - 0.0002 * k as f64;
+            b.friction = if k % 2 == 1 { 0.3 } else { 0.0 };
+            [b]
+        })
+        .collect();
+    let objects: Vec<&[vibrissa_core::objects::Object]> = boxes.iter().map(|b| &b[..]).collect();
+    let start: Vec<State> = (0..count)
+        .map(|k| {
+            let mut ws = Workspace::new(model);
+            let mut s = State::at_rest(model, 100 + k as u64);
+            let none = Inputs::default();
+            initialize(model, &mut s, &none, &mut ws).unwrap();
+            s
+        })
+        .collect();
+    let mut single = start.clone();
+    let mut grouped = start;
+    let mut ws = Workspace::new(model);
+    let mut lw = LaneWorkspace::new(model);
+    let rounds = (duration / (st.dt * steps as f64)).round() as usize;
+    let noise_at = |j: usize| if j % 3 == 0 { noise } else { 0.0 };
+    let mut touched = 0;
+    for r in 0..rounds {
+        let want: Vec<Option<Error>> = single
+            .iter_mut()
+            .zip(&objects)
+            .map(|(s, objs)| {
+                (0..steps).find_map(|j| {
+                    let inputs = Inputs {
+                        base: BaseMotion::default(),
+                        loads: &[],
+                        noise: noise_at(j),
+                        objects: objs,
+                    };
+                    step(model, st, s, &inputs, &mut ws).err()
+                })
+            })
+            .collect();
+        let got = step_group_each(
+            model,
+            st,
+            &mut grouped,
+            &objects,
+            BaseMotion::default(),
+            &noise_at,
+            steps,
+            &mut lw,
+            &mut ws,
+        );
+        assert_eq!(&got[..count], &want[..], "round {r}");
+        assert_eq!(grouped, single, "round {r}");
+        touched += single.iter().filter(|s| s.contact.is_some()).count();
+    }
+    touched
+}
+
+#[test]
+fn a_group_striking_its_own_boxes_steps_to_the_bits_of_single_steps() {
+    // The filter's contact model (5 segments, 1/3 ms, one geometric iteration, process noise on
+    // every third step), and the simulator's (20 segments, 0.1 ms, iterated, no noise).
+    let coarse = model(5, 0.0);
+    let fast = Integrator {
+        dt: 1e-3 / 3.0,
+        max_iterations: 1,
+        ..Integrator::default()
+    }
+    .check()
+    .unwrap();
+    let touched = strikes_same_as_single(&coarse, &fast, LANES, 2e-6, 0.1, 3);
+    assert!(touched > 100, "{touched}");
+    let touched = strikes_same_as_single(&coarse, &fast, 5, 0.0, 0.1, 7);
+    assert!(touched > 30, "{touched}");
+    let fine = model(20, 20.0);
+    let st = Integrator::default().check().unwrap();
+    let touched = strikes_same_as_single(&fine, &st, 6, 0.0, 0.06, 10);
+    assert!(touched > 30, "{touched}");
 }

@@ -63,7 +63,7 @@ pub use integrator::{
     Integrator, Stepper, DEFAULT_MAX_ITERATIONS, DEFAULT_RHO_INF, DEFAULT_TOLERANCE,
     MAX_CONTACT_SUBSTEPS, MAX_DT,
 };
-pub use lanes::{lanes_apply, step_group, LaneWorkspace, LANES};
+pub use lanes::{lanes_apply, step_group, step_group_each, LaneWorkspace, LANES};
 pub use single::{Forcing, NoForcing, MAX_HALVINGS};
 pub use state::State;
 pub use step::{initialize, step, step_with};

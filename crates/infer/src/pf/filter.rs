@@ -8,7 +8,9 @@ use super::likelihood::per_time_factor;
 use super::posterior::{summarise, Observations, Posterior, TraceRow};
 use super::sampling::{systematic, LiuWest};
 use super::sensors::SensorBelief;
-use super::transition::{advance, map_joints, param, ring_together, Hypothesis, ObjState};
+use super::transition::{
+    advance, advance_together, map_joints, param, ring_together, Hypothesis, ObjState,
+};
 use super::whiskers::WhiskerValues;
 use crate::error::{Error, Result};
 use crate::experiment::CHANNELS;
@@ -20,9 +22,24 @@ use vibrissa_core::dynamics::{Integrator, State, Stepper, LANES};
 use vibrissa_core::rng::Rng;
 use vibrissa_core::sensors::Sensors;
 
-/// Fewest ringing particles of one whisker stepped together in lanes; fewer are stepped one at a
-/// time (a lane group costs about what four single steps do, whatever its size).
+/// Fewest particles of one whisker and model stepped together in lanes; fewer are stepped one at
+/// a time (a lane group costs about what four single steps do, whatever its size).
 const MIN_LANE_GROUP: usize = 4;
+
+/// A particle advanced in a lane group: which model it is on (free ringing, or the contact model
+/// before its box has gone) and which whisker, its index, and its parts.
+struct Member<'a> {
+    ringing: bool,
+    whisker: u16,
+    index: usize,
+    state: &'a mut State,
+    obj: &'a mut ObjState,
+    gone: &'a mut bool,
+    /// The spare slot, where a particle whose box was just moved keeps its state.
+    kept: &'a mut State,
+    /// The box before it was moved, if it was.
+    before: Option<ObjState>,
+}
 
 /// Stream indices: particles' process noise, their moves, the resampling draws, the prior.
 const STREAM_NOISE: u64 = 1 << 40;
@@ -294,30 +311,40 @@ impl Filter {
         let whisker_mass = by_whisker(&self.hyp, self.logw.iter().map(|l| l.exp()), whiskers);
         let ringing_before = self.cleared.iter().filter(|c| **c).count();
         let undone = AtomicUsize::new(0);
-        // Particles whose boxes had gone for good (and were not just moved) ring on their
-        // whisker's free model: those of one whisker together in lane groups, in parallel, each
-        // to the bits it would reach alone. The rest, and whiskers with too few ringing
-        // particles to fill a group, are advanced one at a time below.
-        let mut rung = vec![false; np];
+        // Particles whose boxes were not just moved are advanced in lane groups of one whisker
+        // and one model each (the free-ringing model once their box has gone for good, the
+        // contact model before), in parallel, each to the bits it would reach alone. The others,
+        // and groups too small to fill lanes, are advanced one at a time below.
+        let mut grouped = vec![false; np];
         let mut diverged = 0;
         if steps > 0 {
-            let mut ringing: Vec<(u16, usize, &mut State)> = self
+            let mut members: Vec<Member> = self
                 .states
                 .iter_mut()
+                .zip(self.objs.iter_mut())
+                .zip(self.cleared.iter_mut())
+                .zip(self.spare.iter_mut())
                 .enumerate()
-                .filter(|(j, _)| {
-                    self.cleared[*j]
-                        && self.unmoved[*j].is_none()
-                        && self.logw[*j] != f64::NEG_INFINITY
+                .filter(|(j, _)| self.logw[*j] != f64::NEG_INFINITY)
+                .map(|(j, (((state, obj), gone), kept))| Member {
+                    ringing: *gone,
+                    whisker: self.hyp[j],
+                    index: j,
+                    state,
+                    obj,
+                    gone,
+                    kept,
+                    before: self.unmoved[j],
                 })
-                .map(|(j, s)| (self.hyp[j], j, s))
                 .collect();
-            ringing.sort_by_key(|(h, j, _)| (*h, *j));
-            let mut groups: Vec<&mut [(u16, usize, &mut State)]> = Vec::new();
-            for same in ringing.chunk_by_mut(|a, b| a.0 == b.0) {
+            members.sort_by_key(|m| (m.ringing, m.whisker, m.index));
+            let mut groups: Vec<&mut [Member]> = Vec::new();
+            for same in
+                members.chunk_by_mut(|a, b| (a.ringing, a.whisker) == (b.ringing, b.whisker))
+            {
                 for group in same.chunks_mut(LANES) {
                     if group.len() >= MIN_LANE_GROUP {
-                        group.iter().for_each(|(_, j, _)| rung[*j] = true);
+                        group.iter().for_each(|m| grouped[m.index] = true);
                         groups.push(group);
                     }
                 }
@@ -327,18 +354,63 @@ impl Filter {
                 .map_init(
                     || batch::Scratch::new(&hyps[0].model),
                     |scratch, group| {
-                        let chain = &hyps[group[0].0 as usize].chain(stepper);
-                        let mut refs: Vec<&mut State> =
-                            group.iter_mut().map(|(_, _, s)| &mut **s).collect();
                         let (ws, lw) = scratch.get();
-                        let ok =
-                            ring_together(chain, &mut refs, periods, config.process_noise, lw, ws);
-                        group
-                            .iter()
-                            .zip(ok)
-                            .filter(|(_, ok)| !ok)
-                            .map(|((_, j, _), _)| *j)
-                            .collect::<Vec<usize>>()
+                        let hyp = &hyps[group[0].whisker as usize];
+                        let chain = &hyp.chain(stepper);
+                        let noise = config.process_noise;
+                        // A box just moved may sit where its whisker state cannot follow: keep
+                        // the state to take the sample again with the unmoved box (below).
+                        for m in group.iter_mut().filter(|m| m.before.is_some()) {
+                            m.kept.clone_from(m.state);
+                        }
+                        let objs: Vec<ObjState> = group.iter().map(|m| *m.obj).collect();
+                        let ringing = group[0].ringing;
+                        let ok = {
+                            let mut states: Vec<&mut State> =
+                                group.iter_mut().map(|m| &mut *m.state).collect();
+                            if ringing {
+                                ring_together(chain, &mut states, periods, noise, lw, ws)
+                            } else {
+                                let objs: Vec<&ObjState> = objs.iter().collect();
+                                let mut gone: Vec<bool> = vec![false; objs.len()];
+                                let mut flags: Vec<&mut bool> = gone.iter_mut().collect();
+                                let ok = advance_together(
+                                    chain,
+                                    &mut states,
+                                    &objs,
+                                    &mut flags,
+                                    steps,
+                                    periods,
+                                    noise,
+                                    t,
+                                    lw,
+                                    ws,
+                                );
+                                drop(states);
+                                for (m, g) in group.iter_mut().zip(gone) {
+                                    *m.gone = g;
+                                }
+                                ok
+                            }
+                        };
+                        let mut failed = Vec::new();
+                        for (m, ok) in group.iter_mut().zip(ok) {
+                            let mut ok =
+                                ok && (m.before.is_none() || !whipped(&hyp.model, m.state));
+                            if let (false, Some(b)) = (ok, m.before) {
+                                undone.fetch_add(1, Ordering::Relaxed);
+                                m.state.clone_from(m.kept);
+                                (*m.gone, *m.obj) = (m.ringing, b);
+                                ok = advance(
+                                    chain, m.state, m.obj, m.gone, steps, periods, noise, t, ws,
+                                )
+                                .is_ok();
+                            }
+                            if !ok {
+                                failed.push(m.index);
+                            }
+                        }
+                        failed
                     },
                 )
                 .flatten()
@@ -359,8 +431,8 @@ impl Filter {
                 .zip(self.unmoved.par_iter())
                 .zip(self.spare.par_iter_mut())
                 .zip(self.sensors.par_iter_mut())
-                .zip(self.hyp.par_iter().zip(rung.par_iter())),
-            |ws, (((((((s, o), lw), gone), before), kept), belief), (h, rung))| {
+                .zip(self.hyp.par_iter().zip(grouped.par_iter())),
+            |ws, (((((((s, o), lw), gone), before), kept), belief), (h, grouped))| {
                 if *lw == f64::NEG_INFINITY {
                     return 0;
                 }
@@ -368,7 +440,7 @@ impl Filter {
                 let chain = &hyp.chain(stepper);
                 let (model, observed) = (&hyp.model, &hyp.observed);
                 let noise = config.process_noise;
-                if !*rung {
+                if !*grouped {
                     // A box just moved may sit where its whisker state cannot follow (around
                     // the tip, say): keep the state (in the spare slot, free until the next
                     // resampling) to take the sample again with the unmoved box.

@@ -6,8 +6,8 @@ use super::config::Config;
 use crate::error::{Error, Result};
 use vibrissa_core::chain::Model;
 use vibrissa_core::dynamics::{
-    initialize, step, step_group, Inputs, Integrator, LaneWorkspace, State, Workspace, LANES,
-    MAX_DT,
+    initialize, step, step_group, step_group_each, Inputs, Integrator, LaneWorkspace, State,
+    Workspace, LANES, MAX_DT,
 };
 use vibrissa_core::objects::{Motion, Object, Shape};
 use vibrissa_core::whisker::{Follicle, WhiskerParams};
@@ -307,6 +307,62 @@ pub(super) fn ring_together(
         ws,
     );
     out.map(|e| e.is_none())
+}
+
+/// Advances particles whose boxes have not gone for good (up to [`LANES`] of them, of this
+/// chain, `objs[k]` the object state of `states[k]`) together in lanes by `steps` steps of the
+/// contact model, as [`advance`] does each, to the same bits, and marks a box gone when it has
+/// left for good by time `t`. Returns which of them could be advanced.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn advance_together(
+    chain: &Chain,
+    states: &mut [&mut State],
+    objs: &[&ObjState],
+    gone: &mut [&mut bool],
+    steps: usize,
+    periods: usize,
+    noise: f64,
+    t: f64,
+    lw: &mut LaneWorkspace,
+    ws: &mut Workspace,
+) -> [bool; LANES] {
+    let boxes: Vec<[Object; 1]> = objs.iter().map(|o| [object_of(o)]).collect();
+    let objects: Vec<&[Object]> = boxes.iter().map(|b| &b[..]).collect();
+    // Process noise drawn once per period, as `advance` draws it.
+    let per_period = (steps / periods.max(1)).max(1);
+    let lumped = noise * (per_period as f64).sqrt();
+    let noise_at = move |j: usize| if j % per_period == 0 { lumped } else { 0.0 };
+    let out = step_group_each(
+        chain.model,
+        chain.stepper,
+        states,
+        &objects,
+        Default::default(),
+        &noise_at,
+        steps,
+        lw,
+        ws,
+    );
+    let ringing = chain.ringing;
+    let none = Inputs {
+        base: Default::default(),
+        loads: &[],
+        noise: 0.0,
+        objects: &[],
+    };
+    std::array::from_fn(|k| {
+        if k >= states.len() || out[k].is_some() {
+            return false;
+        }
+        let s = &mut *states[k];
+        if s.contact.is_none() && ringing.cleared(s, objs[k], t, ws) {
+            if initialize(&ringing.model, s, &none, ws).is_err() {
+                return false;
+            }
+            *gone[k] = true;
+        }
+        true
+    })
 }
 
 #[cfg(test)]

@@ -37,8 +37,8 @@ pub(super) struct LaneScratch {
     pub(super) node: Vec<[Wide; 2]>,
     pub(super) seg: Vec<LaneSeg>,
     pub(super) tau: Vec<Wide>,
-    /// The armature is the same for every lane (one model).
-    pub(super) arm: Vec<f64>,
+    /// The armature (per lane: a lane in lasting contact steps with other coefficients).
+    pub(super) arm: Vec<Wide>,
     pub(super) qdd: Vec<Wide>,
     pub(super) ia0: [Wide; 6],
     pub(super) pa0: [Wide; 3],
@@ -54,7 +54,7 @@ impl LaneScratch {
             node: vec![[Wide::default(); 2]; n + 1],
             seg: vec![LaneSeg::default(); n],
             tau: vec![Wide::default(); n],
-            arm: vec![0.0; n],
+            arm: vec![Wide::default(); n],
             qdd: vec![Wide::default(); n],
             ia0: [Wide::default(); 6],
             pa0: [Wide::default(); 3],
@@ -162,7 +162,7 @@ impl LaneScratch {
                 w * h1 - fe[2] + pa_c[2],
             ];
             let uv = [ia[0], ia[1], ia[2]];
-            let inv_d = Wide::splat(1.0) / (ia[0] + Wide::splat(arm[i]));
+            let inv_d = Wide::splat(1.0) / (ia[0] + arm[i]);
             let u = tau[i] - pa[0];
             sg.u_vec = uv;
             sg.inv_d = inv_d;
