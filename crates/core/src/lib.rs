@@ -12,8 +12,8 @@
 //! - [`objects`]: rigid objects the whisker can strike, and their motions.
 //! - [`chain`]: the segment-chain discretisation, the immutable [`chain::Model`].
 //! - [`dynamics`]: the time step, one file per stage: settings, inputs, state, scratch,
-//!   kinematics, the articulated-body solve, [`contact`] and the step that runs them, and free
-//!   steps of many states of one model at once in lanes.
+//!   kinematics, the articulated-body solve, [`contact`] and the step that runs them, and steps
+//!   of many states of one model at once in lanes.
 //! - [`statics`]: the chain's static equilibrium under point loads.
 //! - [`sensors`]: the contract's observation channels.
 //! - [`batch`]: many states stepped in parallel against one model (free ones in lanes).

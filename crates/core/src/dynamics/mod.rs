@@ -39,8 +39,9 @@
 //! - `fitted`: the chain fitted to a long step ([`Integrator::fit_first_mode`]);
 //! - `step`: the time step ([`step`], [`initialize`]): taken whole, as substeps, or on the
 //!   fitted chain;
-//! - `lanes`: free steps of up to [`LANES`] states of one model at once, lane by lane the same
-//!   bits as [`step`] ([`step_group`]);
+//! - `lanes`: steps of up to [`LANES`] states of one model at once, lane by lane the same bits
+//!   as [`step`] ([`step_group`], [`step_group_each`] with each state's own objects, whose
+//!   contact is solved lane by lane);
 //! - `energy`: energies and momentum of a state.
 
 mod articulated;
