@@ -6,8 +6,9 @@
 //!   second, articulated-body solves per step and the cost of one step per segment (constant if
 //!   the step is O(N));
 //! - a batch of states against one model on every core, and the same batch on one thread, for
-//!   the parallel speedup: once in free motion, once with every state held in contact by a peg
-//!   pressed into the whisker;
+//!   the parallel speedup, and the same states stepped one at a time without lanes on one thread:
+//!   once in free motion, once with every state held in contact by a peg pressed into the
+//!   whisker;
 //! - the ratio of the per-segment cost at the largest N to that at the smallest.
 //!
 //! Every measurement warms up, sizes its repetitions to a minimum duration, and keeps the best of
@@ -158,6 +159,11 @@ struct Batched {
     single_thread_seconds_per_state_step: f64,
     /// Parallel throughput over one-thread throughput.
     speedup: f64,
+    /// State-steps per second on one thread when the same states are stepped one at a time by
+    /// the single-state step (no lanes).
+    one_at_a_time_state_steps_per_second: f64,
+    /// One-thread batch throughput over one-at-a-time throughput (the lanes' gain).
+    over_one_at_a_time: f64,
 }
 
 /// How the cost of a step grows with N.
@@ -382,6 +388,27 @@ fn batched(
         .context("could not start a one-thread pool")?
         .install(|| best_seconds_per_call(plan, &mut batch_call))
         .context("batched run on one thread")?;
+    // The same states stepped one at a time by the single-state step, on this thread.
+    let mut ws = Workspace::new(model);
+    let mut states = initial.clone();
+    let mut single_call = || -> Result<Duration> {
+        states.clone_from(&initial);
+        let start = Instant::now();
+        for s in states.iter_mut() {
+            for _ in 0..plan.batch_steps {
+                dynamics::step(model, stepper, s, inputs, &mut ws)?;
+            }
+        }
+        let elapsed = start.elapsed();
+        black_box(&mut states);
+        Ok(elapsed)
+    };
+    eprintln!(
+        "bench: the same states one at a time, N = {}, {motion}, 1 thread",
+        model.n
+    );
+    let one_at_a_time =
+        best_seconds_per_call(plan, &mut single_call).context("states one at a time")?;
     let state_steps = (plan.batch_states * plan.batch_steps) as f64;
     Ok(Batched {
         motion,
@@ -393,6 +420,8 @@ fn batched(
         single_thread_state_steps_per_second: state_steps / one_thread,
         single_thread_seconds_per_state_step: one_thread / state_steps,
         speedup: one_thread / parallel,
+        one_at_a_time_state_steps_per_second: state_steps / one_at_a_time,
+        over_one_at_a_time: one_at_a_time / one_thread,
     })
 }
 
@@ -470,14 +499,24 @@ impl Render for BenchReport {
             ("state-steps/s", Align::Right),
             ("ns/state-step", Align::Right),
             ("speedup", Align::Right),
+            ("vs one at a time", Align::Right),
         ]);
         for b in [&self.batch, &self.batch_contact] {
+            table.row(vec![
+                format!("{} (one at a time)", b.motion),
+                "1".into(),
+                grouped(b.one_at_a_time_state_steps_per_second),
+                sig(1e9 / b.one_at_a_time_state_steps_per_second, 3),
+                "".into(),
+                "1.00".into(),
+            ]);
             table.row(vec![
                 b.motion.to_string(),
                 "1".into(),
                 grouped(b.single_thread_state_steps_per_second),
                 sig(b.single_thread_seconds_per_state_step * 1e9, 3),
                 "1.00".into(),
+                format!("{:.2}", b.over_one_at_a_time),
             ]);
             table.row(vec![
                 b.motion.to_string(),
@@ -485,6 +524,7 @@ impl Render for BenchReport {
                 grouped(b.state_steps_per_second),
                 sig(b.seconds_per_state_step * 1e9, 3),
                 format!("{:.2}", b.speedup),
+                "".into(),
             ]);
         }
         table.write(out, "  ")?;

@@ -48,8 +48,9 @@ enum Command {
     /// Measure how fast the segment chain steps on this machine.
     ///
     /// Single-state steps per second for N = 10, 20, 50 and 100 segments, the throughput of a
-    /// batch of states at N = 20 on all cores and on one, and how the cost per segment grows
-    /// with N. Run a release build on an otherwise idle machine.
+    /// batch of states at N = 20 on all cores, on one, and on one with the states stepped one at
+    /// a time (without lanes), and how the cost per segment grows with N. Run a release build on
+    /// an otherwise idle machine.
     Bench(bench::Args),
     /// Run one scenario and write its time series (CSV, NPY or NPZ), optionally with a figure.
     ///
