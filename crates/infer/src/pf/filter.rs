@@ -318,30 +318,34 @@ impl Filter {
         let mut grouped = vec![false; np];
         let mut diverged = 0;
         if steps > 0 {
-            let mut members: Vec<Member> = self
+            // Members by model (contact, then ringing) and whisker, each in particle order.
+            let whiskers = hyps.len();
+            let mut buckets: Vec<Vec<Member>> = (0..2 * whiskers).map(|_| Vec::new()).collect();
+            for (j, (((state, obj), gone), kept)) in self
                 .states
                 .iter_mut()
                 .zip(self.objs.iter_mut())
                 .zip(self.cleared.iter_mut())
                 .zip(self.spare.iter_mut())
                 .enumerate()
-                .filter(|(j, _)| self.logw[*j] != f64::NEG_INFINITY)
-                .map(|(j, (((state, obj), gone), kept))| Member {
-                    ringing: *gone,
-                    whisker: self.hyp[j],
+            {
+                if self.logw[j] == f64::NEG_INFINITY {
+                    continue;
+                }
+                let (ringing, whisker) = (*gone, self.hyp[j]);
+                buckets[usize::from(ringing) * whiskers + whisker as usize].push(Member {
+                    ringing,
+                    whisker,
                     index: j,
                     state,
                     obj,
                     gone,
                     kept,
                     before: self.unmoved[j],
-                })
-                .collect();
-            members.sort_by_key(|m| (m.ringing, m.whisker, m.index));
+                });
+            }
             let mut groups: Vec<&mut [Member]> = Vec::new();
-            for same in
-                members.chunk_by_mut(|a, b| (a.ringing, a.whisker) == (b.ringing, b.whisker))
-            {
+            for same in buckets.iter_mut() {
                 for group in same.chunks_mut(LANES) {
                     if group.len() >= MIN_LANE_GROUP {
                         group.iter().for_each(|m| grouped[m.index] = true);
