@@ -500,3 +500,45 @@ fn a_randomised_filter_reports_its_belief_over_the_whiskers() {
     let est = estimate(&told, &nominal, &rec, &Options::new(100)).unwrap();
     assert!(est.named().iter().all(|(k, _)| !k.starts_with("whisker.")));
 }
+
+#[test]
+fn particles_stepped_in_lane_groups_reach_the_bits_they_reach_alone() {
+    // A whole noisy strike (approach, contact, release, ringing), with the known whisker and
+    // with alternative whiskers and unknown sensors (particles of several whiskers, moved boxes).
+    let family = randomised_e2();
+    let s = family
+        .simulate(
+            &[0.021, 0.9],
+            &Noise {
+                sensor: LEVEL,
+                process: 0.0,
+            },
+            5,
+        )
+        .unwrap();
+    let obs = Observations::at_rate(s.series, 1000.0);
+    let known = Config::e2(SIGMA, 256, 4);
+    let mut alternatives = known.clone();
+    alternatives.alternatives = (0..3)
+        .map(|k| {
+            let mut w = known.whisker.clone();
+            w.youngs_modulus *= 1.0 + 0.08 * (k as f64 - 1.0);
+            w
+        })
+        .collect();
+    alternatives.sensor_spread = pf::SensorSpread::rough();
+    for config in [known, alternatives] {
+        let grouped = pf::run(&config, &obs, &mut |_| {}).unwrap();
+        let alone = pf::run(
+            &Config {
+                lane_groups: false,
+                ..config.clone()
+            },
+            &obs,
+            &mut |_| {},
+        )
+        .unwrap();
+        assert!(grouped.ringing_share > 0.2, "{}", grouped.ringing_share);
+        assert_eq!(grouped, alone);
+    }
+}

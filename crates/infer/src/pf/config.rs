@@ -107,6 +107,10 @@ pub struct Config {
     pub gap: f64,
     /// Hypothesis injection, if any.
     pub injection: Option<Injection>,
+    /// Whether particles are stepped in lane groups, many of one whisker at once (the default:
+    /// faster, and every particle reaches the bits it would reach alone); `false` steps each on
+    /// its own, for checking that.
+    pub lane_groups: bool,
 }
 
 /// Segments of the coarse transition model's chain for `whisker`: 5 for a uniform whisker in a
@@ -162,6 +166,7 @@ impl Config {
             ],
             gap: 1e-3,
             injection: None,
+            lane_groups: true,
         }
     }
 

@@ -317,7 +317,7 @@ impl Filter {
         // and groups too small to fill lanes, are advanced one at a time below.
         let mut grouped = vec![false; np];
         let mut diverged = 0;
-        if steps > 0 {
+        if steps > 0 && config.lane_groups {
             // Members by model (contact, then ringing) and whisker, each in particle order.
             let whiskers = hyps.len();
             let mut buckets: Vec<Vec<Member>> = (0..2 * whiskers).map(|_| Vec::new()).collect();
