@@ -39,6 +39,8 @@ struct Member<'a> {
     kept: &'a mut State,
     /// The box before it was moved, if it was.
     before: Option<ObjState>,
+    logw: &'a mut f64,
+    belief: &'a mut SensorBelief,
 }
 
 /// Stream indices: particles' process noise, their moves, the resampling draws, the prior.
@@ -315,21 +317,42 @@ impl Filter {
         // and one model each (the free-ringing model once their box has gone for good, the
         // contact model before), in parallel, each to the bits it would reach alone. The others,
         // and groups too small to fill lanes, are advanced one at a time below.
+        // The log-likelihood of the sample for a particle of whisker `hyp` in state `s`.
+        let weigh = |hyp: &Hypothesis, s: &State, belief: &mut SensorBelief| -> f64 {
+            let mut pred = Sensors::read(s).to_array();
+            [pred[0], pred[1]] = map_joints(&hyp.model, &hyp.observed, s.q());
+            if fixed_sensors {
+                let mut ll = 0.0;
+                for c in 0..5 {
+                    if seen[c] {
+                        // What the channel's sensor records of the model's value.
+                        let recorded = config.sensor_gain[c] * pred[c] + config.sensor_offset[c];
+                        let z = (y[c] - recorded) / config.sigma[c];
+                        ll -= 0.5 * z * z;
+                    }
+                }
+                ll
+            } else {
+                belief.take(&pred, y, &seen, &config.sigma)
+            }
+        };
         let mut grouped = vec![false; np];
         let mut diverged = 0;
         if steps > 0 && config.lane_groups {
             // Members by model (contact, then ringing) and whisker, each in particle order.
             let whiskers = hyps.len();
             let mut buckets: Vec<Vec<Member>> = (0..2 * whiskers).map(|_| Vec::new()).collect();
-            for (j, (((state, obj), gone), kept)) in self
+            for (j, (((((state, obj), gone), kept), logw), belief)) in self
                 .states
                 .iter_mut()
                 .zip(self.objs.iter_mut())
                 .zip(self.cleared.iter_mut())
                 .zip(self.spare.iter_mut())
+                .zip(self.logw.iter_mut())
+                .zip(self.sensors.iter_mut())
                 .enumerate()
             {
-                if self.logw[j] == f64::NEG_INFINITY {
+                if *logw == f64::NEG_INFINITY {
                     continue;
                 }
                 let (ringing, whisker) = (*gone, self.hyp[j]);
@@ -342,6 +365,8 @@ impl Filter {
                     gone,
                     kept,
                     before: self.unmoved[j],
+                    logw,
+                    belief,
                 });
             }
             let mut groups: Vec<&mut [Member]> = Vec::new();
@@ -353,7 +378,7 @@ impl Filter {
                     }
                 }
             }
-            let failed: Vec<usize> = groups
+            diverged = groups
                 .into_par_iter()
                 .map_init(
                     || batch::Scratch::new(&hyps[0].model),
@@ -397,7 +422,7 @@ impl Filter {
                                 ok
                             }
                         };
-                        let mut failed = Vec::new();
+                        let mut failed = 0;
                         for (m, ok) in group.iter_mut().zip(ok) {
                             let mut ok =
                                 ok && (m.before.is_none() || !whipped(&hyp.model, m.state));
@@ -410,19 +435,17 @@ impl Filter {
                                 )
                                 .is_ok();
                             }
-                            if !ok {
-                                failed.push(m.index);
+                            if ok {
+                                *m.logw += weigh(hyp, m.state, m.belief);
+                            } else {
+                                *m.logw = f64::NEG_INFINITY;
+                                failed += 1;
                             }
                         }
                         failed
                     },
                 )
-                .flatten()
-                .collect();
-            for j in failed {
-                self.logw[j] = f64::NEG_INFINITY;
-                diverged += 1;
-            }
+                .sum::<usize>();
         }
         // Predict every other particle, and weight every particle, in parallel.
         diverged += batch::sum_with_workspace(
@@ -437,51 +460,33 @@ impl Filter {
                 .zip(self.sensors.par_iter_mut())
                 .zip(self.hyp.par_iter().zip(grouped.par_iter())),
             |ws, (((((((s, o), lw), gone), before), kept), belief), (h, grouped))| {
-                if *lw == f64::NEG_INFINITY {
+                if *lw == f64::NEG_INFINITY || *grouped {
                     return 0;
                 }
                 let hyp = &hyps[*h as usize];
                 let chain = &hyp.chain(stepper);
-                let (model, observed) = (&hyp.model, &hyp.observed);
+                let model = &hyp.model;
                 let noise = config.process_noise;
-                if !*grouped {
-                    // A box just moved may sit where its whisker state cannot follow (around
-                    // the tip, say): keep the state (in the spare slot, free until the next
-                    // resampling) to take the sample again with the unmoved box.
-                    let was_gone = *gone;
-                    if before.is_some() {
-                        kept.clone_from(s);
-                    }
-                    let mut ok = advance(chain, s, o, gone, steps, periods, noise, t, ws).is_ok()
-                        && (before.is_none() || !whipped(model, s));
-                    if let (false, Some(b)) = (ok, before) {
-                        undone.fetch_add(1, Ordering::Relaxed);
-                        s.clone_from(kept);
-                        (*gone, *o) = (was_gone, *b);
-                        ok = advance(chain, s, o, gone, steps, periods, noise, t, ws).is_ok();
-                    }
-                    if !ok {
-                        *lw = f64::NEG_INFINITY;
-                        return 1;
-                    }
+                // A box just moved may sit where its whisker state cannot follow (around
+                // the tip, say): keep the state (in the spare slot, free until the next
+                // resampling) to take the sample again with the unmoved box.
+                let was_gone = *gone;
+                if before.is_some() {
+                    kept.clone_from(s);
                 }
-                let mut pred = Sensors::read(s).to_array();
-                [pred[0], pred[1]] = map_joints(model, observed, s.q());
-                let ll = if fixed_sensors {
-                    let mut ll = 0.0;
-                    for c in 0..5 {
-                        if seen[c] {
-                            // What the channel's sensor records of the model's value.
-                            let recorded =
-                                config.sensor_gain[c] * pred[c] + config.sensor_offset[c];
-                            let z = (y[c] - recorded) / config.sigma[c];
-                            ll -= 0.5 * z * z;
-                        }
-                    }
-                    ll
-                } else {
-                    belief.take(&pred, y, &seen, &config.sigma)
-                };
+                let mut ok = advance(chain, s, o, gone, steps, periods, noise, t, ws).is_ok()
+                    && (before.is_none() || !whipped(model, s));
+                if let (false, Some(b)) = (ok, before) {
+                    undone.fetch_add(1, Ordering::Relaxed);
+                    s.clone_from(kept);
+                    (*gone, *o) = (was_gone, *b);
+                    ok = advance(chain, s, o, gone, steps, periods, noise, t, ws).is_ok();
+                }
+                if !ok {
+                    *lw = f64::NEG_INFINITY;
+                    return 1;
+                }
+                let ll = weigh(hyp, s, belief);
                 *lw += ll;
                 0
             },
