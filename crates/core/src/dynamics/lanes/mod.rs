@@ -12,11 +12,11 @@
 //!
 //! Each lane computes exactly the bits the single-state [`step`](super::step) computes for its
 //! state: the same operations in the same order, every state drawing its process noise from its
-//! own random stream. A lane whose step the single-state step would take again (it diverged and
-//! is halved, or a lasting contact ended and the step is taken again without its force) is given
-//! back to the single-state step, from the state it started the call with. Point loads, substeps
-//! near contact and the chain fitted to the step are not taken in lanes: such groups are stepped
-//! one state at a time.
+//! own random stream. A lasting contact that ends is taken again in lanes without its force, as
+//! the single-state step does; a lane whose step diverges (which the single-state step halves) or
+//! whose contact stage fails is given back to the single-state step, from the state it started
+//! the call with. Point loads, substeps near contact and the chain fitted to the step are not
+//! taken in lanes: such groups are stepped one state at a time.
 
 mod stages;
 mod vector;
@@ -217,9 +217,9 @@ impl LaneWorkspace {
     }
 }
 
-/// Whether `states` can be stepped together in lanes by `st` with point loads `loads`: no
-/// loads, whole steps on `model` itself (no substeps near contact, no fitted chain), one to
-/// [`LANES`] states of `model`.
+/// Whether `states` can be stepped together in lanes by `st` (`loads`: whether point loads
+/// act): no loads, whole steps on `model` itself (no substeps near contact, no fitted chain), one
+/// to [`LANES`] states of `model`.
 pub fn lanes_apply<S: BorrowMut<State>>(
     model: &Model,
     st: &Stepper,
