@@ -19,72 +19,67 @@ thread_local! {
     static SPARE_LANES: RefCell<Vec<LaneWorkspace>> = const { RefCell::new(Vec::new()) };
 }
 
-/// Most workspaces a thread keeps.
+/// Most workspaces of each kind a thread keeps.
 const SPARE_MAX: usize = 4;
 
-/// A workspace lent from this thread's spares (or made), handed back when dropped.
-struct Lent(Option<Workspace>);
+/// Scratch that a thread keeps spares of between parallel calls.
+trait Spare: Sized + 'static {
+    /// This thread's spares.
+    const POOL: &'static std::thread::LocalKey<RefCell<Vec<Self>>>;
+    /// Scratch for `model`.
+    fn new(model: &Model) -> Self;
+    /// Whether this scratch serves `model` (its segment count).
+    fn serves(&self, model: &Model) -> bool;
+}
 
-impl Lent {
-    fn new(model: &Model) -> Lent {
-        let found = SPARE.with(|s| {
+impl Spare for Workspace {
+    const POOL: &'static std::thread::LocalKey<RefCell<Vec<Self>>> = &SPARE;
+    fn new(model: &Model) -> Self {
+        Workspace::new(model)
+    }
+    fn serves(&self, model: &Model) -> bool {
+        self.n == model.n
+    }
+}
+
+impl Spare for LaneWorkspace {
+    const POOL: &'static std::thread::LocalKey<RefCell<Vec<Self>>> = &SPARE_LANES;
+    fn new(model: &Model) -> Self {
+        LaneWorkspace::new(model)
+    }
+    fn serves(&self, model: &Model) -> bool {
+        self.n() == model.n
+    }
+}
+
+/// Scratch lent from this thread's spares (or made), handed back when dropped.
+struct Lent<T: Spare>(Option<T>);
+
+impl<T: Spare> Lent<T> {
+    fn new(model: &Model) -> Lent<T> {
+        let found = T::POOL.with(|s| {
             let mut s = s.borrow_mut();
-            let i = s.iter().position(|w| w.n == model.n)?;
+            let i = s.iter().position(|w| w.serves(model))?;
             Some(s.swap_remove(i))
         });
-        Lent(Some(found.unwrap_or_else(|| Workspace::new(model))))
+        Lent(Some(found.unwrap_or_else(|| T::new(model))))
     }
 
-    fn get(&mut self) -> &mut Workspace {
+    fn get(&mut self) -> &mut T {
         self.0
             .as_mut()
             .expect("a lent workspace is present until dropped")
     }
 }
 
-impl Drop for Lent {
+impl<T: Spare> Drop for Lent<T> {
     fn drop(&mut self) {
         if let Some(ws) = self.0.take() {
-            // During thread teardown the spares may be gone already; the workspace is then freed.
-            let _ = SPARE.try_with(|s| {
+            // During thread teardown the spares may be gone already; the scratch is then freed.
+            let _ = T::POOL.try_with(|s| {
                 let mut s = s.borrow_mut();
                 if s.len() < SPARE_MAX {
                     s.push(ws);
-                }
-            });
-        }
-    }
-}
-
-/// A lane workspace lent from this thread's spares (or made), handed back when dropped.
-struct LentLanes(Option<LaneWorkspace>);
-
-impl LentLanes {
-    /// Lane scratch for `model`.
-    fn new(model: &Model) -> LentLanes {
-        let found = SPARE_LANES.with(|s| {
-            let mut s = s.borrow_mut();
-            let i = s.iter().position(|w| w.n() == model.n)?;
-            Some(s.swap_remove(i))
-        });
-        LentLanes(Some(found.unwrap_or_else(|| LaneWorkspace::new(model))))
-    }
-
-    /// The lent scratch.
-    fn get(&mut self) -> &mut LaneWorkspace {
-        self.0
-            .as_mut()
-            .expect("a lent workspace is present until dropped")
-    }
-}
-
-impl Drop for LentLanes {
-    fn drop(&mut self) {
-        if let Some(lw) = self.0.take() {
-            let _ = SPARE_LANES.try_with(|s| {
-                let mut s = s.borrow_mut();
-                if s.len() < SPARE_MAX {
-                    s.push(lw);
                 }
             });
         }
@@ -104,7 +99,12 @@ pub fn step_all(
         .par_chunks_mut(LANES)
         .with_min_len(2)
         .try_for_each_init(
-            || (Lent::new(model), LentLanes::new(model)),
+            || {
+                (
+                    Lent::<Workspace>::new(model),
+                    Lent::<LaneWorkspace>::new(model),
+                )
+            },
             |(ws, lw), group| {
                 let outcomes = step_group(model, st, group, inputs, steps, lw.get(), ws.get());
                 match outcomes.into_iter().flatten().next() {
@@ -127,19 +127,25 @@ where
 {
     items
         .with_min_len(8)
-        .map_init(|| Lent::new(model), |ws, item| f(ws.get(), item))
+        .map_init(
+            || Lent::<Workspace>::new(model),
+            |ws, item| f(ws.get(), item),
+        )
         .sum()
 }
 
 /// A workspace and lane scratch of one model, lent from this thread's spares (or made) and
 /// handed back when dropped: for stepping lane groups ([`step_group`]) inside a parallel
 /// iterator's `map_init`.
-pub struct Scratch(Lent, LentLanes);
+pub struct Scratch(Lent<Workspace>, Lent<LaneWorkspace>);
 
 impl Scratch {
     /// Scratch for `model`.
     pub fn new(model: &Model) -> Scratch {
-        Scratch(Lent::new(model), LentLanes::new(model))
+        Scratch(
+            Lent::<Workspace>::new(model),
+            Lent::<LaneWorkspace>::new(model),
+        )
     }
 
     /// The workspace and the lane scratch.

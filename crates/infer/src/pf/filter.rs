@@ -394,33 +394,27 @@ impl Filter {
                         }
                         let objs: Vec<ObjState> = group.iter().map(|m| *m.obj).collect();
                         let ringing = group[0].ringing;
-                        let ok = {
-                            let mut states: Vec<&mut State> =
-                                group.iter_mut().map(|m| &mut *m.state).collect();
-                            if ringing {
-                                ring_together(chain, &mut states, periods, noise, lw, ws)
-                            } else {
-                                let objs: Vec<&ObjState> = objs.iter().collect();
-                                let mut gone: Vec<bool> = vec![false; objs.len()];
-                                let mut flags: Vec<&mut bool> = gone.iter_mut().collect();
-                                let ok = advance_together(
-                                    chain,
-                                    &mut states,
-                                    &objs,
-                                    &mut flags,
-                                    steps,
-                                    periods,
-                                    noise,
-                                    t,
-                                    lw,
-                                    ws,
-                                );
-                                drop(states);
-                                for (m, g) in group.iter_mut().zip(gone) {
-                                    *m.gone = g;
-                                }
-                                ok
+                        let mut states: Vec<&mut State> =
+                            group.iter_mut().map(|m| &mut *m.state).collect();
+                        let ok = if ringing {
+                            ring_together(chain, &mut states, periods, noise, lw, ws)
+                        } else {
+                            let advanced = advance_together(
+                                chain,
+                                &mut states,
+                                &objs,
+                                steps,
+                                periods,
+                                noise,
+                                t,
+                                lw,
+                                ws,
+                            );
+                            drop(states);
+                            for (m, gone) in group.iter_mut().zip(advanced) {
+                                *m.gone |= gone == Some(true);
                             }
+                            advanced.map(|a| a.is_some())
                         };
                         let mut failed = 0;
                         for (m, ok) in group.iter_mut().zip(ok) {

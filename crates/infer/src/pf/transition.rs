@@ -311,21 +311,21 @@ pub(super) fn ring_together(
 
 /// Advances particles whose boxes have not gone for good (up to [`LANES`] of them, of this
 /// chain, `objs[k]` the object state of `states[k]`) together in lanes by `steps` steps of the
-/// contact model, as [`advance`] does each, to the same bits, and marks a box gone when it has
-/// left for good by time `t`. Returns which of them could be advanced.
+/// contact model, as [`advance`] does each, to the same bits. Returns, for each, `None` if it
+/// could not be advanced, else whether its box has left for good by time `t` (its state then
+/// rings on the free model).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn advance_together(
     chain: &Chain,
     states: &mut [&mut State],
-    objs: &[&ObjState],
-    gone: &mut [&mut bool],
+    objs: &[ObjState],
     steps: usize,
     periods: usize,
     noise: f64,
     t: f64,
     lw: &mut LaneWorkspace,
     ws: &mut Workspace,
-) -> [bool; LANES] {
+) -> [Option<bool>; LANES] {
     let boxes: Vec<[Object; 1]> = objs.iter().map(|o| [object_of(o)]).collect();
     let objects: Vec<&[Object]> = boxes.iter().map(|b| &b[..]).collect();
     // Process noise drawn once per period, as `advance` draws it.
@@ -352,16 +352,14 @@ pub(super) fn advance_together(
     };
     std::array::from_fn(|k| {
         if k >= states.len() || out[k].is_some() {
-            return false;
+            return None;
         }
         let s = &mut *states[k];
-        if s.contact.is_none() && ringing.cleared(s, objs[k], t, ws) {
-            if initialize(&ringing.model, s, &none, ws).is_err() {
-                return false;
-            }
-            *gone[k] = true;
+        if s.contact.is_none() && ringing.cleared(s, &objs[k], t, ws) {
+            initialize(&ringing.model, s, &none, ws).ok()?;
+            return Some(true);
         }
-        true
+        Some(false)
     })
 }
 

@@ -248,12 +248,11 @@ pub fn step_group<S: BorrowMut<State>>(
     lw: &mut LaneWorkspace,
     ws: &mut Workspace,
 ) -> [Option<Error>; LANES] {
-    let objects = vec![inputs.objects; states.len()];
     let plan = Plan {
         base: inputs.base,
         loads: inputs.loads,
         noise: &|_| inputs.noise,
-        objects: &objects,
+        objects: Objects::Shared(inputs.objects),
         steps,
     };
     run(model, st, states, &plan, lw, ws)
@@ -279,7 +278,7 @@ pub fn step_group_each<S: BorrowMut<State>>(
         base,
         loads: &[],
         noise,
-        objects,
+        objects: Objects::Each(objects),
         steps,
     };
     run(model, st, states, &plan, lw, ws)
@@ -290,8 +289,15 @@ struct Plan<'a> {
     base: BaseMotion,
     loads: &'a [super::PointLoad],
     noise: &'a (dyn Fn(usize) -> f64 + Sync),
-    objects: &'a [&'a [Object]],
+    objects: Objects<'a>,
     steps: usize,
+}
+
+/// The objects of a call's states: the same for all, or each state's own.
+#[derive(Clone, Copy)]
+enum Objects<'a> {
+    Shared(&'a [Object]),
+    Each(&'a [&'a [Object]]),
 }
 
 impl Plan<'_> {
@@ -301,7 +307,15 @@ impl Plan<'_> {
             base: self.base,
             loads: self.loads,
             noise: (self.noise)(j),
-            objects: self.objects[k],
+            objects: self.objects_of(k),
+        }
+    }
+
+    /// The objects of state `k`.
+    fn objects_of(&self, k: usize) -> &[Object] {
+        match self.objects {
+            Objects::Shared(all) => all,
+            Objects::Each(each) => each[k],
         }
     }
 }
@@ -340,7 +354,7 @@ fn run<S: BorrowMut<State>>(
     for l in 0..LANES {
         lw.state.gather(l, states[l.min(count - 1)].borrow());
     }
-    let objects: [&[Object]; LANES] = std::array::from_fn(|l| plan.objects[l.min(count - 1)]);
+    let objects: [&[Object]; LANES] = std::array::from_fn(|l| plan.objects_of(l.min(count - 1)));
     let mut live: [bool; LANES] = std::array::from_fn(|l| l < count);
     for j in 0..plan.steps {
         if !live.iter().any(|x| *x) {
