@@ -54,8 +54,15 @@ const CHUNK: usize = 256;
 /// unknowns plus two), 0 for none: the number with the lowest held-out log loss is kept.
 const NEIGHBOURS: [usize; 6] = [0, 6, 8, 10, 12, 16];
 /// Classes whose nearest run is searched with the simulator ([`refine`]) for each recording:
-/// those nearest it in the bank (or its fit between runs).
-const REFINE_CLASSES: usize = 2;
+/// those nearest it in the bank (or its fit between runs); four is every class of `e3`. A class
+/// the bank ranks third can still hold the recording's own run: the bank is sparse.
+const REFINE_CLASSES: usize = 4;
+/// Starts of that search per class: the class's nearest bank runs whose poses lie at least
+/// [`START_SEPARATION`] apart, each searched, the nearest end kept (the nearest bank run alone
+/// often leads into another pose's valley).
+const REFINE_STARTS: usize = 3;
+/// Least distance between two starts' poses, in units of each unknown's range (Euclidean).
+const START_SEPARATION: f64 = 0.15;
 /// Rounds of that search (each one simulation per pose unknown and one to three more).
 const REFINE_ROUNDS: usize = 2;
 /// Most held-out runs on which the search is tried and, when kept, calibrated.
@@ -692,8 +699,9 @@ impl ShapeBank {
 
     /// The nearest run, searched with the simulator, of each of the `classes` classes that come
     /// nearest the recording `z` (squared distances `d2` to the bank's runs, fits between runs
-    /// `between`), starting from each one's nearest bank run and trying its fit between runs'
-    /// pose first; `None` for the other classes, or without a family to simulate.
+    /// `between`), starting from each one's [`REFINE_STARTS`] nearest bank runs of distinct
+    /// poses ([`starts`]), the first trying its fit between runs' pose first; `None` for the
+    /// other classes, or without a family to simulate.
     fn refined_all(
         &self,
         z: &[f64],
@@ -721,27 +729,49 @@ impl ShapeBank {
             })
             .collect();
         order.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let found: Vec<(usize, Refined)> = order
+        // Every (class, start) pair is one search; they run side by side.
+        let tasks: Vec<(usize, usize, bool)> = order
             .iter()
             .take(classes)
-            .collect::<Vec<_>>()
+            .flat_map(|&(_, c)| {
+                let first = nearest[c].map(|(_, i)| i);
+                starts(&self.params, &self.class_of, &self.ranges[c], c, d2, first)
+                    .into_iter()
+                    .enumerate()
+                    .map(move |(k, i)| (c, i, k == 0))
+            })
+            .collect();
+        let found: Vec<(usize, Refined)> = tasks
             .par_iter()
-            .filter_map(|&&(_, c)| {
-                let (_, i) = nearest[c]?;
+            .map(|&(c, i, first)| {
                 let simulate = |p: &[f64]| self.simulate_z(c, p);
+                let proposal = if first {
+                    between[c].as_ref().map(|b| &b.pose[..])
+                } else {
+                    None
+                };
                 let f = refine(
                     z,
                     &self.ranges[c],
                     (&self.params[i], &self.z[i]),
-                    between[c].as_ref().map(|b| &b.pose[..]),
+                    proposal,
                     REFINE_ROUNDS,
                     &simulate,
                 );
-                Some((c, f))
+                (c, f)
             })
             .collect();
+        // Per class, the nearest end of its searches, counting the runs of all of them.
         for (c, f) in found {
-            out[c] = Some(f);
+            out[c] = Some(match out[c].take() {
+                None => f,
+                Some(kept) => {
+                    let runs = kept.runs + f.runs;
+                    let mut nearer = if f.d2 < kept.d2 { f } else { kept };
+                    nearer.runs = runs;
+                    nearer
+                }
+            });
         }
         out
     }
@@ -1003,10 +1033,84 @@ impl ShapeBank {
     }
 }
 
+/// Starts of class `c`'s search among bank runs with poses `params` and classes `class_of`, at
+/// squared distances `d2` from the recording: the class's nearest run `first`, then its next
+/// nearest runs whose poses lie at least [`START_SEPARATION`] (in units of the class's `ranges`)
+/// from every start taken, up to [`REFINE_STARTS`] in all.
+fn starts(
+    params: &[Vec<f64>],
+    class_of: &[usize],
+    ranges: &[[f64; 2]],
+    c: usize,
+    d2: &[f64],
+    first: Option<usize>,
+) -> Vec<usize> {
+    let Some(first) = first else {
+        return Vec::new();
+    };
+    let apart = |a: usize, b: usize| -> bool {
+        let sq: f64 = params[a]
+            .iter()
+            .zip(&params[b])
+            .zip(ranges)
+            .filter(|(_, [lo, hi])| hi > lo)
+            .map(|((x, y), [lo, hi])| ((x - y) / (hi - lo)).powi(2))
+            .sum();
+        sq.sqrt() >= START_SEPARATION
+    };
+    let mut mine: Vec<(f64, usize)> = d2
+        .iter()
+        .zip(class_of)
+        .enumerate()
+        .filter(|(i, (d, &k))| k == c && d.is_finite() && *i != first)
+        .map(|(i, (d, _))| (*d, i))
+        .collect();
+    mine.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut taken = vec![first];
+    for (_, i) in mine {
+        if taken.len() >= REFINE_STARTS {
+            break;
+        }
+        if taken.iter().all(|&s| apart(s, i)) {
+            taken.push(i);
+        }
+    }
+    taken
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use vibrissa_core::rng::Rng;
+
+    #[test]
+    fn the_search_starts_from_the_nearest_run_and_then_from_runs_of_other_poses() {
+        // Class 1's runs: two near the recording at almost the same pose, one farther at
+        // another pose, one farther still at a third; class 0's run is nearest of all.
+        let ranges = [[0.0, 1.0], [5.0, 5.0]];
+        let params = vec![
+            vec![0.5, 5.0],
+            vec![0.20, 5.0],
+            vec![0.21, 5.0],
+            vec![0.60, 5.0],
+            vec![0.90, 5.0],
+            vec![0.62, 5.0],
+        ];
+        let class_of = [0, 1, 1, 1, 1, 1];
+        let d2 = [0.1, 1.0, 1.1, 2.0, 3.0, f64::INFINITY];
+        let got = starts(&params, &class_of, &ranges, 1, &d2, Some(1));
+        // The second run lies within the separation of the first; the fixed unknown adds
+        // nothing; the run that cannot be scored is never a start.
+        assert_eq!(got, vec![1, 3, 4]);
+        assert_eq!(
+            starts(&params, &class_of, &ranges, 1, &d2, None),
+            Vec::<usize>::new()
+        );
+        assert_eq!(
+            starts(&params, &class_of, &ranges, 0, &d2, Some(0)),
+            vec![0]
+        );
+    }
 
     const SAMPLES: usize = 100;
     /// Each channel's size and its noise, a tenth of it.
