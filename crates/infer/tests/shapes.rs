@@ -326,7 +326,7 @@ fn the_bank_tells_a_wall_from_a_peg_through_noise_and_says_how_sure_it_is() {
         assert!(got > 0.8 * m && got < 5.0 * m, "{c}: {got} against {m}");
     }
     // The search for each class's nearest run simulated runs of the pair's own classes for
-    // the held-out runs (a recording's two classes, each from a proposal and two rounds).
+    // the held-out runs (both classes, each from up to three starts).
     assert!(fitted["refine_runs"] >= 4.0, "{:?}", s.settings);
     // Read online too: a posterior after every sample, at chance before the first contact and
     // as good as the whole recording's by the end.
