@@ -1086,7 +1086,7 @@ mod tests {
     #[test]
     fn the_search_starts_from_the_nearest_run_and_then_from_runs_of_other_poses() {
         // Class 1's runs: two near the recording at almost the same pose, one farther at
-        // another pose, one farther still at a third; class 0's run is nearest of all.
+        // another pose, one at a third pose that cannot be scored; class 0's run is nearest.
         let ranges = [[0.0, 1.0], [5.0, 5.0]];
         let params = vec![
             vec![0.5, 5.0],
@@ -1094,14 +1094,24 @@ mod tests {
             vec![0.21, 5.0],
             vec![0.60, 5.0],
             vec![0.90, 5.0],
-            vec![0.62, 5.0],
         ];
-        let class_of = [0, 1, 1, 1, 1, 1];
-        let d2 = [0.1, 1.0, 1.1, 2.0, 3.0, f64::INFINITY];
-        let got = starts(&params, &class_of, &ranges, 1, &d2, Some(1));
-        // The second run lies within the separation of the first; the fixed unknown adds
-        // nothing; the run that cannot be scored is never a start.
-        assert_eq!(got, vec![1, 3, 4]);
+        let class_of = [0, 1, 1, 1, 1];
+        let d2 = [0.1, 1.0, 1.1, 2.0, f64::INFINITY];
+        // The second run lies within the separation of the first (the fixed unknown adds
+        // nothing); the run that cannot be scored is never a start, though a third is wanted.
+        assert_eq!(
+            starts(&params, &class_of, &ranges, 1, &d2, Some(1)),
+            vec![1, 3]
+        );
+        // Scored, it is the third start; a fourth pose apart from all is not taken.
+        let mut more = params.clone();
+        more.push(vec![0.40, 5.0]);
+        let d2_more = [0.1, 1.0, 1.1, 2.0, 3.0, 4.0];
+        let class_more = [0, 1, 1, 1, 1, 1];
+        assert_eq!(
+            starts(&more, &class_more, &ranges, 1, &d2_more, Some(1)),
+            vec![1, 3, 4]
+        );
         assert_eq!(
             starts(&params, &class_of, &ranges, 1, &d2, None),
             Vec::<usize>::new()
