@@ -95,6 +95,9 @@ def main():
     ap.add_argument("--whiskers", action="append", default=None,
                     help="whisker sets to score, e.g. c3 or c1+c2+c3+c4+c5 (default: c3 and all)")
     ap.add_argument("--randomise", action="store_true")
+    ap.add_argument("--train-on", help="a scenario of one whisker (one calibrated on the "
+                    "stand-in's labelled e2 strikes, say) whose whisker, chain and sensors the "
+                    "estimators are told for every whisker of the array (--whisker-from)")
     ap.add_argument("--training", type=int, default=None)
     ap.add_argument("--vibrissa", default="target/release/vibrissa")
     ap.add_argument("--estimate-arg", action="append", default=[],
@@ -150,6 +153,8 @@ def main():
                 cmd.append("--randomise")
             if args.training:
                 cmd += ["--training", str(args.training)]
+            if args.train_on:
+                cmd += ["--whisker-from", args.train_on]
             cmd += args.estimate_arg
             r = subprocess.run(cmd, capture_output=True, text=True)
             if r.returncode != 0:

@@ -49,6 +49,12 @@ pub struct Args {
     /// Shape families with shape-bank: noise-free runs per class in its bank (default 3200).
     #[arg(long, value_name = "N", requires = "shapes")]
     pub(crate) bank: Option<usize>,
+    /// Shape families: give every whisker of the family the whisker, chain and sensors of this
+    /// scenario file of one whisker (one that `vibrissa calibrate` fitted to labelled strikes of
+    /// your whisker, say), with its calibration record, so that the estimators train on your
+    /// whisker rather than the family's.
+    #[arg(long, value_name = "FILE.toml", requires = "shapes")]
+    pub(crate) whisker_from: Option<String>,
     /// Time-series CSV files in the contract's columns (t, theta01, theta12 required).
     #[arg(long, value_name = "FILE.csv", num_args = 1.., required_unless_present = "list")]
     pub(crate) obs: Vec<PathBuf>,

@@ -12,7 +12,7 @@ use crate::estimate::{read_recording, Args};
 use crate::files;
 use crate::output::Render;
 use crate::plot::{render_xy, Mark, XyFigure, XyPanel, XySet};
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
 use serde::Serialize;
 use serde_json::{Map, Value};
 use std::io::{self, Write};
@@ -22,6 +22,7 @@ use vibrissa_infer::shapes::{
     DEFAULT_TRAINING, SHAPE_METHODS,
 };
 use vibrissa_infer::{Reader, CHANNELS};
+use vibrissa_io::scenario::WhiskerSource;
 
 /// The printed estimates, one per file.
 #[derive(Debug, Serialize)]
@@ -85,10 +86,13 @@ pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
         );
     }
     crate::estimate::check_trace_file(args)?;
-    if !args.sets.is_empty() {
-        bail!("--set does not apply to shape families: edit the class files");
-    }
-    let family = ShapeFamily::open(spec)?;
+    let whisker = match &args.whisker_from {
+        Some(file) => {
+            Some(WhiskerSource::read(file).with_context(|| format!("--whisker-from {file}"))?)
+        }
+        None => None,
+    };
+    let family = ShapeFamily::open_with(spec, &args.sets, whisker.as_ref())?;
     let family = match &args.whiskers {
         Some(list) => {
             let names: Vec<&str> = list.split('+').map(str::trim).collect();

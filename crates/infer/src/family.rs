@@ -76,6 +76,19 @@ impl Family {
         Family::from_loaded(origin, doc, loaded)
     }
 
+    /// As [`Family::open`] (or [`Family::open_str`] with `text`), every whisker of the scenario
+    /// given the whisker, chain and sensors of `whisker` (a calibrated file's, say; its
+    /// calibration record comes with it).
+    pub fn open_adopting(
+        spec: &str,
+        text: Option<&str>,
+        sets: &[String],
+        whisker: &scenario::WhiskerSource,
+    ) -> Result<Family> {
+        let (doc, loaded) = scenario::open_adopting(spec, text, sets, whisker)?;
+        Family::from_loaded(spec, doc, loaded)
+    }
+
     fn from_loaded(
         spec: &str,
         doc: scenario::Document,

@@ -135,6 +135,7 @@
 //! of a line). A key given to a kind that does not take it names the key and the kind's keys; a
 //! value out of range is core's [`Scenario::check`] verdict, prefixed with the file's name.
 
+mod adopt;
 mod calibration;
 mod classes;
 mod document;
@@ -142,6 +143,7 @@ mod family;
 mod overrides;
 mod schema;
 
+pub use adopt::{WhiskerSource, WHISKER_KEYS};
 pub use calibration::{CalibratedParameter, Calibration, ChannelValues, Correlation};
 pub use classes::read_classes;
 pub use document::Document;
@@ -340,6 +342,29 @@ pub fn open(spec: &str, sets: &[String]) -> Result<(Document, Loaded)> {
 pub fn open_str(text: &str, origin: &str, sets: &[String]) -> Result<(Document, Loaded)> {
     let dir = Path::new(origin).parent().unwrap_or(Path::new(""));
     let (doc, loaded) = parse(text, origin, dir, sets)?;
+    checked_family(doc, loaded)
+}
+
+/// As [`open`] or [`open_str`] (`text` given), with the whisker of `whisker` given to every
+/// whisker of the scenario before `sets` are applied ([`Document::adopt`]).
+pub fn open_adopting(
+    spec: &str,
+    text: Option<&str>,
+    sets: &[String],
+    whisker: &WhiskerSource,
+) -> Result<(Document, Loaded)> {
+    let mut doc = match text {
+        Some(text) => {
+            let dir = Path::new(spec).parent().unwrap_or(Path::new(""));
+            Document::parse(text, spec, dir, &[])?
+        }
+        None => Document::load(spec, &[])?,
+    };
+    doc.adopt(whisker)?;
+    for set in sets {
+        doc.set(set)?;
+    }
+    let loaded = doc.loaded()?;
     checked_family(doc, loaded)
 }
 

@@ -8,6 +8,7 @@ use crate::family::Family;
 use rayon::prelude::*;
 use std::path::Path;
 use vibrissa_core::rng::Rng;
+use vibrissa_io::scenario::WhiskerSource;
 
 /// One object class: its name and the scenario family of its runs (its pose unknowns).
 #[derive(Debug, Clone)]
@@ -89,6 +90,18 @@ impl ShapeFamily {
 
     /// A built-in shape family by name (`e3`, `e3-active`), or `None`.
     pub fn builtin(name: &str) -> Option<Result<ShapeFamily>> {
+        ShapeFamily::builtin_with(name, &[], None)
+    }
+
+    /// A built-in shape family with `key=value` overrides applied to every class's scenario
+    /// (`whisker.youngs_modulus=3e9` changes every whisker of the array), and with `whisker`
+    /// (a calibrated file's whisker, chain and sensors, say) given to every whisker first; or
+    /// `None` if there is no such built-in.
+    pub fn builtin_with(
+        name: &str,
+        sets: &[String],
+        whisker: Option<&WhiskerSource>,
+    ) -> Option<Result<ShapeFamily>> {
         let classes: &[(&str, &str)] = match name {
             "e3" => &e3::CLASSES,
             "e3-active" => &e3::ACTIVE_CLASSES,
@@ -97,9 +110,14 @@ impl ShapeFamily {
         let classes = classes
             .iter()
             .map(|(class, text)| {
+                let origin = format!("{name}/{class}");
+                let family = match whisker {
+                    Some(w) => Family::open_adopting(&origin, Some(text), sets, w)?,
+                    None => Family::open_str(text, &origin, sets)?,
+                };
                 Ok(Class {
                     name: class.to_string(),
-                    family: Family::open_str(text, &format!("{name}/{class}"), &[])?,
+                    family,
                 })
             })
             .collect::<Result<Vec<_>>>();
@@ -109,19 +127,37 @@ impl ShapeFamily {
     /// A shape family: a built-in name, or a TOML file whose `[classes]` table names each
     /// class's scenario file (`box = "box.toml"`, paths relative to the file).
     pub fn open(spec: &str) -> Result<ShapeFamily> {
-        if let Some(f) = ShapeFamily::builtin(spec) {
+        ShapeFamily::open_with(spec, &[], None)
+    }
+
+    /// [`ShapeFamily::open`] with `whisker` given to every whisker of every class and then
+    /// `key=value` overrides applied to every class's scenario.
+    pub fn open_with(
+        spec: &str,
+        sets: &[String],
+        whisker: Option<&WhiskerSource>,
+    ) -> Result<ShapeFamily> {
+        if let Some(f) = ShapeFamily::builtin_with(spec, sets, whisker) {
             return f;
         }
         let classes = vibrissa_io::scenario::read_classes(Path::new(spec))?
             .into_iter()
             .map(|(name, file)| {
-                Ok(Class {
-                    name,
-                    family: Family::open(&file.display().to_string(), &[])?,
-                })
+                let file = file.display().to_string();
+                let family = match whisker {
+                    Some(w) => Family::open_adopting(&file, None, sets, w)?,
+                    None => Family::open(&file, sets)?,
+                };
+                Ok(Class { name, family })
             })
             .collect::<Result<Vec<_>>>()?;
         ShapeFamily::new(spec, classes)
+    }
+
+    /// Whether every class's scenario was fitted by calibration (a calibrated whisker given to
+    /// it, say), so that randomised runs draw from what the fit left uncertain.
+    pub fn is_calibrated(&self) -> bool {
+        self.classes.iter().all(|c| c.family.is_calibrated())
     }
 
     /// The built-in's name or the file's path.

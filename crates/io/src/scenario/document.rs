@@ -86,6 +86,22 @@ impl Document {
         Ok(())
     }
 
+    /// The document as edited.
+    pub(super) fn table(&self) -> &toml::Table {
+        &self.table
+    }
+
+    /// The document, to be edited in place (then [`Document::mark_edited`]).
+    pub(super) fn table_mut(&mut self) -> &mut toml::Table {
+        &mut self.table
+    }
+
+    /// Records an edit made directly to the table (`what` names it in messages).
+    pub(super) fn mark_edited(&mut self, what: &str) {
+        self.edited = true;
+        self.origin = format!("{} with {what}", self.origin);
+    }
+
     /// Sets (or replaces) the `[calibration]` table.
     pub fn set_calibration(&mut self, calibration: &Calibration) -> Result<()> {
         let value = Value::try_from(calibration).map_err(|e| Error::Toml {

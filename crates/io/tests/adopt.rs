@@ -1,0 +1,141 @@
+//! One scenario's whisker given to another's array (`estimate --shapes ... --whisker-from`).
+
+use std::fs;
+use std::path::PathBuf;
+use vibrissa_core::chain::Discretisation;
+use vibrissa_core::whisker::Follicle;
+use vibrissa_io::scenario::{open_adopting, WhiskerSource};
+
+/// A fresh folder for this test's files.
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("adopt-{name}"));
+    let _ = fs::remove_dir_all(&dir);
+    fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// A whisker as calibration writes one: the chain, a fitted whisker, the sensors.
+const FITTED: &str = r#"
+experiment = "e2"
+segments = 12
+discretisation = "seed"
+
+[whisker]
+preset = "w30"
+youngs_modulus = 2.4e9
+density = 850.0
+follicle = { kind = "spring", stiffness = 2.5e-4, damping = 1e-7 }
+
+[sensors]
+theta12 = { gain = 0.38, offset = -0.0009 }
+fy = { gain = 1.06 }
+"#;
+
+/// An array of two whiskers past a peg, with a whisker, chain and sensors of its own.
+const ARRAY: &str = r#"
+duration = 0.05
+segments = 30
+sample_rate = 1000
+
+[whisker]
+preset = "w30"
+tip_radius = 5e-5
+
+[sensors]
+m0 = { gain = 2.0 }
+
+[[whiskers]]
+name = "a"
+position = [0.0, 0.0]
+
+[[whiskers]]
+name = "b"
+position = [0.0, 0.002]
+
+[[objects]]
+shape = "circle"
+radius = 0.004
+position = [0.02, -0.02]
+velocity = [0.0, 0.5]
+
+[unknowns]
+"objects.0.position.0" = { range = [0.015, 0.025], name = "x" }
+"#;
+
+#[test]
+fn every_whisker_of_an_array_gets_the_whisker_chain_and_sensors_and_nothing_else() {
+    let dir = temp_dir("whole");
+    let fitted = dir.join("fitted.toml");
+    fs::write(&fitted, FITTED).unwrap();
+    let source = WhiskerSource::read(fitted.to_str().unwrap()).unwrap();
+    assert!(!source.is_calibrated());
+    let origin = dir.join("array.toml");
+    let (_, loaded) = open_adopting(origin.to_str().unwrap(), Some(ARRAY), &[], &source).unwrap();
+    let s = &loaded.scenario;
+    // The source's chain and whisker; a key it leaves out (tip_radius) takes the preset's,
+    // not the array file's.
+    assert_eq!((s.segments, s.discretisation), (12, Discretisation::Seed));
+    assert_eq!(s.whisker.youngs_modulus, 2.4e9);
+    assert_eq!(s.whisker.density, 850.0);
+    assert_eq!(s.whisker.tip_radius, s.whisker.base_radius);
+    assert!(matches!(s.whisker.follicle, Follicle::Spring { .. }));
+    // The source's sensors replace the file's: m0's gain of 2 is gone.
+    let r = &s.sensor_response;
+    assert_eq!(r.theta12.gain, 0.38);
+    assert_eq!(r.theta12.offset, -0.0009);
+    assert_eq!(r.fy.gain, 1.06);
+    assert_eq!(r.m0.gain, 1.0);
+    // The array's own: its whiskers (sharing the scenario's whisker), objects, timing.
+    assert_eq!(loaded.whiskers.len(), 2);
+    assert!(loaded.whiskers.iter().all(|m| m.whisker.is_none()));
+    assert_eq!(s.duration, 0.05);
+    assert_eq!(s.objects.len(), 1);
+    assert!(loaded.family.is_some());
+    // Overrides apply after the whisker is given.
+    let (_, edited) = open_adopting(
+        origin.to_str().unwrap(),
+        Some(ARRAY),
+        &["whisker.density=900".to_string()],
+        &source,
+    )
+    .unwrap();
+    assert_eq!(edited.scenario.whisker.density, 900.0);
+    assert_eq!(edited.scenario.whisker.youngs_modulus, 2.4e9);
+}
+
+#[test]
+fn an_array_is_no_source_and_whiskers_of_their_own_cannot_be_replaced() {
+    let dir = temp_dir("refused");
+    let array = dir.join("array.toml");
+    fs::write(&array, ARRAY).unwrap();
+    let err = WhiskerSource::read(array.to_str().unwrap())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("`whiskers`") && err.contains("one whisker"),
+        "{err}"
+    );
+
+    let fitted = dir.join("fitted.toml");
+    fs::write(&fitted, FITTED).unwrap();
+    let source = WhiskerSource::read(fitted.to_str().unwrap()).unwrap();
+    let own = ARRAY.replace(
+        "position = [0.0, 0.002]",
+        "position = [0.0, 0.002]\nwhisker = { length = 0.025 }",
+    );
+    let err = open_adopting("own.toml", Some(&own), &[], &source)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("whiskers.b.whisker") && err.contains("length") && err.contains("alike"),
+        "{err}"
+    );
+
+    // A malformed source is refused as any scenario is, naming its key.
+    let bad = dir.join("bad.toml");
+    fs::write(&bad, "[whisker]\nyoungs_modulus = -3e9\n").unwrap();
+    let err = WhiskerSource::read(bad.to_str().unwrap())
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("youngs_modulus"), "{err}");
+}
