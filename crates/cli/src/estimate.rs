@@ -271,6 +271,19 @@ pub fn run(args: &Args) -> Result<()> {
     if let Some(spec) = &args.shapes {
         return crate::estimate_shapes::run(args, spec);
     }
+    // Clap lets these through beside --experiment or --scenario (which --shapes conflicts with).
+    let shape_only = [
+        ("--whiskers", args.whiskers.is_some()),
+        ("--training", args.training.is_some()),
+        ("--bank", args.bank.is_some()),
+        ("--whisker-from", args.whisker_from.is_some()),
+    ];
+    if let Some((name, _)) = shape_only.iter().find(|(_, given)| *given) {
+        bail!(
+            "{name} is for shape families (--shapes e3|FILE.toml), not for --experiment or \
+             --scenario"
+        );
+    }
     // For an array's recordings, the named whisker at its place in the array.
     let family = family_of(args)?.for_whisker(
         args.whisker.as_deref(),

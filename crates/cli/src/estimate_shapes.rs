@@ -133,8 +133,12 @@ pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
         stated,
         trace: args.trace.is_some(),
     };
+    let on = match &whisker {
+        Some(w) => format!(", each the whisker of {}", w.origin()),
+        None => String::new(),
+    };
     eprintln!(
-        "training {} on {} runs per class of {} ({} whiskers)...",
+        "training {} on {} runs per class of {} ({} whiskers{on})...",
         method,
         options.training,
         family.name(),

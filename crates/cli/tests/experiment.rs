@@ -1365,6 +1365,43 @@ fn experiment_e3_scores_shapes_and_exports_every_evaluated_run() {
         .unwrap();
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("--bank"));
+    // A whisker of one's own for the family: an array is no such whisker, a missing file is
+    // named, and the option is for shape families only.
+    for (source, needle) in [
+        (export.join(first).display().to_string(), "one whisker"),
+        (dir.join("none.toml").display().to_string(), "none.toml"),
+    ] {
+        let bad = vibrissa()
+            .args([
+                "estimate",
+                "--shapes",
+                "e3",
+                "--whisker-from",
+                &source,
+                "--obs",
+            ])
+            .arg(dir.join("run.csv"))
+            .output()
+            .unwrap();
+        assert_eq!(bad.status.code(), Some(1));
+        let err = String::from_utf8_lossy(&bad.stderr);
+        assert!(
+            err.contains("--whisker-from") && err.contains(needle),
+            "{err}"
+        );
+    }
+    let bad = vibrissa()
+        .args(["estimate", "--experiment", "e2", "--method", "knn"])
+        .args(["--whisker-from", "e2", "--obs"])
+        .arg(dir.join("run.csv"))
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        err.contains("--whisker-from is for shape families"),
+        "{err}"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
 

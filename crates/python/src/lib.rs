@@ -626,15 +626,25 @@ fn estimate(
 #[pyfunction]
 #[pyo3(signature = (shapes, whiskers=None))]
 fn shape_whiskers(shapes: &str, whiskers: Option<Vec<String>>) -> PyResult<Vec<String>> {
-    Ok(shape_family(shapes, whiskers)?.whiskers())
+    Ok(shape_family(shapes, whiskers, None)?.whiskers())
 }
 
-/// The shape family `shapes`, reading `whiskers` (all when `None`).
+/// The shape family `shapes`, reading `whiskers` (all when `None`), every whisker given the
+/// whisker of the scenario file `whisker_from` when one is named.
 fn shape_family(
     shapes: &str,
     whiskers: Option<Vec<String>>,
+    whisker_from: Option<&str>,
 ) -> PyResult<vibrissa_infer::shapes::ShapeFamily> {
-    let family = vibrissa_infer::shapes::ShapeFamily::open(shapes).map_err(value_error)?;
+    let source = match whisker_from {
+        Some(file) => Some(
+            vibrissa_io::scenario::WhiskerSource::read(file)
+                .map_err(|e| value_error(format!("whisker_from: {e}")))?,
+        ),
+        None => None,
+    };
+    let family = vibrissa_infer::shapes::ShapeFamily::open_with(shapes, &[], source.as_ref())
+        .map_err(value_error)?;
     match whiskers {
         Some(w) => {
             let names: Vec<&str> = w.iter().map(String::as_str).collect();
@@ -651,7 +661,7 @@ fn shape_family(
 /// recording's class posterior after every sample (`[recordings][samples][classes]`) with the
 /// classes' names in that order.
 #[pyfunction]
-#[pyo3(signature = (shapes, whiskers, inputs, noise, seed, randomise, training, method, bank))]
+#[pyo3(signature = (shapes, whiskers, inputs, noise, seed, randomise, training, method, bank, whisker_from=None))]
 #[allow(clippy::too_many_arguments, clippy::type_complexity)]
 fn estimate_shapes(
     py: Python<'_>,
@@ -664,9 +674,10 @@ fn estimate_shapes(
     training: usize,
     method: &str,
     bank: usize,
+    whisker_from: Option<&str>,
 ) -> PyResult<(Vec<String>, Vec<String>, Vec<Vec<Vec<f64>>>, Vec<String>)> {
     use vibrissa_infer::shapes::{estimate_batch, BatchOptions, ShapeKrr};
-    let family = shape_family(shapes, whiskers)?;
+    let family = shape_family(shapes, whiskers, whisker_from)?;
     let stated = vibrissa_infer::noise::parse_statement(noise)
         .map_err(|e| value_error(format!("noise: {e}")))?;
     let all: Vec<usize> = (0..CHANNELS.len()).collect();

@@ -105,3 +105,29 @@ def test_the_bank_weighs_the_recording_against_noise_free_runs(family):
     assert 0.015 < est["x"]["mean"] < 0.029
     with pytest.raises(ValueError, match="bank"):
         vibrissa.estimate_shapes(run, path, training=30, bank=3, method="shape-bank")
+
+
+def test_a_whisker_of_your_own_is_given_to_every_whisker_of_the_family(family, tmp_path):
+    folder, path = family
+    # The same family written with a stiffer whisker in a compliant follicle ...
+    stiff = '[whisker]\npreset = "w30"\nyoungs_modulus = 4.5e9\n' \
+        'follicle = { kind = "spring", stiffness = 3e-4, damping = 1e-8 }\n'
+    own = tmp_path / "own"
+    own.mkdir()
+    for name, shape in [("peg", 'shape = "circle"\nradius = 0.004'),
+                        ("square", 'shape = "square"\nside = 0.008')]:
+        text = COMMON.format(shape=shape).replace('[whisker]\npreset = "w30"\n', stiff)
+        (own / f"{name}.toml").write_text(text)
+    (own / "shapes.toml").write_text('[classes]\npeg = "peg.toml"\nsquare = "square.toml"\n')
+    # ... and that whisker alone, as calibration writes one.
+    whisker = tmp_path / "fitted.toml"
+    whisker.write_text('experiment = "e2"\n' + stiff)
+    run = vibrissa.simulate(own / "square.toml")
+    told = vibrissa.estimate_shapes(run, path, training=30, noise="none", whisker_from=whisker)
+    written = vibrissa.estimate_shapes(run, own / "shapes.toml", training=30, noise="none")
+    nominal = vibrissa.estimate_shapes(run, path, training=30, noise="none")
+    assert told["class"] == written["class"]
+    assert told["x"] == written["x"]
+    assert told["class"] != nominal["class"]
+    with pytest.raises(ValueError, match="whisker_from"):
+        vibrissa.estimate_shapes(run, path, training=30, whisker_from=folder / "peg.toml")

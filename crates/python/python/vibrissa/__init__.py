@@ -381,6 +381,7 @@ def estimate_shapes(
     method="shape-krr",
     verbose=False,
     bank=3200,
+    whisker_from=None,
 ):
     """Which object struck the whiskers, and where: the class posterior and the most probable
     class's pose, as ``vibrissa estimate --shapes --json`` does.
@@ -411,6 +412,10 @@ def estimate_shapes(
         several minutes to simulate its bank).
     bank : int
         With ``"shape-bank"``: noise-free runs per class in its bank (at least ``training``).
+    whisker_from : str or os.PathLike, optional
+        A scenario file of one whisker, typically the one :func:`calibrate` fitted to labelled
+        strikes of your whisker: every whisker of the family is given its whisker, chain and
+        sensors (and its calibration record), so that the estimators train on your whisker.
 
     Returns
     -------
@@ -455,6 +460,7 @@ def estimate_shapes(
         training,
         method,
         bank,
+        None if whisker_from is None else os.fspath(whisker_from),
     )
     if verbose:
         import sys

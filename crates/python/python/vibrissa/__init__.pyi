@@ -73,6 +73,8 @@ def estimate_shapes(
     randomise: bool = False,
     method: str = "shape-krr",
     verbose: bool = False,
+    bank: int = 3200,
+    whisker_from: Union[str, os.PathLike[str], None] = None,
 ) -> Union[dict[str, Any], list[dict[str, Any]]]: ...
 def simulate(
     scenario: Scenario = "e2",
