@@ -18,6 +18,7 @@ use vibrissa_infer::{batch, lead_in};
 use vibrissa_infer::{
     methods, Estimate, Family, Method, Reader, Recording, Trained, Variant, CHANNELS,
 };
+use vibrissa_io::scenario::WhiskerSource;
 
 /// Arguments of `vibrissa estimate`.
 #[derive(Debug, clap::Args)]
@@ -49,11 +50,11 @@ pub struct Args {
     /// Shape families with shape-bank: noise-free runs per class in its bank (default 3200).
     #[arg(long, value_name = "N", requires = "shapes")]
     pub(crate) bank: Option<usize>,
-    /// Shape families: give every whisker of the family the whisker, chain and sensors of this
-    /// scenario file of one whisker (one that `vibrissa calibrate` fitted to labelled strikes of
-    /// your whisker, say), with its calibration record, so that the estimators train on your
-    /// whisker rather than the family's.
-    #[arg(long, value_name = "FILE.toml", requires = "shapes")]
+    /// Give the scenario (every whisker of a shape family) the whisker, chain and sensors of
+    /// this scenario file of one whisker (one that `vibrissa calibrate` fitted to labelled
+    /// strikes of your whisker, say), with its calibration record, so that the estimators train
+    /// on your whisker in this experiment: calibrated on the `e2` box, read pegs or shapes.
+    #[arg(long, value_name = "FILE.toml")]
     pub(crate) whisker_from: Option<String>,
     /// Time-series CSV files in the contract's columns (t, theta01, theta12 required).
     #[arg(long, value_name = "FILE.csv", num_args = 1.., required_unless_present = "list")]
@@ -276,7 +277,6 @@ pub fn run(args: &Args) -> Result<()> {
         ("--whiskers", args.whiskers.is_some()),
         ("--training", args.training.is_some()),
         ("--bank", args.bank.is_some()),
-        ("--whisker-from", args.whisker_from.is_some()),
     ];
     if let Some((name, _)) = shape_only.iter().find(|(_, given)| *given) {
         bail!(
@@ -534,7 +534,18 @@ pub(crate) fn family_of(args: &Args) -> Result<Family> {
              --experiment e1|e2"
         ),
     };
-    Ok(Family::open(spec, &args.sets)?)
+    Ok(match whisker_source(args)? {
+        Some(source) => Family::open_adopting(spec, None, &args.sets, &source)?,
+        None => Family::open(spec, &args.sets)?,
+    })
+}
+
+/// The scenario named by `--whisker-from`, read, if given.
+pub(crate) fn whisker_source(args: &Args) -> Result<Option<WhiskerSource>> {
+    args.whisker_from
+        .as_ref()
+        .map(|file| WhiskerSource::read(file).with_context(|| format!("--whisker-from {file}")))
+        .transpose()
 }
 
 /// Checks `--trace`, if given: one `--obs` file, a `.csv` name, a folder that exists.

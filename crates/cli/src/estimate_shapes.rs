@@ -12,7 +12,7 @@ use crate::estimate::{read_recording, Args};
 use crate::files;
 use crate::output::Render;
 use crate::plot::{render_xy, Mark, XyFigure, XyPanel, XySet};
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use serde::Serialize;
 use serde_json::{Map, Value};
 use std::io::{self, Write};
@@ -22,7 +22,6 @@ use vibrissa_infer::shapes::{
     DEFAULT_TRAINING, SHAPE_METHODS,
 };
 use vibrissa_infer::{Reader, CHANNELS};
-use vibrissa_io::scenario::WhiskerSource;
 
 /// The printed estimates, one per file.
 #[derive(Debug, Serialize)]
@@ -86,12 +85,7 @@ pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
         );
     }
     crate::estimate::check_trace_file(args)?;
-    let whisker = match &args.whisker_from {
-        Some(file) => {
-            Some(WhiskerSource::read(file).with_context(|| format!("--whisker-from {file}"))?)
-        }
-        None => None,
-    };
+    let whisker = crate::estimate::whisker_source(args)?;
     let family = ShapeFamily::open_with(spec, &args.sets, whisker.as_ref())?;
     let family = match &args.whiskers {
         Some(list) => {

@@ -801,3 +801,60 @@ fn estimate_trains_on_the_chain_a_recording_names() {
     assert!((d - 0.022).abs() < 1e-3, "{d}");
     assert_eq!(est["check"]["explained"], true, "{est}");
 }
+
+#[test]
+fn estimate_takes_the_whisker_of_another_scenario() {
+    // A stiffer whisker in a compliant follicle with a sensor's gain off, written as a file of
+    // its own (as calibration writes one for the `e2` box) and given to the built-in `e2` by
+    // --whisker-from: the same estimate as the file itself, and not the nominal's.
+    let dir = Scratch::new("whisker-from");
+    let own = dir.path().join("own.toml");
+    fs::write(
+        &own,
+        "experiment = \"e2\"\nsegments = 16\n[whisker]\npreset = \"w30\"\nyoungs_modulus = 4.2e9\n\
+         follicle = { kind = \"spring\", stiffness = 3e-4, damping = 1e-8 }\n\
+         [sensors]\ntheta12 = { gain = 0.8 }\n",
+    )
+    .unwrap();
+    let own = own.to_str().unwrap();
+    let rec = dir.path().join("strike.csv");
+    let rec = rec.to_str().unwrap();
+    let run = vibrissa(&[
+        "simulate", own, "--set", "d=0.024", "--set", "v=0.7", "--out", rec,
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let estimate = |extra: &[&str]| {
+        let mut args = vec!["estimate", "--method", "knn", "--noise", "none", "--json"];
+        args.extend_from_slice(extra);
+        args.extend_from_slice(&["--obs", rec]);
+        let out = vibrissa(&args);
+        assert!(out.status.success(), "{}", stderr(&out));
+        json(&out)
+    };
+    let file = estimate(&["--scenario", own]);
+    let given = estimate(&["--experiment", "e2", "--whisker-from", own]);
+    let nominal = estimate(&["--experiment", "e2"]);
+    assert_eq!(file["d"], given["d"], "{file} {given}");
+    assert_eq!(file["v"], given["v"], "{file} {given}");
+    assert_ne!(file["d"], nominal["d"], "{file} {nominal}");
+    let d = given["d"]["mean"].as_f64().unwrap();
+    assert!((d - 0.024).abs() < 1.5e-3, "{given}");
+    // A source that is no scenario of one whisker is refused by name.
+    let out = vibrissa(&[
+        "estimate",
+        "--experiment",
+        "e2",
+        "--method",
+        "knn",
+        "--whisker-from",
+        "e9",
+        "--obs",
+        rec,
+    ]);
+    assert_refused(&out);
+    assert!(
+        stderr(&out).contains("--whisker-from e9"),
+        "{}",
+        stderr(&out)
+    );
+}

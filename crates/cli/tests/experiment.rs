@@ -1392,16 +1392,13 @@ fn experiment_e3_scores_shapes_and_exports_every_evaluated_run() {
     }
     let bad = vibrissa()
         .args(["estimate", "--experiment", "e2", "--method", "knn"])
-        .args(["--whisker-from", "e2", "--obs"])
+        .args(["--training", "20", "--obs"])
         .arg(dir.join("run.csv"))
         .output()
         .unwrap();
     assert!(!bad.status.success());
     let err = String::from_utf8_lossy(&bad.stderr);
-    assert!(
-        err.contains("--whisker-from is for shape families"),
-        "{err}"
-    );
+    assert!(err.contains("--training is for shape families"), "{err}");
     std::fs::remove_dir_all(&dir).ok();
 }
 
