@@ -279,14 +279,43 @@ impl Filter {
 /// A scenario family from a built-in name or path (`spec`), or from the JSON text of a Python
 /// dict (`json`).
 fn family(spec: Option<&str>, json: Option<&str>, sets: &[String]) -> PyResult<Family> {
-    match (spec, json) {
-        (Some(spec), _) => Family::open(spec, sets).map_err(value_error),
-        (None, Some(json)) => {
-            let text = toml_of_json(json)?;
+    family_adopting(spec, json, sets, None)
+}
+
+/// [`family`], given the whisker of the scenario file `whisker_from` when one is named.
+fn family_adopting(
+    spec: Option<&str>,
+    json: Option<&str>,
+    sets: &[String],
+    whisker_from: Option<&str>,
+) -> PyResult<Family> {
+    let source = whisker_source(whisker_from)?;
+    let text = json.map(toml_of_json).transpose()?;
+    match (spec, text, &source) {
+        (Some(spec), _, None) => Family::open(spec, sets).map_err(value_error),
+        (Some(spec), _, Some(w)) => {
+            Family::open_adopting(spec, None, sets, w).map_err(value_error)
+        }
+        (None, Some(text), None) => {
             Family::open_str(&text, "scenario dict", sets).map_err(value_error)
         }
-        (None, None) => Err(value_error("scenario: give a name, a path or a dict")),
+        (None, Some(text), Some(w)) => {
+            Family::open_adopting("scenario dict", Some(&text), sets, w).map_err(value_error)
+        }
+        (None, None, _) => Err(value_error("scenario: give a name, a path or a dict")),
     }
+}
+
+/// The whisker of the scenario file `whisker_from`, read, if one is named.
+fn whisker_source(
+    whisker_from: Option<&str>,
+) -> PyResult<Option<vibrissa_io::scenario::WhiskerSource>> {
+    whisker_from
+        .map(|file| {
+            vibrissa_io::scenario::WhiskerSource::read(file)
+                .map_err(|e| value_error(format!("whisker_from: {e}")))
+        })
+        .transpose()
 }
 
 /// The TOML text of a scenario given as the JSON text of a dict.
@@ -349,7 +378,7 @@ fn recording_pool(
 /// `vibrissa estimate --json` does; returns one estimate object per recording as JSON text,
 /// and the messages the command line prints on standard error (warnings, what is trained).
 #[pyfunction]
-#[pyo3(signature = (scenario, scenario_json, sets, inputs, method, noise, seed, randomise, particles, check, whisker=None, max_delay=0.0, pool=false, pool_rounds=None))]
+#[pyo3(signature = (scenario, scenario_json, sets, inputs, method, noise, seed, randomise, particles, check, whisker=None, max_delay=0.0, pool=false, pool_rounds=None, whisker_from=None))]
 #[allow(clippy::too_many_arguments)]
 fn estimate(
     py: Python<'_>,
@@ -367,6 +396,7 @@ fn estimate(
     max_delay: f64,
     pool: bool,
     pool_rounds: Option<usize>,
+    whisker_from: Option<&str>,
 ) -> PyResult<(Vec<String>, Vec<String>)> {
     let pf = method == "pf";
     if pool_rounds.is_some() && !pool {
@@ -391,7 +421,7 @@ fn estimate(
             inputs.len()
         )));
     }
-    let family = family(scenario, scenario_json, &sets)?
+    let family = family_adopting(scenario, scenario_json, &sets, whisker_from)?
         .for_whisker(whisker, pf)
         .map_err(value_error)?;
     let probe = vibrissa_infer::methods::by_name(method).map_err(value_error)?;
@@ -636,13 +666,7 @@ fn shape_family(
     whiskers: Option<Vec<String>>,
     whisker_from: Option<&str>,
 ) -> PyResult<vibrissa_infer::shapes::ShapeFamily> {
-    let source = match whisker_from {
-        Some(file) => Some(
-            vibrissa_io::scenario::WhiskerSource::read(file)
-                .map_err(|e| value_error(format!("whisker_from: {e}")))?,
-        ),
-        None => None,
-    };
+    let source = whisker_source(whisker_from)?;
     let family = vibrissa_infer::shapes::ShapeFamily::open_with(shapes, &[], source.as_ref())
         .map_err(value_error)?;
     match whiskers {

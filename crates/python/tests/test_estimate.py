@@ -123,6 +123,21 @@ def test_stated_noise_and_a_scenario_dict(recordings):
     assert mine["noise"] == {"theta12": 5e-3}
 
 
+def test_the_whisker_of_another_file_as_on_the_command_line(recordings, tmp_path):
+    own = tmp_path / "own.toml"
+    own.write_text('experiment = "e2"\n[whisker]\npreset = "w30"\nyoungs_modulus = 3.6e9\n'
+                   '[sensors]\ntheta12 = { gain = 0.9 }\n')
+    mine = vibrissa.estimate(recordings[0], "e2", method="knn", whisker_from=own,
+                             randomise=False)
+    (theirs,) = cli_estimates(recordings[:1], "--method", "knn", "--whisker-from", str(own),
+                              "--no-randomise")
+    assert same(mine, theirs), (mine, theirs)
+    (nominal,) = cli_estimates(recordings[:1], "--method", "knn", "--no-randomise")
+    assert mine["d"] != nominal["d"]
+    with pytest.raises(ValueError, match="whisker_from"):
+        vibrissa.estimate(recordings[0], "e2", method="knn", whisker_from=tmp_path / "no.toml")
+
+
 def test_a_recording_at_another_rate(recordings):
     # 2 kHz: the method trains on 2 kHz runs of the scenario.
     run = vibrissa.simulate("e2", d=0.024, v=0.9, sample_rate=2000.0)

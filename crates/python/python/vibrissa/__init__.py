@@ -252,6 +252,7 @@ def estimate(
     pool_rounds=None,
     overrides=None,
     verbose=False,
+    whisker_from=None,
     **keys,
 ):
     """Estimate the scenario's unknowns (for ``e2``: the distance ``d`` and speed ``v`` of the
@@ -309,8 +310,12 @@ def estimate(
         (default 6, as ``--pool-rounds``); fewer are faster and learn the whisker less well.
     verbose : bool
         Print what is trained and every warning (they are also attached as ``"warnings"``).
+    whisker_from : str or os.PathLike, optional
+        A scenario file of one whisker, typically the one :func:`calibrate` fitted to labelled
+        strikes: the scenario is given its whisker, chain, sensors and calibration record (as
+        ``--whisker-from``), so that a whisker calibrated on one experiment serves another.
     overrides, **keys
-        Scenario overrides, as for :func:`simulate`.
+        Scenario overrides, as for :func:`simulate` (applied after ``whisker_from``).
 
     Returns
     -------
@@ -350,6 +355,7 @@ def estimate(
         max_delay,
         bool(pool),
         pool_rounds,
+        None if whisker_from is None else os.fspath(whisker_from),
     )
     if verbose:
         import sys

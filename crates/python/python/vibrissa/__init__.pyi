@@ -60,6 +60,7 @@ def estimate(
     pool_rounds: int | None = None,
     overrides: Mapping[str, Value] | None = None,
     verbose: bool = False,
+    whisker_from: Union[str, os.PathLike[str], None] = None,
     **keys: Value,
 ) -> Union[dict[str, Any], list[dict[str, Any]]]: ...
 def estimate_shapes(
