@@ -293,9 +293,7 @@ fn family_adopting(
     let text = json.map(toml_of_json).transpose()?;
     match (spec, text, &source) {
         (Some(spec), _, None) => Family::open(spec, sets).map_err(value_error),
-        (Some(spec), _, Some(w)) => {
-            Family::open_adopting(spec, None, sets, w).map_err(value_error)
-        }
+        (Some(spec), _, Some(w)) => Family::open_adopting(spec, None, sets, w).map_err(value_error),
         (None, Some(text), None) => {
             Family::open_str(&text, "scenario dict", sets).map_err(value_error)
         }
