@@ -30,6 +30,7 @@ fn every_example_loads() {
         "rat_curved",
         "pluck",
         "array_row",
+        "peg_past",
     ] {
         assert!(
             names.iter().any(|n| n == expected),
