@@ -534,10 +534,13 @@ pub(crate) fn family_of(args: &Args) -> Result<Family> {
              --experiment e1|e2"
         ),
     };
-    Ok(match whisker_source(args)? {
-        Some(source) => Family::open_adopting(spec, None, &args.sets, &source)?,
-        None => Family::open(spec, &args.sets)?,
-    })
+    let whisker = whisker_source(args)?;
+    Ok(Family::open_adopting(
+        spec,
+        None,
+        &args.sets,
+        whisker.as_ref(),
+    )?)
 }
 
 /// The scenario named by `--whisker-from`, read, if given.

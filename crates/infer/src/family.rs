@@ -77,13 +77,13 @@ impl Family {
     }
 
     /// As [`Family::open`] (or [`Family::open_str`] with `text`), every whisker of the scenario
-    /// given the whisker, chain and sensors of `whisker` (a calibrated file's, say; its
-    /// calibration record comes with it).
+    /// given the whisker, chain and sensors of `whisker` if there is one (a calibrated file's,
+    /// say; its calibration record comes with it).
     pub fn open_adopting(
         spec: &str,
         text: Option<&str>,
         sets: &[String],
-        whisker: &scenario::WhiskerSource,
+        whisker: Option<&scenario::WhiskerSource>,
     ) -> Result<Family> {
         let (doc, loaded) = scenario::open_adopting(spec, text, sets, whisker)?;
         Family::from_loaded(spec, doc, loaded)

@@ -345,13 +345,13 @@ pub fn open_str(text: &str, origin: &str, sets: &[String]) -> Result<(Document, 
     checked_family(doc, loaded)
 }
 
-/// As [`open`] or [`open_str`] (`text` given), with the whisker of `whisker` given to every
-/// whisker of the scenario before `sets` are applied ([`Document::adopt`]).
+/// As [`open`] or [`open_str`] (`text` given), with the whisker of `whisker`, if any, given to
+/// every whisker of the scenario before `sets` are applied ([`Document::adopt`]).
 pub fn open_adopting(
     spec: &str,
     text: Option<&str>,
     sets: &[String],
-    whisker: &WhiskerSource,
+    whisker: Option<&WhiskerSource>,
 ) -> Result<(Document, Loaded)> {
     let mut doc = match text {
         Some(text) => {
@@ -360,7 +360,9 @@ pub fn open_adopting(
         }
         None => Document::load(spec, &[])?,
     };
-    doc.adopt(whisker)?;
+    if let Some(whisker) = whisker {
+        doc.adopt(whisker)?;
+    }
     for set in sets {
         doc.set(set)?;
     }

@@ -70,7 +70,8 @@ fn every_whisker_of_an_array_gets_the_whisker_chain_and_sensors_and_nothing_else
     let source = WhiskerSource::read(fitted.to_str().unwrap()).unwrap();
     assert!(!source.is_calibrated());
     let origin = dir.join("array.toml");
-    let (_, loaded) = open_adopting(origin.to_str().unwrap(), Some(ARRAY), &[], &source).unwrap();
+    let (_, loaded) =
+        open_adopting(origin.to_str().unwrap(), Some(ARRAY), &[], Some(&source)).unwrap();
     let s = &loaded.scenario;
     // The source's chain and whisker; a key it leaves out (tip_radius) takes the preset's,
     // not the array file's.
@@ -96,7 +97,7 @@ fn every_whisker_of_an_array_gets_the_whisker_chain_and_sensors_and_nothing_else
         origin.to_str().unwrap(),
         Some(ARRAY),
         &["whisker.density=900".to_string()],
-        &source,
+        Some(&source),
     )
     .unwrap();
     assert_eq!(edited.scenario.whisker.density, 900.0);
@@ -123,7 +124,7 @@ fn an_array_is_no_source_and_whiskers_of_their_own_cannot_be_replaced() {
         "position = [0.0, 0.002]",
         "position = [0.0, 0.002]\nwhisker = { length = 0.025 }",
     );
-    let err = open_adopting("own.toml", Some(&own), &[], &source)
+    let err = open_adopting("own.toml", Some(&own), &[], Some(&source))
         .unwrap_err()
         .to_string();
     assert!(

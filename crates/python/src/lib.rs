@@ -291,17 +291,14 @@ fn family_adopting(
 ) -> PyResult<Family> {
     let source = whisker_source(whisker_from)?;
     let text = json.map(toml_of_json).transpose()?;
-    match (spec, text, &source) {
-        (Some(spec), _, None) => Family::open(spec, sets).map_err(value_error),
-        (Some(spec), _, Some(w)) => Family::open_adopting(spec, None, sets, w).map_err(value_error),
-        (None, Some(text), None) => {
-            Family::open_str(&text, "scenario dict", sets).map_err(value_error)
+    match (spec, text) {
+        (Some(spec), _) => Family::open_adopting(spec, None, sets, source.as_ref()),
+        (None, Some(text)) => {
+            Family::open_adopting("scenario dict", Some(&text), sets, source.as_ref())
         }
-        (None, Some(text), Some(w)) => {
-            Family::open_adopting("scenario dict", Some(&text), sets, w).map_err(value_error)
-        }
-        (None, None, _) => Err(value_error("scenario: give a name, a path or a dict")),
+        (None, None) => return Err(value_error("scenario: give a name, a path or a dict")),
     }
+    .map_err(value_error)
 }
 
 /// The whisker of the scenario file `whisker_from`, read, if one is named.

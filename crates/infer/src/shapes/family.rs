@@ -111,13 +111,9 @@ impl ShapeFamily {
             .iter()
             .map(|(class, text)| {
                 let origin = format!("{name}/{class}");
-                let family = match whisker {
-                    Some(w) => Family::open_adopting(&origin, Some(text), sets, w)?,
-                    None => Family::open_str(text, &origin, sets)?,
-                };
                 Ok(Class {
                     name: class.to_string(),
-                    family,
+                    family: Family::open_adopting(&origin, Some(text), sets, whisker)?,
                 })
             })
             .collect::<Result<Vec<_>>>();
@@ -144,20 +140,13 @@ impl ShapeFamily {
             .into_iter()
             .map(|(name, file)| {
                 let file = file.display().to_string();
-                let family = match whisker {
-                    Some(w) => Family::open_adopting(&file, None, sets, w)?,
-                    None => Family::open(&file, sets)?,
-                };
-                Ok(Class { name, family })
+                Ok(Class {
+                    name,
+                    family: Family::open_adopting(&file, None, sets, whisker)?,
+                })
             })
             .collect::<Result<Vec<_>>>()?;
         ShapeFamily::new(spec, classes)
-    }
-
-    /// Whether every class's scenario was fitted by calibration (a calibrated whisker given to
-    /// it, say), so that randomised runs draw from what the fit left uncertain.
-    pub fn is_calibrated(&self) -> bool {
-        self.classes.iter().all(|c| c.family.is_calibrated())
     }
 
     /// The built-in's name or the file's path.
