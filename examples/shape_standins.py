@@ -14,7 +14,8 @@ that `vibrissa estimate --shapes` gives on them (trained on the nominal e3 only)
         --out /tmp/e3-si11 --method shape-esn --method shape-krr [--noise 0.03] [--randomise]
 
 Prints accuracy, log loss and expected calibration error (10 bins of the top probability) per
-method and whisker set, and writes `scores.json` into --out.
+method and whisker set, and for the runs whose class is named right how often each pose unknown's
+90% interval holds the truth and its median error; writes `scores.json` into --out.
 """
 
 import argparse
@@ -30,6 +31,10 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 CHANNELS = ["theta01", "theta12", "m0", "fx", "fy"]
+# Pose unknowns of truth.csv, and how they are printed.
+POSE = ["x", "angle", "v", "side", "radius"]
+UNITS = {"x": (1e3, "mm"), "angle": (180 / math.pi, "deg"), "v": (1.0, "m/s"),
+         "side": (1e3, "mm"), "radius": (1e3, "mm")}
 
 
 def overrides(standin):
@@ -161,12 +166,23 @@ def main():
                 sys.exit(f"estimate failed:\n{r.stderr}")
             rows = [json.loads(line) for line in r.stdout.splitlines() if line.strip()]
             top, right, loss = [], [], []
-            for est, (_, cls) in zip(rows, files):
+            held, errors = {}, {}
+            for est, (_, cls), row in zip(rows, files, truth):
                 probs = est["class"]
                 best = max(probs, key=probs.get)
                 top.append(probs[best])
                 right.append(best == cls)
                 loss.append(-math.log(max(probs.get(cls, 0.0), 1e-12)))
+                if best != cls:
+                    continue
+                # The pose of a run named right: its 90% interval and error per unknown.
+                for u in POSE:
+                    if row.get(u, "") == "" or u not in est:
+                        continue
+                    x = float(row[u])
+                    lo, hi = est[u]["ci90"]
+                    held.setdefault(u, []).append(lo <= x <= hi)
+                    errors.setdefault(u, []).append(abs(est[u]["mean"] - x))
             top, right = np.array(top), np.array(right, dtype=float)
             ece = 0.0
             for b in range(10):
@@ -174,14 +190,27 @@ def main():
                 if sel.any():
                     ece += sel.mean() * abs(right[sel].mean() - top[sel].mean())
             key = f"{method} {subset}"
+            pose = {u: {"coverage": float(np.mean(held[u])),
+                        "median_error": float(np.median(errors[u])), "runs": len(held[u])}
+                    for u in held}
             scores[key] = {
                 "accuracy": right.mean(),
                 "log_loss": float(np.mean(loss)),
                 "ece": ece,
                 "runs": len(files),
+                "pose": pose,
             }
             print(f"{key:32} accuracy {100 * right.mean():5.1f}%  log loss {np.mean(loss):.3f}  "
                   f"ECE {ece:.3f}  ({len(files)} runs)", flush=True)
+            misfit = [r["misfit"] for r in rows if "misfit" in r]
+            if misfit:
+                print(f"{'':32} misfit: median {np.median(misfit):.2f}, "
+                      f"{np.mean(np.array(misfit) > 1):.0%} above 1", flush=True)
+            for u, p in pose.items():
+                scale, unit = UNITS[u]
+                print(f"{'':32} {u:6} 90% intervals hold {100 * p['coverage']:5.1f}%, median "
+                      f"error {scale * p['median_error']:.3g} {unit} ({p['runs']} runs named right)",
+                      flush=True)
     with open(os.path.join(args.out, "scores.json"), "w") as f:
         json.dump({"standin": args.standin, "noise": args.noise, "randomise": args.randomise,
                    "scores": scores}, f, indent=1)

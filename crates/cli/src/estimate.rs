@@ -501,6 +501,7 @@ fn print_json(report: &Report, lines: bool) -> Result<()> {
             noise: row.noise.clone(),
             filter: row.filter.clone(),
             check: report.checks.get(k).cloned().flatten(),
+            misfit: None,
         }
         .to_json();
         let row = Row { value: obj };

@@ -12,7 +12,7 @@
 //! each class's probability; `method`, `seconds` (the estimate's own
 //! time, training excluded) and `noise` (the sensor noise used per channel read, SI); for the
 //! particle filter its counts under `filter`; with a model check its result under `check`; for
-//! one of several recordings its `file`.
+//! `shape-bank` its `misfit`; for one of several recordings its `file`.
 
 use crate::check::{self, Check};
 use crate::method::Estimate;
@@ -37,6 +37,10 @@ pub struct EstimateRow {
     pub filter: Vec<(&'static str, f64)>,
     /// The model check, when one was made.
     pub check: Option<Check>,
+    /// For `shape-bank`: how many times farther the recording lies from the nearest simulated
+    /// run than held-out simulated recordings typically do (1 when no farther; see
+    /// [`crate::shapes::ShapeEstimate::misfit`]).
+    pub misfit: Option<f64>,
 }
 
 impl EstimateRow {
@@ -82,6 +86,9 @@ impl EstimateRow {
                 ),
             );
         }
+        if let Some(m) = self.misfit {
+            obj.insert("misfit".into(), json!(m));
+        }
         if let Some(c) = &self.check {
             obj.insert(
                 "check".into(),
@@ -117,6 +124,7 @@ mod tests {
             noise: vec![("theta12".into(), 1e-3)],
             filter: Vec::new(),
             check: None,
+            misfit: None,
         };
         let v = Value::Object(row.to_json());
         assert_eq!(v["file"], "a.csv");

@@ -637,6 +637,7 @@ fn estimate(
                     .collect(),
                 filter,
                 check,
+                misfit: None,
             };
             rows.push(serde_json::Value::Object(row.to_json()).to_string());
         }

@@ -67,6 +67,9 @@ const START_SEPARATION: f64 = 0.15;
 const REFINE_ROUNDS: usize = 2;
 /// Most held-out runs on which the search is tried and, when kept, calibrated.
 const REFINE_HELD: usize = 240;
+/// Held-out runs whose misfit after every sample sets the reference of the posterior after
+/// every sample.
+const TRACE_HELD: usize = 100;
 
 /// Noise-free runs of a shape family for [`ShapeBank`]: twins of the training runs (the same
 /// poses and, for randomised training, the same whiskers) and further draws.
@@ -179,6 +182,14 @@ pub struct ShapeBank {
     floor: f64,
     /// The held-out runs' log loss at the chosen settings.
     held_out_loss: f64,
+    /// The median, over the held-out runs, of a run's squared distance to the nearest run that
+    /// explains it (the bank's, the fit between runs' or the search's): what a recording the
+    /// model can explain leaves unexplained. A recording that lies `r` > 1 times as far from
+    /// its nearest run is read with every temperature `r` times higher ([`ShapeBank::misfit`]).
+    misfit: f64,
+    /// The same median of the cumulative squared distance in the full whitened series after
+    /// every sample, for the posterior after every sample ([`ShapeBank::trace`]).
+    misfit_trace: Vec<f64>,
     pose_temperature: f64,
     /// 90% half-widths `[classes][unknowns]`.
     half_width: Vec<Vec<f64>>,
@@ -198,6 +209,54 @@ fn sharpnesses() -> impl Iterator<Item = f64> {
 /// Shares of the class posterior spread evenly tried: 0 to 0.5 in steps of 0.02.
 fn floors() -> impl Iterator<Item = f64> {
     (0..=25).map(|k| 0.02 * k as f64)
+}
+
+/// Settings chosen on the held-out runs by [`ShapeBank::calibrate`].
+#[derive(Debug, Clone, Copy)]
+struct Calibration {
+    /// The held-out runs' mean log loss at these settings.
+    loss: f64,
+    temperature: f64,
+    sharpness: f64,
+    floor: f64,
+    /// The held-out runs' median squared distance to their nearest run.
+    misfit: f64,
+}
+
+/// The least of the squared distances `d2` to the bank's runs and `extra` to the classes' one
+/// more run: how far the recording lies from the nearest run that explains it.
+fn nearest(d2: &[f64], extra: &[f64]) -> f64 {
+    d2.iter()
+        .chain(extra)
+        .copied()
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// The median of the finite values of `v` (NaN when there is none).
+fn median(v: &[f64]) -> f64 {
+    let mut f: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
+    if f.is_empty() {
+        return f64::NAN;
+    }
+    f.sort_by(|a, b| a.total_cmp(b));
+    let n = f.len();
+    if n % 2 == 1 {
+        f[n / 2]
+    } else {
+        0.5 * (f[n / 2 - 1] + f[n / 2])
+    }
+}
+
+/// How many times farther a recording whose nearest run lies at squared distance `near` is
+/// than the held-out runs' median `reference`: at least 1 (a recording nearer than usual is
+/// not read more sharply), and 1 when either is not a positive finite number.
+fn misfit_ratio(near: f64, reference: f64) -> f64 {
+    let r = near / reference;
+    if r.is_finite() && r > 1.0 {
+        r
+    } else {
+        1.0
+    }
 }
 
 /// `exp(s·l)` normalised.
@@ -407,6 +466,8 @@ impl ShapeBank {
             sharpness: 1.0,
             floor: 0.0,
             held_out_loss: f64::NAN,
+            misfit: f64::NAN,
+            misfit_trace: Vec::new(),
             pose_temperature: 1.0,
             half_width: Vec::new(),
         };
@@ -464,7 +525,7 @@ impl ShapeBank {
         //
         // Each number of neighbours for the fit between runs is tried alike (0: the bank alone),
         // and the one with the lowest held-out log loss kept.
-        let mut chosen = (f64::INFINITY, 1.0, 1.0, 0.0, 0usize);
+        let mut chosen: Option<(Calibration, usize)> = None;
         let mut between_held: Vec<Vec<Option<Between>>> = Vec::new();
         for k in NEIGHBOURS {
             let fitted: Vec<Vec<Option<Between>>> = d2
@@ -474,14 +535,15 @@ impl ShapeBank {
                 .collect();
             let extra: Vec<Vec<f64>> = fitted.iter().map(|b| Self::between_d2(b)).collect();
             let best = m.calibrate(&d2, &extra, &truth);
-            if best.0 < chosen.0 {
-                chosen = (best.0, best.1, best.2, best.3, k);
+            if chosen.as_ref().is_none_or(|(c, _)| best.loss < c.loss) {
+                chosen = Some((best, k));
                 between_held = fitted;
             }
         }
-        (m.temperature, m.sharpness, m.floor, m.neighbours) =
-            (chosen.1, chosen.2, chosen.3, chosen.4);
-        m.held_out_loss = chosen.0;
+        if let Some((c, k)) = chosen {
+            m.set_calibration(&c);
+            m.neighbours = k;
+        }
         // The search for each class's nearest run with the simulator, tried on a subset of the
         // held-out runs: kept, with its own temperature, sharpness and even share, when its log
         // loss there is lower than the bank's (and fit between runs') on the same runs.
@@ -509,12 +571,30 @@ impl ShapeBank {
             let after = m.calibrate(&d2_sub, &with, &truth_sub);
             let runs: usize = refined.iter().flatten().flatten().map(|f| f.runs).sum();
             m.refine_runs = runs as f64 / searched.len().max(1) as f64;
-            if after.0 < before.0 {
-                (m.held_out_loss, m.temperature, m.sharpness, m.floor) = after;
+            if after.loss < before.loss {
+                m.set_calibration(&after);
                 m.refine_classes = REFINE_CLASSES;
                 refined_held = refined;
             }
         }
+        // Each held-out run's misfit ratio, with the one more run of each class that the
+        // estimator would use.
+        let mut search_of = vec![None; held.len()];
+        if !refined_held.is_empty() {
+            for (i, &r) in searched.iter().enumerate() {
+                search_of[r] = Some(i);
+            }
+        }
+        let ratio: Vec<f64> = (0..held.len())
+            .map(|r| {
+                let b = between_held.get(r).map_or(&[][..], |b| &b[..]);
+                let extra = match search_of[r] {
+                    Some(i) => Self::extra_d2(b, &refined_held[i]),
+                    None => Self::between_d2(b),
+                };
+                m.misfit(&d2[r], &extra)
+            })
+            .collect();
         // The pose temperature: the lowest held-out error in units of each range.
         let spans: Vec<Vec<f64>> = ranges
             .iter()
@@ -533,7 +613,8 @@ impl ShapeBank {
             let err: f64 = d2
                 .iter()
                 .zip(&held)
-                .map(|(d, &(j, _))| error(&m.pose(d, training[j].class, t), &training[j]))
+                .zip(&ratio)
+                .map(|((d, &(j, _)), r)| error(&m.pose(d, training[j].class, t * r), &training[j]))
                 .sum();
             if err < best.0 {
                 best = (err, t);
@@ -546,7 +627,7 @@ impl ShapeBank {
             let c = training[held[r].0].class;
             match between_held.get(r).and_then(|b| b[c].as_ref()) {
                 Some(b) if between => b.pose.clone(),
-                _ => m.pose(&d2[r], c, m.pose_temperature),
+                _ => m.pose(&d2[r], c, m.pose_temperature * ratio[r]),
             }
         };
         // The fit between runs' pose instead, where it errs less on the held-out runs.
@@ -583,19 +664,27 @@ impl ShapeBank {
                 .collect()
         };
         (m.pose_between, m.pose_refined) = (pose_between, pose_refined);
-        // Split-conformal half-widths per class and unknown.
+        // The misfit of the posterior after every sample, on some of the held-out runs.
+        let traced: Vec<(&ShapeSample, usize)> = held
+            .iter()
+            .step_by(held.len().div_ceil(TRACE_HELD).max(1))
+            .map(|&(j, i)| (&training[j], i))
+            .collect();
+        m.misfit_trace = m.trace_misfit(&traced);
+        // Split-conformal half-widths per class and unknown, of the errors divided by the
+        // square root of each run's misfit ratio (a recording's are widened by its own).
         m.half_width = (0..classes)
             .map(|c| {
-                let runs: Vec<(&Vec<f64>, &ShapeSample)> = poses
+                let runs: Vec<(&Vec<f64>, &ShapeSample, f64)> = poses
                     .iter()
-                    .map(|(p, r)| (p, &training[held[*r].0]))
-                    .filter(|(_, s)| s.class == c)
+                    .map(|(p, r)| (p, &training[held[*r].0], ratio[*r].sqrt()))
+                    .filter(|(_, s, _)| s.class == c)
                     .collect();
                 (0..m.names[c].len())
                     .map(|u| {
                         let mut e: Vec<f64> = runs
                             .iter()
-                            .map(|(p, s)| (p[u] - s.params[u]).abs())
+                            .map(|(p, s, w)| (p[u] - s.params[u]).abs() / w)
                             .collect();
                         conformal_half_width(&mut e).unwrap_or(0.5 * spans[c][u])
                     })
@@ -605,20 +694,45 @@ impl ShapeBank {
         Ok(m)
     }
 
-    /// The temperature, sharpness and even share with the lowest held-out log loss, and that
-    /// loss: `(loss, t, s, e)`, for held-out runs with squared distances `d2` to the bank's runs
-    /// and `extra` to each class's one more run, and true classes `truth`.
-    fn calibrate(
-        &self,
-        d2: &[Vec<f64>],
-        extra: &[Vec<f64>],
-        truth: &[usize],
-    ) -> (f64, f64, f64, f64) {
+    /// Takes the settings of `c`.
+    fn set_calibration(&mut self, c: &Calibration) {
+        self.held_out_loss = c.loss;
+        self.temperature = c.temperature;
+        self.sharpness = c.sharpness;
+        self.floor = c.floor;
+        self.misfit = c.misfit;
+    }
+
+    /// How many times farther than the held-out runs' median the recording with squared
+    /// distances `d2` to the bank's runs and `extra` to the classes' one more run lies from the
+    /// nearest run that explains it (at least 1). Far beyond what noise and the bank's spacing
+    /// leave, the model does not explain the recording (another whisker, say), and its
+    /// differences between classes are not evidence: every temperature is raised by this ratio,
+    /// as a least-squares fit scales its noise by the reduced χ², and the pose's intervals widen
+    /// by its square root.
+    fn misfit(&self, d2: &[f64], extra: &[f64]) -> f64 {
+        misfit_ratio(nearest(d2, extra), self.misfit)
+    }
+
+    /// The temperature, sharpness and even share with the lowest held-out log loss, that loss
+    /// and the held-out runs' median misfit: `(loss, t, s, e, misfit)`, for held-out runs with
+    /// squared distances `d2` to the bank's runs and `extra` to each class's one more run, and
+    /// true classes `truth`. Each run's temperatures are scaled by its own misfit ratio, as a
+    /// recording's are.
+    fn calibrate(&self, d2: &[Vec<f64>], extra: &[Vec<f64>], truth: &[usize]) -> Calibration {
         let classes = self.counts.len();
+        let near: Vec<f64> = d2.iter().zip(extra).map(|(d, x)| nearest(d, x)).collect();
+        let reference = median(&near);
         let evidence: Vec<Vec<Vec<f64>>> = d2
             .par_iter()
             .zip(extra)
-            .map(|(d, x)| temperatures().map(|t| self.log_evidence(d, x, t)).collect())
+            .zip(&near)
+            .map(|((d, x), &n)| {
+                let r = misfit_ratio(n, reference);
+                temperatures()
+                    .map(|t| self.log_evidence(d, x, t * r))
+                    .collect()
+            })
             .collect();
         let fits: Vec<(f64, f64, f64, f64)> = temperatures()
             .enumerate()
@@ -645,14 +759,22 @@ impl ShapeBank {
                 best
             })
             .collect();
-        fits.into_iter()
+        let best = fits
+            .into_iter()
             .fold((f64::INFINITY, 1.0, 1.0, 0.0), |a, b| {
                 if b.0 < a.0 {
                     b
                 } else {
                     a
                 }
-            })
+            });
+        Calibration {
+            loss: best.0,
+            temperature: best.1,
+            sharpness: best.2,
+            floor: best.3,
+            misfit: reference,
+        }
     }
 
     /// Every class's fit between its `k` runs nearest the recording (none when `k` is 0).
@@ -921,8 +1043,9 @@ impl ShapeBank {
         let fitted = self.between_all(&z, &d2, self.neighbours);
         let refined = self.refined_all(&z, &d2, &fitted, self.refine_classes);
         let extra = Self::extra_d2(&fitted, &refined);
+        let ratio = self.misfit(&d2, &extra);
         let p: Vec<f64> = softmax(
-            &self.log_evidence(&d2, &extra, self.temperature),
+            &self.log_evidence(&d2, &extra, self.temperature * ratio),
             self.sharpness,
         )
         .into_iter()
@@ -932,44 +1055,49 @@ impl ShapeBank {
         let pose = match (&refined[best], &fitted[best]) {
             (Some(f), _) if self.pose_refined => f.pose.clone(),
             (_, Some(b)) if self.pose_between => b.pose.clone(),
-            _ => self.pose(&d2, best, self.pose_temperature),
+            _ => self.pose(&d2, best, self.pose_temperature * ratio),
         };
+        let widen = ratio.sqrt();
         let pose = pose
             .into_iter()
             .zip(&self.half_width[best])
             .zip(&self.names[best])
-            .map(|((m, h), n)| (n.clone(), Estimate::normal(m, h / crate::method::Z90)))
+            .map(|((m, h), n)| {
+                (
+                    n.clone(),
+                    Estimate::normal(m, widen * h / crate::method::Z90),
+                )
+            })
             .collect();
         Ok(ShapeEstimate {
             class: self.classes.iter().cloned().zip(p).collect(),
             best,
             pose,
+            misfit: Some(ratio),
         })
     }
 
-    /// The class posterior after every sample of one recording (`[samples][classes]`): the
-    /// same evidence as [`ShapeBank::predict`]'s, each bank run's likelihood that of the
-    /// recording so far (the whitening is causal: see [`SeriesNoise::whitening`]), in the full
-    /// whitened series rather than its principal components.
-    pub fn trace(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<Vec<Vec<f64>>> {
-        self.check(whiskers)?;
-        let u = whiten_runs(
-            &[&ShapeSample {
-                class: 0,
-                params: Vec::new(),
-                whiskers: whiskers.to_vec(),
-            }],
-            &self.sigma,
-            &self.noise,
-        )
-        .pop()
-        .unwrap_or_default();
-        let u: Vec<f32> = u.into_iter().map(|x| x as f32).collect();
+    /// One recording's whitened series in full (`[whiskers][samples][CHANNELS]`, f32).
+    fn whiten_one(&self, whiskers: &[Vec<Vec<f64>>]) -> Vec<f32> {
+        let run = ShapeSample {
+            class: 0,
+            params: Vec::new(),
+            whiskers: whiskers.to_vec(),
+        };
+        whiten_runs(&[&run], &self.sigma, &self.noise)
+            .pop()
+            .unwrap_or_default()
+            .into_iter()
+            .map(|x| x as f32)
+            .collect()
+    }
+
+    /// Each bank run's squared distance to the whitened recording `u` so far, after every
+    /// sample (`[bank runs][samples]`).
+    fn cumulative(&self, u: &[f32]) -> Vec<Vec<f32>> {
         let (samples, channels) = (self.samples, CHANNELS.len());
         let width = self.whiskers * samples * channels;
-        // Each bank run's squared distance to the recording so far, after every sample.
-        let cumulative: Vec<Vec<f32>> = self
-            .whitened
+        self.whitened
             .par_chunks(width)
             .map(|b| {
                 let mut sum = vec![0.0f32; samples];
@@ -986,14 +1114,47 @@ impl ShapeBank {
                 }
                 sum
             })
+            .collect()
+    }
+
+    /// The median, over `runs` (each a recording and the bank index of its own twin, left
+    /// out), of the squared distance to the nearest bank run after every sample.
+    fn trace_misfit(&self, runs: &[(&ShapeSample, usize)]) -> Vec<f64> {
+        let nearest: Vec<Vec<f64>> = runs
+            .iter()
+            .map(|(s, twin)| {
+                let mut c = self.cumulative(&self.whiten_one(&s.whiskers));
+                c[*twin].fill(f32::INFINITY);
+                (0..self.samples)
+                    .map(|t| {
+                        c.iter()
+                            .map(|c| f64::from(c[t]))
+                            .fold(f64::INFINITY, f64::min)
+                    })
+                    .collect()
+            })
             .collect();
+        (0..self.samples)
+            .map(|t| median(&nearest.iter().map(|n| n[t]).collect::<Vec<_>>()))
+            .collect()
+    }
+
+    /// The class posterior after every sample of one recording (`[samples][classes]`): the
+    /// same evidence as [`ShapeBank::predict`]'s, each bank run's likelihood that of the
+    /// recording so far (the whitening is causal: see [`SeriesNoise::whitening`]), in the full
+    /// whitened series rather than its principal components.
+    pub fn trace(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<Vec<Vec<f64>>> {
+        self.check(whiskers)?;
+        let cumulative = self.cumulative(&self.whiten_one(whiskers));
         let k = self.classes.len() as f64;
-        Ok((0..samples)
+        Ok((0..self.samples)
             .map(|t| {
                 let d2: Vec<f64> = cumulative.iter().map(|c| f64::from(c[t])).collect();
                 let none = vec![f64::INFINITY; self.counts.len()];
+                let reference = self.misfit_trace.get(t).copied().unwrap_or(f64::NAN);
+                let ratio = misfit_ratio(nearest(&d2, &none), reference);
                 softmax(
-                    &self.log_evidence(&d2, &none, self.temperature),
+                    &self.log_evidence(&d2, &none, self.temperature * ratio),
                     self.sharpness,
                 )
                 .into_iter()
@@ -1129,10 +1290,23 @@ mod tests {
     /// A made-up run of e3's class `class` at pose `p`, read by one whisker: a pulse whose time
     /// follows the first unknown and whose width tells the class.
     fn run(e3: &ShapeFamily, class: usize, p: &[f64], rng: Option<&mut Rng>) -> ShapeSample {
+        run_as(e3, class, p, rng, 1.0, 1.0)
+    }
+
+    /// A run as [`run`] makes it, on a "whisker" whose pulses are `gain` times as high and
+    /// `widen` times as wide.
+    fn run_as(
+        e3: &ShapeFamily,
+        class: usize,
+        p: &[f64],
+        rng: Option<&mut Rng>,
+        gain: f64,
+        widen: f64,
+    ) -> ShapeSample {
         let [lo, hi] = e3.classes()[class].family.ranges()[0];
         let u = (p[0] - lo) / (hi - lo);
         let centre = 20.0 + 50.0 * u;
-        let width = 3.0 + 2.0 * class as f64;
+        let width = widen * (3.0 + 2.0 * class as f64);
         let mut series: Vec<Vec<f64>> = SCALE
             .iter()
             .enumerate()
@@ -1140,7 +1314,7 @@ mod tests {
                 (0..SAMPLES)
                     .map(|i| {
                         let x = (i as f64 - centre) / width;
-                        s * (1.0 + 0.2 * c as f64) * (-x * x).exp()
+                        gain * s * (1.0 + 0.2 * c as f64) * (-x * x).exp()
                     })
                     .collect()
             })
@@ -1247,5 +1421,72 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("twin"), "{err}");
+    }
+
+    #[test]
+    fn a_recording_the_bank_cannot_explain_is_read_with_wider_probabilities_and_intervals() {
+        let e3 = ShapeFamily::builtin("e3")
+            .unwrap()
+            .unwrap()
+            .with_whiskers(&["c3"])
+            .unwrap();
+        let draws = |per: usize, seed: u64| e3.draws(per, false, seed);
+        let mut rng = Rng::new(11);
+        let train_draws = draws(60, 1);
+        let training: Vec<ShapeSample> = train_draws
+            .iter()
+            .map(|(c, p)| run(&e3, *c, p, Some(&mut rng)))
+            .collect();
+        let clean = CleanRuns {
+            twins: train_draws
+                .iter()
+                .map(|(c, p)| run(&e3, *c, p, None))
+                .collect(),
+            extra: draws(200, 2)
+                .iter()
+                .map(|(c, p)| run(&e3, *c, p, None))
+                .collect(),
+        };
+        let model = ShapeBank::fit(&e3, &training, &clean).unwrap();
+        assert!(model.misfit.is_finite() && model.misfit > 0.0);
+        assert_eq!(model.misfit_trace.len(), SAMPLES);
+        // The same poses recorded by the bank's own "whisker" and by one whose pulses are a
+        // quarter higher and a third wider.
+        let fresh = draws(10, 3);
+        let (mut own, mut other) = (Vec::new(), Vec::new());
+        for (c, p) in &fresh {
+            let a = run(&e3, *c, p, Some(&mut rng));
+            let b = run_as(&e3, *c, p, Some(&mut rng), 1.25, 1.33);
+            own.push(model.predict(&a.whiskers).unwrap());
+            other.push(model.predict(&b.whiskers).unwrap());
+        }
+        let misfit = |e: &ShapeEstimate| e.misfit.unwrap();
+        let top = |e: &ShapeEstimate| e.class[e.best].1;
+        let mean = |v: &[ShapeEstimate], f: &dyn Fn(&ShapeEstimate) -> f64| {
+            v.iter().map(f).sum::<f64>() / v.len() as f64
+        };
+        // Its own recordings lie about as far from the bank as the held-out runs did.
+        assert!(own.iter().all(|e| misfit(e) >= 1.0));
+        assert!(mean(&own, &misfit) < 2.0, "{}", mean(&own, &misfit));
+        // The other whisker's lie far beyond, and are read less surely, with wider intervals.
+        assert!(other.iter().all(|e| misfit(e) > 1.5));
+        assert!(mean(&other, &misfit) > 3.0, "{}", mean(&other, &misfit));
+        assert!(mean(&other, &top) < mean(&own, &top));
+        for (a, b) in own.iter().zip(&other) {
+            if a.best == b.best {
+                let ratio = b.pose[0].1.std / a.pose[0].1.std;
+                let expected = (misfit(b) / misfit(a)).sqrt();
+                assert!(
+                    (ratio / expected - 1.0).abs() < 1e-9,
+                    "{ratio} vs {expected}"
+                );
+            }
+        }
+        // Online alike: the last sample's posterior is no surer than the whole recording's
+        // reference allows, and every row still sums to 1.
+        let b = run_as(&e3, fresh[0].0, &fresh[0].1, Some(&mut rng), 1.25, 1.33);
+        for row in model.trace(&b.whiskers).unwrap() {
+            assert!((row.iter().sum::<f64>() - 1.0).abs() < 1e-9);
+        }
     }
 }

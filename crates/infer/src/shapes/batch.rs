@@ -49,6 +49,9 @@ impl Default for BatchOptions {
     }
 }
 
+/// A recording whose misfit ([`ShapeEstimate::misfit`]) exceeds this gets a warning.
+pub const MISFIT_WARNING: f64 = 3.0;
+
 /// The estimates of a batch.
 #[derive(Debug, Clone)]
 pub struct Batch {
@@ -162,6 +165,16 @@ pub fn estimate_batch(
             Ok((estimate, seconds))
         })
         .collect::<Result<Vec<_>>>()?;
+    for (name, (e, _)) in names.iter().zip(&estimates) {
+        if let Some(m) = e.misfit.filter(|&m| m > MISFIT_WARNING) {
+            warnings.push(format!(
+                "`{name}` lies {m:.1} times farther from every simulated run than simulated \
+                 recordings do: the scenario does not explain it (another whisker or sensors, \
+                 say); its probabilities and intervals are widened accordingly, and calibrating \
+                 the whisker first (`--whisker-from`) would serve better"
+            ));
+        }
+    }
     Ok(Batch {
         method: model.name().to_string(),
         estimates,
@@ -192,6 +205,7 @@ impl Batch {
                     .collect(),
                 filter: Vec::new(),
                 check: None,
+                misfit: e.misfit,
             })
             .collect()
     }

@@ -49,6 +49,12 @@ pub struct ShapeEstimate {
     pub best: usize,
     /// That class's unknowns, by name.
     pub pose: Vec<(String, Estimate)>,
+    /// How many times farther the recording lies from the nearest run the estimator could
+    /// simulate than its held-out simulated recordings typically do (at least 1), where the
+    /// estimator measures it (`shape-bank`). Far above 1, the model does not explain the
+    /// recording (another whisker, say); the estimator has then widened its probabilities
+    /// and intervals by it.
+    pub misfit: Option<f64>,
 }
 
 /// Kernel ridge scores of each class's indicator, through a softmax.
@@ -619,6 +625,7 @@ impl ShapeKrr {
             class: self.classes.iter().cloned().zip(p).collect(),
             best,
             pose,
+            misfit: None,
         })
     }
 

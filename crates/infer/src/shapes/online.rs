@@ -735,6 +735,7 @@ impl Online<'_> {
             class: m.classes.iter().cloned().zip(p).collect(),
             best,
             pose,
+            misfit: None,
         }
     }
 }
