@@ -15,7 +15,8 @@ that `vibrissa estimate --shapes` gives on them (trained on the nominal e3 only)
 
 Prints accuracy, log loss and expected calibration error (10 bins of the top probability) per
 method and whisker set, and for the runs whose class is named right how often each pose unknown's
-90% interval holds the truth and its median error; writes `scores.json` into --out.
+90% interval holds the truth and its median error; writes `scores.json` and every estimate
+(`estimates-METHOD-WHISKERS.jsonl`) into --out.
 """
 
 import argparse
@@ -165,6 +166,8 @@ def main():
             if r.returncode != 0:
                 sys.exit(f"estimate failed:\n{r.stderr}")
             rows = [json.loads(line) for line in r.stdout.splitlines() if line.strip()]
+            with open(os.path.join(args.out, f"estimates-{method}-{subset}.jsonl"), "w") as f:
+                f.write(r.stdout)
             top, right, loss = [], [], []
             held, errors = {}, {}
             for est, (_, cls), row in zip(rows, files, truth):

@@ -715,34 +715,62 @@ impl ShapeBank {
     }
 
     /// The temperature, sharpness and even share with the lowest held-out log loss, that loss
-    /// and the held-out runs' median misfit: `(loss, t, s, e, misfit)`, for held-out runs with
-    /// squared distances `d2` to the bank's runs and `extra` to each class's one more run, and
-    /// true classes `truth`. Each run's temperatures are scaled by its own misfit ratio, as a
-    /// recording's are.
+    /// and the held-out runs' median misfit, for held-out runs with squared distances `d2` to
+    /// the bank's runs and `extra` to each class's one more run, and true classes `truth`. Each
+    /// run's temperatures are scaled by its own misfit ratio, as a recording's are; the even
+    /// share is at least the one chosen without that scaling. (Every held-out run is one the
+    /// family explains, and those of them whose nearest runs mislead lie a little farther than
+    /// the rest, so that with the scaling a smaller share would do; a recording that the family
+    /// explains wrongly but closely, as another whisker's may be, still needs it.)
     fn calibrate(&self, d2: &[Vec<f64>], extra: &[Vec<f64>], truth: &[usize]) -> Calibration {
-        let classes = self.counts.len();
         let near: Vec<f64> = d2.iter().zip(extra).map(|(d, x)| nearest(d, x)).collect();
         let reference = median(&near);
-        let evidence: Vec<Vec<Vec<f64>>> = d2
-            .par_iter()
-            .zip(extra)
-            .zip(&near)
-            .map(|((d, x), &n)| {
-                let r = misfit_ratio(n, reference);
-                temperatures()
-                    .map(|t| self.log_evidence(d, x, t * r))
-                    .collect()
-            })
-            .collect();
+        let evidence = |scaled: bool| -> Vec<Vec<Vec<f64>>> {
+            d2.par_iter()
+                .zip(extra)
+                .zip(&near)
+                .map(|((d, x), &n)| {
+                    let r = if scaled {
+                        misfit_ratio(n, reference)
+                    } else {
+                        1.0
+                    };
+                    temperatures()
+                        .map(|t| self.log_evidence(d, x, t * r))
+                        .collect()
+                })
+                .collect()
+        };
+        let plain = self.least_loss(&evidence(false), truth, 0.0);
+        let best = self.least_loss(&evidence(true), truth, plain.3);
+        Calibration {
+            loss: best.0,
+            temperature: best.1,
+            sharpness: best.2,
+            floor: best.3,
+            misfit: reference,
+        }
+    }
+
+    /// The temperature, sharpness and even share (at least `least_floor`) with the lowest mean
+    /// log loss of the held-out runs with log evidence `evidence` (`[runs][temperatures]
+    /// [classes]`) and true classes `truth`: `(loss, t, s, e)`.
+    fn least_loss(
+        &self,
+        evidence: &[Vec<Vec<f64>>],
+        truth: &[usize],
+        least_floor: f64,
+    ) -> (f64, f64, f64, f64) {
+        let classes = self.counts.len();
         let fits: Vec<(f64, f64, f64, f64)> = temperatures()
             .enumerate()
             .collect::<Vec<_>>()
             .par_iter()
             .map(|&(k, t)| {
-                let mut best = (f64::INFINITY, t, 1.0, 0.0);
+                let mut best = (f64::INFINITY, t, 1.0, least_floor);
                 for s in sharpnesses() {
                     let soft: Vec<Vec<f64>> = evidence.iter().map(|l| softmax(&l[k], s)).collect();
-                    for e in floors() {
+                    for e in floors().filter(|&e| e >= least_floor) {
                         let loss: f64 = soft
                             .iter()
                             .zip(truth)
@@ -750,7 +778,7 @@ impl ShapeBank {
                                 -((1.0 - e) * p[c] + e / classes as f64).max(1e-300).ln()
                             })
                             .sum::<f64>()
-                            / d2.len() as f64;
+                            / evidence.len() as f64;
                         if loss < best.0 {
                             best = (loss, t, s, e);
                         }
@@ -759,22 +787,14 @@ impl ShapeBank {
                 best
             })
             .collect();
-        let best = fits
-            .into_iter()
-            .fold((f64::INFINITY, 1.0, 1.0, 0.0), |a, b| {
+        fits.into_iter()
+            .fold((f64::INFINITY, 1.0, 1.0, least_floor), |a, b| {
                 if b.0 < a.0 {
                     b
                 } else {
                     a
                 }
-            });
-        Calibration {
-            loss: best.0,
-            temperature: best.1,
-            sharpness: best.2,
-            floor: best.3,
-            misfit: reference,
-        }
+            })
     }
 
     /// Every class's fit between its `k` runs nearest the recording (none when `k` is 0).
