@@ -259,6 +259,48 @@ fn misfit_ratio(near: f64, reference: f64) -> f64 {
     }
 }
 
+/// The temperature, sharpness and even share (at least `least_floor`) with the lowest mean
+/// log loss over `classes` classes of the held-out runs with log evidence `evidence` (`[runs][temperatures]
+/// [classes]`) and true classes `truth`: `(loss, t, s, e)`.
+fn least_loss(
+    classes: usize,
+    evidence: &[Vec<Vec<f64>>],
+    truth: &[usize],
+    least_floor: f64,
+) -> (f64, f64, f64, f64) {
+    let fits: Vec<(f64, f64, f64, f64)> = temperatures()
+        .enumerate()
+        .collect::<Vec<_>>()
+        .par_iter()
+        .map(|&(k, t)| {
+            let mut best = (f64::INFINITY, t, 1.0, least_floor);
+            for s in sharpnesses() {
+                let soft: Vec<Vec<f64>> = evidence.iter().map(|l| softmax(&l[k], s)).collect();
+                for e in floors().filter(|&e| e >= least_floor) {
+                    let loss: f64 = soft
+                        .iter()
+                        .zip(truth)
+                        .map(|(p, &c)| -((1.0 - e) * p[c] + e / classes as f64).max(1e-300).ln())
+                        .sum::<f64>()
+                        / evidence.len() as f64;
+                    if loss < best.0 {
+                        best = (loss, t, s, e);
+                    }
+                }
+            }
+            best
+        })
+        .collect();
+    fits.into_iter()
+        .fold((f64::INFINITY, 1.0, 1.0, least_floor), |a, b| {
+            if b.0 < a.0 {
+                b
+            } else {
+                a
+            }
+        })
+}
+
 /// `exp(s·l)` normalised.
 fn softmax(l: &[f64], s: f64) -> Vec<f64> {
     let top = l.iter().copied().fold(f64::NEG_INFINITY, f64::max);
@@ -741,8 +783,9 @@ impl ShapeBank {
                 })
                 .collect()
         };
-        let plain = self.least_loss(&evidence(false), truth, 0.0);
-        let best = self.least_loss(&evidence(true), truth, plain.3);
+        let classes = self.counts.len();
+        let plain = least_loss(classes, &evidence(false), truth, 0.0);
+        let best = least_loss(classes, &evidence(true), truth, plain.3);
         Calibration {
             loss: best.0,
             temperature: best.1,
@@ -750,51 +793,6 @@ impl ShapeBank {
             floor: best.3,
             misfit: reference,
         }
-    }
-
-    /// The temperature, sharpness and even share (at least `least_floor`) with the lowest mean
-    /// log loss of the held-out runs with log evidence `evidence` (`[runs][temperatures]
-    /// [classes]`) and true classes `truth`: `(loss, t, s, e)`.
-    fn least_loss(
-        &self,
-        evidence: &[Vec<Vec<f64>>],
-        truth: &[usize],
-        least_floor: f64,
-    ) -> (f64, f64, f64, f64) {
-        let classes = self.counts.len();
-        let fits: Vec<(f64, f64, f64, f64)> = temperatures()
-            .enumerate()
-            .collect::<Vec<_>>()
-            .par_iter()
-            .map(|&(k, t)| {
-                let mut best = (f64::INFINITY, t, 1.0, least_floor);
-                for s in sharpnesses() {
-                    let soft: Vec<Vec<f64>> = evidence.iter().map(|l| softmax(&l[k], s)).collect();
-                    for e in floors().filter(|&e| e >= least_floor) {
-                        let loss: f64 = soft
-                            .iter()
-                            .zip(truth)
-                            .map(|(p, &c)| {
-                                -((1.0 - e) * p[c] + e / classes as f64).max(1e-300).ln()
-                            })
-                            .sum::<f64>()
-                            / evidence.len() as f64;
-                        if loss < best.0 {
-                            best = (loss, t, s, e);
-                        }
-                    }
-                }
-                best
-            })
-            .collect();
-        fits.into_iter()
-            .fold((f64::INFINITY, 1.0, 1.0, least_floor), |a, b| {
-                if b.0 < a.0 {
-                    b
-                } else {
-                    a
-                }
-            })
     }
 
     /// Every class's fit between its `k` runs nearest the recording (none when `k` is 0).
@@ -1263,6 +1261,31 @@ fn starts(
 mod tests {
     use super::*;
     use vibrissa_core::rng::Rng;
+
+    #[test]
+    fn the_even_share_is_never_below_the_least_allowed_and_the_misfit_ratio_is_at_least_one() {
+        // Two classes, three temperatures' worth of evidence: nine runs named right with
+        // confidence and one named wrong with confidence.
+        let right = vec![vec![0.0, -20.0]; temperatures().count()];
+        let wrong = vec![vec![-20.0, 0.0]; temperatures().count()];
+        let mut evidence = vec![right; 9];
+        evidence.push(wrong);
+        let truth = vec![0; 10];
+        let free = least_loss(2, &evidence, &truth, 0.0);
+        assert!(free.3 > 0.0 && free.3 < 0.4, "{free:?}");
+        let held = least_loss(2, &evidence, &truth, 0.4);
+        assert!(held.3 >= 0.4, "{held:?}");
+        assert!(held.0 > free.0);
+        // The median of the finite values; ratios below 1 or undefined count as 1.
+        assert_eq!(median(&[3.0, f64::INFINITY, 1.0, 2.0]), 2.0);
+        assert_eq!(median(&[4.0, 1.0, 2.0, 3.0]), 2.5);
+        assert!(median(&[f64::NAN]).is_nan());
+        assert_eq!(misfit_ratio(50.0, 10.0), 5.0);
+        assert_eq!(misfit_ratio(5.0, 10.0), 1.0);
+        assert_eq!(misfit_ratio(5.0, f64::NAN), 1.0);
+        assert_eq!(misfit_ratio(f64::INFINITY, 10.0), 1.0);
+        assert_eq!(nearest(&[3.0, 2.0], &[f64::INFINITY, 1.5]), 1.5);
+    }
 
     #[test]
     fn the_search_starts_from_the_nearest_run_and_then_from_runs_of_other_poses() {
