@@ -133,6 +133,9 @@ pub struct RunResult {
     pub probabilities: Vec<f64>,
     /// The most probable class's pose: `[unknowns][mean, lo, hi]`.
     pub pose: Vec<[f64; 3]>,
+    /// The estimator's misfit, where it measures one ([`super::ShapeEstimate::misfit`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub misfit: Option<f64>,
 }
 
 /// A whole shape experiment's scores.
@@ -324,6 +327,7 @@ pub fn evaluate_shapes(
                         .iter()
                         .map(|(_, p)| [p.mean, p.ci90[0], p.ci90[1]])
                         .collect(),
+                    misfit: e.misfit,
                 });
             }
             let n = estimates.len().max(1) as f64;
