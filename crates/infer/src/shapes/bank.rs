@@ -1376,30 +1376,38 @@ mod tests {
         }
     }
 
-    #[test]
-    fn the_bank_measures_the_noise_names_the_class_and_covers_the_pose_of_runs_it_did_not_hold() {
+    /// The synthetic family of these tests (`e3` read by `c3`): 60 noisy training runs per
+    /// class drawn with `rng`, their noise-free twins and 200 further noise-free runs per class.
+    fn synthetic(rng: &mut Rng) -> (ShapeFamily, Vec<ShapeSample>, CleanRuns) {
         let e3 = ShapeFamily::builtin("e3")
             .unwrap()
             .unwrap()
             .with_whiskers(&["c3"])
             .unwrap();
-        let draws = |per: usize, seed: u64| e3.draws(per, false, seed);
-        let mut rng = Rng::new(7);
-        let train_draws = draws(60, 1);
-        let training: Vec<ShapeSample> = train_draws
+        let train_draws = e3.draws(60, false, 1);
+        let training = train_draws
             .iter()
-            .map(|(c, p)| run(&e3, *c, p, Some(&mut rng)))
+            .map(|(c, p)| run(&e3, *c, p, Some(&mut *rng)))
             .collect();
         let clean = CleanRuns {
             twins: train_draws
                 .iter()
                 .map(|(c, p)| run(&e3, *c, p, None))
                 .collect(),
-            extra: draws(200, 2)
+            extra: e3
+                .draws(200, false, 2)
                 .iter()
                 .map(|(c, p)| run(&e3, *c, p, None))
                 .collect(),
         };
+        (e3, training, clean)
+    }
+
+    #[test]
+    fn the_bank_measures_the_noise_names_the_class_and_covers_the_pose_of_runs_it_did_not_hold() {
+        let mut rng = Rng::new(7);
+        let (e3, training, clean) = synthetic(&mut rng);
+        let draws = |per: usize, seed: u64| e3.draws(per, false, seed);
         let model = ShapeBank::fit(&e3, &training, &clean).unwrap();
         // The noise it measured against the twins: the true tenth of each channel's size.
         let settings = model.settings();
@@ -1468,28 +1476,9 @@ mod tests {
 
     #[test]
     fn a_recording_the_bank_cannot_explain_is_read_with_wider_probabilities_and_intervals() {
-        let e3 = ShapeFamily::builtin("e3")
-            .unwrap()
-            .unwrap()
-            .with_whiskers(&["c3"])
-            .unwrap();
-        let draws = |per: usize, seed: u64| e3.draws(per, false, seed);
         let mut rng = Rng::new(11);
-        let train_draws = draws(60, 1);
-        let training: Vec<ShapeSample> = train_draws
-            .iter()
-            .map(|(c, p)| run(&e3, *c, p, Some(&mut rng)))
-            .collect();
-        let clean = CleanRuns {
-            twins: train_draws
-                .iter()
-                .map(|(c, p)| run(&e3, *c, p, None))
-                .collect(),
-            extra: draws(200, 2)
-                .iter()
-                .map(|(c, p)| run(&e3, *c, p, None))
-                .collect(),
-        };
+        let (e3, training, clean) = synthetic(&mut rng);
+        let draws = |per: usize, seed: u64| e3.draws(per, false, seed);
         let model = ShapeBank::fit(&e3, &training, &clean).unwrap();
         assert!(model.misfit.is_finite() && model.misfit > 0.0);
         assert_eq!(model.misfit_trace.len(), SAMPLES);
