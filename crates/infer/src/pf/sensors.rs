@@ -76,9 +76,11 @@ struct Block<const N: usize> {
 
 impl<const N: usize> Block<N> {
     /// Takes the sample `y` of the block's channel `j` whose model value is `x` with observation
-    /// variance `var`: returns the log predictive density (less the constant of a known-gain
-    /// Gaussian, −½ ln 2πσ², so that it reduces to −½ z² when the gains are known).
-    fn take(&mut self, j: usize, x: f64, y: f64, var: f64) -> f64 {
+    /// variance `var`: returns `(z², s/var)`, the squared residual in units of its predictive
+    /// variance `s` and that variance's ratio to `var` (at least 1). The log predictive density,
+    /// less the constant of a known-gain Gaussian (−½ ln 2πσ², so that it reduces to −½ z² when
+    /// the gains are known), is `−½ (z² + ln(s/var))`.
+    fn take(&mut self, j: usize, x: f64, y: f64, var: f64) -> (f64, f64) {
         let k = N / 2;
         let ph: [f64; N] = std::array::from_fn(|i| self.cov[i][j] * x + self.cov[i][k + j]);
         let s = (x * ph[j] + ph[k + j] + var).max(var);
@@ -95,7 +97,7 @@ impl<const N: usize> Block<N> {
         for i in 0..N {
             self.cov[i][i] = self.cov[i][i].max(0.0);
         }
-        -0.5 * (r * r / s + (s / var).ln())
+        (r * r * inv_s, s / var)
     }
 }
 
@@ -150,18 +152,22 @@ impl SensorBelief {
         seen: &[bool; 5],
         sigma: &[f64; 5],
     ) -> f64 {
-        let mut ll = 0.0;
+        // One logarithm for the five channels' variance ratios (each at least 1 and bounded by
+        // the prior's spread, so that their product stays finite).
+        let (mut z2, mut ratio) = (0.0, 1.0);
         for c in 0..5 {
             if seen[c] {
                 let var = sigma[c] * sigma[c];
-                ll += if c < 2 {
+                let (z, r) = if c < 2 {
                     self.angles.take(c, x[c], y[c], var)
                 } else {
                     self.wrench.take(c - 2, x[c], y[c], var)
                 };
+                z2 += z;
+                ratio *= r;
             }
         }
-        ll
+        -0.5 * (z2 + ratio.ln())
     }
 
     /// The posterior of the gains and offsets over the particles' `beliefs` with normalised

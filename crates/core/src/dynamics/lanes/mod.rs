@@ -354,7 +354,9 @@ fn run<S: BorrowMut<State>>(
     for l in 0..LANES {
         lw.state.gather(l, states[l.min(count - 1)].borrow());
     }
-    let objects: [&[Object]; LANES] = std::array::from_fn(|l| plan.objects_of(l.min(count - 1)));
+    // The copies step without objects: their contact stages would be thrown away.
+    let objects: [&[Object]; LANES] =
+        std::array::from_fn(|l| if l < count { plan.objects_of(l) } else { &[] });
     let mut live: [bool; LANES] = std::array::from_fn(|l| l < count);
     for j in 0..plan.steps {
         if !live.iter().any(|x| *x) {
