@@ -19,11 +19,17 @@
 //! the probabilities are calibrated on runs the bank did not hold. The pose is the likelihood-weighted mean of the best class's bank runs
 //! (at its own temperature, chosen by the held-out runs' pose errors), with a 90% interval as
 //! wide as the held-out runs' errors (a split-conformal interval).
+//!
+//! A recording lying farther from its nearest run than the held-out runs do (misfit ratio `r`)
+//! is read with every temperature multiplied by `r`; how much of its class posterior is then
+//! spread evenly, and how far its pose intervals widen, is learnt from noisy runs of whiskers
+//! drawn from the randomisation prior ([`super::off_nominal`]).
 
 use super::between::{between, Between};
 use super::estimator::{conformal_half_width, ShapeEstimate};
 use super::evaluate::subset;
 use super::family::{ShapeFamily, ShapeSample};
+use super::off_nominal::{self, Readings, Trust};
 use super::refine::{refine, Refined};
 use super::series_noise::SeriesNoise;
 use crate::error::{Error, Result};
@@ -70,6 +76,11 @@ const REFINE_HELD: usize = 240;
 /// Held-out runs whose misfit after every sample sets the reference of the posterior after
 /// every sample.
 const TRACE_HELD: usize = 100;
+/// Noisy runs per class of whiskers drawn from the randomisation prior, read after the fit to
+/// learn how far a reading can be trusted at a given misfit ([`off_nominal`]).
+const OFF_NOMINAL_PER_CLASS: usize = 30;
+/// Seed of those runs' poses, whiskers and sensors.
+const OFF_NOMINAL_SEED: u64 = 0x0ff_a0e1;
 
 /// Noise-free runs of a shape family for [`ShapeBank`]: twins of the training runs (the same
 /// poses and, for randomised training, the same whiskers) and further draws.
@@ -191,8 +202,26 @@ pub struct ShapeBank {
     /// every sample, for the posterior after every sample ([`ShapeBank::trace`]).
     misfit_trace: Vec<f64>,
     pose_temperature: f64,
-    /// 90% half-widths `[classes][unknowns]`.
+    /// 90% half-widths `[classes][unknowns]`, at a misfit ratio of 1.
     half_width: Vec<Vec<f64>>,
+    /// How far a reading is trusted at a given misfit ratio ([`off_nominal`]).
+    trust: Trust,
+    /// `δ` of [`off_nominal`]: a pose interval widens by `r^δ`.
+    widen_power: f64,
+    /// The drawn whiskers' runs read to fit `trust` and `widen_power`: how many, the share named
+    /// right, and their median misfit ratio (0, NaN, NaN when none could be simulated).
+    off_nominal: (usize, f64, f64),
+}
+
+/// What [`ShapeBank::read`] makes of a recording before the trust in it is applied.
+struct Reading {
+    /// The class posterior.
+    p: Vec<f64>,
+    /// The most probable class and its pose.
+    best: usize,
+    pose: Vec<f64>,
+    /// The misfit ratio.
+    ratio: f64,
 }
 
 /// Temperatures tried: powers of √2 from 2^-4 to 2^28 (the squared distances are in units of
@@ -377,6 +406,18 @@ impl ShapeBank {
     /// Fits on the noisy `training` runs of `family` and the noise-free `clean` runs (whose
     /// twins are the training runs' poses).
     pub fn fit(family: &ShapeFamily, training: &[ShapeSample], clean: &CleanRuns) -> Result<Self> {
+        Self::fit_with(family, training, clean, None)
+    }
+
+    /// [`ShapeBank::fit`], with `drawn` the noise-free runs of other whiskers that the trust
+    /// in a reading is fitted on (when `None`, [`OFF_NOMINAL_PER_CLASS`] runs per class of
+    /// whiskers drawn from the family's randomisation prior, when the bank can simulate).
+    fn fit_with(
+        family: &ShapeFamily,
+        training: &[ShapeSample],
+        clean: &CleanRuns,
+        drawn: Option<Vec<ShapeSample>>,
+    ) -> Result<Self> {
         let first = training
             .first()
             .ok_or_else(|| fit_error("no training runs".into()))?;
@@ -512,6 +553,9 @@ impl ShapeBank {
             misfit_trace: Vec::new(),
             pose_temperature: 1.0,
             half_width: Vec::new(),
+            trust: Trust::default(),
+            widen_power: 0.5,
+            off_nominal: (0, f64::NAN, f64::NAN),
         };
         m.z = m.project_all(&bank);
         m.whitened = bank
@@ -627,15 +671,17 @@ impl ShapeBank {
                 search_of[r] = Some(i);
             }
         }
-        let ratio: Vec<f64> = (0..held.len())
+        let held_extra: Vec<Vec<f64>> = (0..held.len())
             .map(|r| {
                 let b = between_held.get(r).map_or(&[][..], |b| &b[..]);
-                let extra = match search_of[r] {
+                match search_of[r] {
                     Some(i) => Self::extra_d2(b, &refined_held[i]),
                     None => Self::between_d2(b),
-                };
-                m.misfit(&d2[r], &extra)
+                }
             })
+            .collect();
+        let ratio: Vec<f64> = (0..held.len())
+            .map(|r| m.misfit(&d2[r], &held_extra[r]))
             .collect();
         // The pose temperature: the lowest held-out error in units of each range.
         let spans: Vec<Vec<f64>> = ranges
@@ -713,27 +759,127 @@ impl ShapeBank {
             .map(|&(j, i)| (&training[j], i))
             .collect();
         m.misfit_trace = m.trace_misfit(&traced);
-        // Split-conformal half-widths per class and unknown, of the errors divided by the
-        // square root of each run's misfit ratio (a recording's are widened by its own).
-        m.half_width = (0..classes)
-            .map(|c| {
-                let runs: Vec<(&Vec<f64>, &ShapeSample, f64)> = poses
+        // Split-conformal half-widths per class and unknown, of the errors divided by each
+        // run's misfit ratio to the power `power` (a recording's are widened by its own).
+        let half_widths = |power: f64| -> Vec<Vec<f64>> {
+            (0..classes)
+                .map(|c| {
+                    let runs: Vec<(&Vec<f64>, &ShapeSample, f64)> = poses
+                        .iter()
+                        .map(|(p, r)| (p, &training[held[*r].0], ratio[*r].powf(power)))
+                        .filter(|(_, s, _)| s.class == c)
+                        .collect();
+                    (0..m.names[c].len())
+                        .map(|u| {
+                            let mut e: Vec<f64> = runs
+                                .iter()
+                                .map(|(p, s, w)| (p[u] - s.params[u]).abs() / w)
+                                .collect();
+                            conformal_half_width(&mut e).unwrap_or(0.5 * spans[c][u])
+                        })
+                        .collect()
+                })
+                .collect()
+        };
+        m.half_width = half_widths(m.widen_power);
+        // How far a reading can be trusted at a given misfit: learnt from noisy runs of other
+        // whiskers (the training runs' own noise added to their noise-free runs).
+        let drawn = match drawn {
+            Some(runs) => runs,
+            None => m.drawn_runs(),
+        };
+        if !drawn.is_empty() {
+            let noisy: Vec<ShapeSample> = drawn
+                .iter()
+                .enumerate()
+                .map(|(k, s)| {
+                    let (j, i) = pairs[(k * 7919) % pairs.len()];
+                    let mut s = s.clone();
+                    for ((w, wn), wc) in s
+                        .whiskers
+                        .iter_mut()
+                        .zip(&training[j].whiskers)
+                        .zip(&bank[i].whiskers)
+                    {
+                        for ((c, cn), cc) in w.iter_mut().zip(wn).zip(wc) {
+                            for ((x, a), b) in c.iter_mut().zip(cn).zip(cc) {
+                                *x += a - b;
+                            }
+                        }
+                    }
+                    s
+                })
+                .collect();
+            let readings: Vec<Reading> = noisy
+                .par_iter()
+                .filter_map(|s| m.read(&s.whiskers).ok())
+                .collect();
+            let truth_drawn: Vec<usize> = noisy.iter().map(|s| s.class).collect();
+            let own_p: Vec<Vec<f64>> = (0..held.len())
+                .map(|r| m.posterior(&d2[r], &held_extra[r], ratio[r]))
+                .collect();
+            let drawn_p: Vec<Vec<f64>> = readings.iter().map(|r| r.p.clone()).collect();
+            let drawn_r: Vec<f64> = readings.iter().map(|r| r.ratio).collect();
+            if readings.len() == noisy.len() {
+                m.trust = off_nominal::fit_trust(
+                    &Readings {
+                        probs: &own_p,
+                        truth: &truth,
+                        ratio: &ratio,
+                    },
+                    &Readings {
+                        probs: &drawn_p,
+                        truth: &truth_drawn,
+                        ratio: &drawn_r,
+                    },
+                );
+                // The pose intervals of the drawn whiskers' runs named right.
+                let right: Vec<(&Reading, &ShapeSample)> = readings
                     .iter()
-                    .map(|(p, r)| (p, &training[held[*r].0], ratio[*r].sqrt()))
-                    .filter(|(_, s, _)| s.class == c)
+                    .zip(&noisy)
+                    .filter(|(r, s)| r.best == s.class)
                     .collect();
-                (0..m.names[c].len())
-                    .map(|u| {
-                        let mut e: Vec<f64> = runs
-                            .iter()
-                            .map(|(p, s, w)| (p[u] - s.params[u]).abs() / w)
-                            .collect();
-                        conformal_half_width(&mut e).unwrap_or(0.5 * spans[c][u])
-                    })
-                    .collect()
-            })
-            .collect();
+                m.widen_power = off_nominal::widen_power(|power| {
+                    if right.len() < 2 * classes {
+                        return None;
+                    }
+                    let h = half_widths(power);
+                    let (mut held_in, mut all) = (0usize, 0usize);
+                    for (r, s) in &right {
+                        let w = r.ratio.powf(power);
+                        for (u, (p, x)) in r.pose.iter().zip(&s.params).enumerate() {
+                            all += 1;
+                            held_in += usize::from((p - x).abs() <= h[s.class][u] * w);
+                        }
+                    }
+                    Some(held_in as f64 / all.max(1) as f64)
+                });
+                m.half_width = half_widths(m.widen_power);
+                m.off_nominal = (
+                    readings.len(),
+                    right.len() as f64 / readings.len() as f64,
+                    median(&drawn_r),
+                );
+            }
+        }
         Ok(m)
+    }
+
+    /// Noise-free runs, [`OFF_NOMINAL_PER_CLASS`] per class, of whiskers and sensors drawn from
+    /// the randomisation prior of the family the bank simulates (none when it simulates none,
+    /// or the runs cannot be made).
+    fn drawn_runs(&self) -> Vec<ShapeSample> {
+        let Some(family) = &self.family else {
+            return Vec::new();
+        };
+        let Ok(drawn) = family.randomised_if(true) else {
+            return Vec::new();
+        };
+        let draws = drawn.draws(OFF_NOMINAL_PER_CLASS, false, OFF_NOMINAL_SEED);
+        drawn
+            .simulate_completed(&draws, &Noise::NONE, OFF_NOMINAL_SEED, &|| {})
+            .map(|(runs, _)| runs)
+            .unwrap_or_default()
     }
 
     /// Takes the settings of `c`.
@@ -1051,31 +1197,55 @@ impl ShapeBank {
         Ok(())
     }
 
-    /// The class posterior and the most probable class's pose of one recording
-    /// (`[whiskers][CHANNELS][samples]`).
-    pub fn predict(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<ShapeEstimate> {
-        self.check(whiskers)?;
-        let z = self.project(whiskers);
-        let d2 = self.distances(&z);
+    /// The class posterior of a recording with squared distances `d2` to the bank's runs and
+    /// `extra` to each class's one more run, at misfit ratio `ratio`, before the trust in it.
+    fn posterior(&self, d2: &[f64], extra: &[f64], ratio: f64) -> Vec<f64> {
         let k = self.classes.len() as f64;
-        let fitted = self.between_all(&z, &d2, self.neighbours);
-        let refined = self.refined_all(&z, &d2, &fitted, self.refine_classes);
-        let extra = Self::extra_d2(&fitted, &refined);
-        let ratio = self.misfit(&d2, &extra);
-        let p: Vec<f64> = softmax(
-            &self.log_evidence(&d2, &extra, self.temperature * ratio),
+        softmax(
+            &self.log_evidence(d2, extra, self.temperature * ratio),
             self.sharpness,
         )
         .into_iter()
         .map(|p| (1.0 - self.floor) * p + self.floor / k)
-        .collect();
+        .collect()
+    }
+
+    /// One recording's class posterior, most probable class, its pose and the misfit ratio,
+    /// before the trust in them.
+    fn read(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<Reading> {
+        self.check(whiskers)?;
+        let z = self.project(whiskers);
+        let d2 = self.distances(&z);
+        let fitted = self.between_all(&z, &d2, self.neighbours);
+        let refined = self.refined_all(&z, &d2, &fitted, self.refine_classes);
+        let extra = Self::extra_d2(&fitted, &refined);
+        let ratio = self.misfit(&d2, &extra);
+        let p = self.posterior(&d2, &extra, ratio);
         let best = (0..p.len()).fold(0, |b, c| if p[c] > p[b] { c } else { b });
         let pose = match (&refined[best], &fitted[best]) {
             (Some(f), _) if self.pose_refined => f.pose.clone(),
             (_, Some(b)) if self.pose_between => b.pose.clone(),
             _ => self.pose(&d2, best, self.pose_temperature * ratio),
         };
-        let widen = ratio.sqrt();
+        Ok(Reading {
+            p,
+            best,
+            pose,
+            ratio,
+        })
+    }
+
+    /// The class posterior and the most probable class's pose of one recording
+    /// (`[whiskers][CHANNELS][samples]`).
+    pub fn predict(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<ShapeEstimate> {
+        let Reading {
+            p,
+            best,
+            pose,
+            ratio,
+        } = self.read(whiskers)?;
+        let p = off_nominal::trusted(&p, ratio, self.trust);
+        let widen = ratio.powf(self.widen_power);
         let pose = pose
             .into_iter()
             .zip(&self.half_width[best])
@@ -1164,20 +1334,13 @@ impl ShapeBank {
     pub fn trace(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<Vec<Vec<f64>>> {
         self.check(whiskers)?;
         let cumulative = self.cumulative(&self.whiten_one(whiskers));
-        let k = self.classes.len() as f64;
         Ok((0..self.samples)
             .map(|t| {
                 let d2: Vec<f64> = cumulative.iter().map(|c| f64::from(c[t])).collect();
                 let none = vec![f64::INFINITY; self.counts.len()];
                 let reference = self.misfit_trace.get(t).copied().unwrap_or(f64::NAN);
                 let ratio = misfit_ratio(nearest(&d2, &none), reference);
-                softmax(
-                    &self.log_evidence(&d2, &none, self.temperature * ratio),
-                    self.sharpness,
-                )
-                .into_iter()
-                .map(|p| (1.0 - self.floor) * p + self.floor / k)
-                .collect()
+                off_nominal::trusted(&self.posterior(&d2, &none, ratio), ratio, self.trust)
             })
             .collect())
     }
@@ -1204,6 +1367,13 @@ impl ShapeBank {
                 "pose_refined".into(),
                 f64::from(u8::from(self.pose_refined)),
             ),
+            ("trust_threshold".into(), self.trust.threshold),
+            ("trust_step".into(), self.trust.step),
+            ("trust_power".into(), self.trust.power),
+            ("widen_power".into(), self.widen_power),
+            ("off_nominal_runs".into(), self.off_nominal.0 as f64),
+            ("off_nominal_accuracy".into(), self.off_nominal.1),
+            ("off_nominal_misfit".into(), self.off_nominal.2),
         ];
         for (c, x) in CHANNELS.iter().zip(self.sigma) {
             s.push((format!("noise_{c}"), x));
@@ -1518,6 +1688,85 @@ mod tests {
         // reference allows, and every row still sums to 1.
         let b = run_as(&e3, fresh[0].0, &fresh[0].1, Some(&mut rng), 1.25, 1.33);
         for row in model.trace(&b.whiskers).unwrap() {
+            assert!((row.iter().sum::<f64>() - 1.0).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn readings_of_other_whiskers_teach_how_far_a_far_recording_can_be_trusted() {
+        let mut rng = Rng::new(13);
+        let (e3, training, clean) = synthetic(&mut rng);
+        // "Other whiskers": pulses a quarter higher and a third wider, noise-free (the fit adds
+        // its training runs' noise).
+        let other = |draws: &[(usize, Vec<f64>)], rng: Option<&mut Rng>| -> Vec<ShapeSample> {
+            let mut rng = rng;
+            draws
+                .iter()
+                .map(|(c, p)| run_as(&e3, *c, p, rng.as_deref_mut(), 1.25, 1.33))
+                .collect()
+        };
+        let drawn = other(&e3.draws(30, false, 21), None);
+        let plain = ShapeBank::fit(&e3, &training, &clean).unwrap();
+        let taught = ShapeBank::fit_with(&e3, &training, &clean, Some(drawn)).unwrap();
+        // Without a family it can simulate and no runs given, nothing is learnt.
+        assert_eq!(
+            (plain.trust, plain.widen_power, plain.off_nominal.0),
+            (Trust::default(), 0.5, 0)
+        );
+        assert_eq!(taught.off_nominal.0, 120);
+        assert!(
+            taught.trust.power > 0.0 || taught.trust.step > 0.0,
+            "{:?}",
+            taught.trust
+        );
+        assert!(taught.off_nominal.2 > 1.5, "{:?}", taught.off_nominal);
+        // Fresh recordings of the other whisker: lower log loss once taught; the class named and
+        // the pose are the same, its intervals at least as wide.
+        let fresh = e3.draws(15, false, 22);
+        let loss = |m: &ShapeBank, runs: &[ShapeSample]| -> f64 {
+            runs.iter()
+                .map(|s| {
+                    let e = m.predict(&s.whiskers).unwrap();
+                    -e.class[s.class].1.max(1e-300).ln()
+                })
+                .sum::<f64>()
+                / runs.len() as f64
+        };
+        let far = other(&fresh, Some(&mut rng));
+        assert!(loss(&taught, &far) < loss(&plain, &far));
+        for s in &far {
+            let (a, b) = (
+                plain.predict(&s.whiskers).unwrap(),
+                taught.predict(&s.whiskers).unwrap(),
+            );
+            assert_eq!(a.best, b.best);
+            assert_eq!(a.pose[0].1.mean, b.pose[0].1.mean);
+            assert!(b.pose[0].1.std >= a.pose[0].1.std);
+            assert!((b.class.iter().map(|x| x.1).sum::<f64>() - 1.0).abs() < 1e-9);
+            assert!(b.class[b.best].1 <= a.class[a.best].1 + 1e-12);
+        }
+        // Its own recordings are named as before; over both kinds of recording (the other
+        // whisker's lie at misfits that overlap its own here), the log loss falls.
+        let own: Vec<ShapeSample> = fresh
+            .iter()
+            .map(|(c, p)| run(&e3, *c, p, Some(&mut rng)))
+            .collect();
+        for s in &own {
+            let (a, b) = (
+                plain.predict(&s.whiskers).unwrap(),
+                taught.predict(&s.whiskers).unwrap(),
+            );
+            assert_eq!(a.best, b.best);
+        }
+        let both = |m: &ShapeBank| loss(m, &own) + loss(m, &far);
+        assert!(
+            both(&taught) < both(&plain),
+            "{} vs {}",
+            both(&taught),
+            both(&plain)
+        );
+        // Online alike: every row sums to 1.
+        for row in taught.trace(&far[0].whiskers).unwrap() {
             assert!((row.iter().sum::<f64>() - 1.0).abs() < 1e-9);
         }
     }

@@ -15,6 +15,7 @@ mod estimator;
 mod evaluate;
 mod family;
 mod method;
+mod off_nominal;
 mod online;
 mod refine;
 mod series_noise;
