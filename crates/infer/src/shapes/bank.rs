@@ -793,6 +793,8 @@ impl ShapeBank {
                 .iter()
                 .enumerate()
                 .map(|(k, s)| {
+                    // A training run's residual against its twin, a large prime's stride apart
+                    // from one drawn run to the next so that classes and poses mix.
                     let (j, i) = pairs[(k * 7919) % pairs.len()];
                     let mut s = s.clone();
                     for ((w, wn), wc) in s
