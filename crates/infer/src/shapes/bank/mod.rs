@@ -812,17 +812,16 @@ impl ShapeBank {
                     s
                 })
                 .collect();
-            let readings: Vec<Reading> = noisy
-                .par_iter()
-                .filter_map(|s| m.read(&s.whiskers).ok())
-                .collect();
-            let truth_drawn: Vec<usize> = noisy.iter().map(|s| s.class).collect();
-            let own_p: Vec<Vec<f64>> = (0..held.len())
-                .map(|r| m.posterior(&d2[r], &held_extra[r], ratio[r]))
-                .collect();
-            let drawn_p: Vec<Vec<f64>> = readings.iter().map(|r| r.p.clone()).collect();
-            let drawn_r: Vec<f64> = readings.iter().map(|r| r.ratio).collect();
-            if readings.len() == noisy.len() {
+            // Every drawn run read, or none (a run the bank cannot read leaves the trust full).
+            let readings: Option<Vec<Reading>> =
+                noisy.par_iter().map(|s| m.read(&s.whiskers).ok()).collect();
+            if let Some(readings) = readings {
+                let truth_drawn: Vec<usize> = noisy.iter().map(|s| s.class).collect();
+                let own_p: Vec<Vec<f64>> = (0..held.len())
+                    .map(|r| m.posterior(&d2[r], &held_extra[r], ratio[r]))
+                    .collect();
+                let drawn_p: Vec<Vec<f64>> = readings.iter().map(|r| r.p.clone()).collect();
+                let drawn_r: Vec<f64> = readings.iter().map(|r| r.ratio).collect();
                 m.trust = off_nominal::fit_trust(
                     &Readings {
                         probs: &own_p,
