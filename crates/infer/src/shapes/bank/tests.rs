@@ -340,3 +340,49 @@ fn readings_of_other_whiskers_teach_how_far_a_far_recording_can_be_trusted() {
         assert!((row.iter().sum::<f64>() - 1.0).abs() < 1e-9);
     }
 }
+
+/// [`run`] with noise coloured as a whisker's ringing colours it: each channel's noise an
+/// autoregression whose samples a few milliseconds apart stay alike.
+fn ringing_run(e3: &ShapeFamily, class: usize, p: &[f64], rng: &mut Rng) -> ShapeSample {
+    let mut s = run(e3, class, p, None);
+    for (ch, size) in s.whiskers[0].iter_mut().zip(SCALE) {
+        let mut e = 0.0;
+        for v in ch.iter_mut() {
+            e = 0.9 * e + (1.0f64 - 0.81).sqrt() * rng.normal();
+            *v += 0.1 * size * e;
+        }
+    }
+    s
+}
+
+#[test]
+fn fresh_recordings_of_its_own_whisker_lie_as_far_from_the_bank_as_its_held_out_runs() {
+    // The noise's covariance is read on residuals of other runs than the held-out ones: read
+    // on the same residuals, it whitens them smaller than a fresh recording's (the more so
+    // the more its samples are alike), and every recording of the bank's own whisker then
+    // looks far from it.
+    let mut rng = Rng::new(17);
+    let (e3, _, clean) = synthetic(&mut rng);
+    let training: Vec<ShapeSample> = clean
+        .twins
+        .iter()
+        .map(|s| ringing_run(&e3, s.class, &s.params, &mut rng))
+        .collect();
+    let model = ShapeBank::fit(&e3, &training, &clean).unwrap();
+    let mut ratios: Vec<f64> = e3
+        .draws(30, false, 5)
+        .iter()
+        .map(|(c, p)| {
+            let r = ringing_run(&e3, *c, p, &mut rng);
+            model.predict(&r.whiskers).unwrap().misfit.unwrap()
+        })
+        .collect();
+    ratios.sort_by(|a, b| a.total_cmp(b));
+    // Half the held-out runs lie within the reference (ratio 1); of fresh runs, about as many.
+    let within = ratios.iter().filter(|&&r| r <= 1.0).count();
+    assert!(
+        (36..=84).contains(&within),
+        "{within} of 120 within the held-out median; median ratio {}",
+        ratios[60]
+    );
+}
