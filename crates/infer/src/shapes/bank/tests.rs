@@ -1,5 +1,6 @@
 //! Tests of the bank: synthetic pulse-shaped runs stand in for a family's simulations.
 
+use super::fit::{least_loss, temperatures};
 use super::*;
 use vibrissa_core::rng::Rng;
 
