@@ -4,7 +4,7 @@
 //!
 //! `cargo run --release -p vibrissa-infer --example shape_dump -- OUT [TRAIN_PER_CLASS] [EVAL_PER_CLASS] [noisy|clean]`
 use std::io::Write;
-use vibrissa_infer::experiment::{Noise, Variant, CHANNELS};
+use vibrissa_infer::experiment::{Noise, Variant};
 use vibrissa_infer::shapes::{ShapeFamily, ShapeSample};
 use vibrissa_infer::Family;
 
@@ -41,12 +41,7 @@ fn main() {
     let (evaluated, _) = family
         .simulate_completed(&eval_draws, &noise, 1 ^ 0xe3a2, &|| {})
         .unwrap();
-    let series: Vec<&[Vec<f64>]> = evaluated
-        .iter()
-        .flat_map(|s| s.whiskers.iter().map(|w| &w[..]))
-        .collect();
-    let channels: Vec<usize> = (0..CHANNELS.len()).collect();
-    let measured = vibrissa_infer::noise::estimate_pooled(&series, &channels).unwrap();
+    let measured = ShapeSample::measured_noise(&evaluated).unwrap();
     let trained_noise = family.classes()[0]
         .family
         .training_sensor_noise(&Noise {

@@ -5,7 +5,7 @@
 //!
 //! `cargo run --release -p vibrissa-infer --example shape_misfit -- [TRAIN_PER_CLASS] [BANK_PER_CLASS]`
 //! (defaults 400 and 1600; a few minutes on 2 cores).
-use vibrissa_infer::experiment::{Noise, Variant, CHANNELS};
+use vibrissa_infer::experiment::{Noise, Variant};
 use vibrissa_infer::shapes::{CleanRuns, ShapeBank, ShapeFamily, ShapeSample};
 use vibrissa_infer::Family;
 
@@ -38,12 +38,7 @@ fn main() {
     let (evaluated, _) = family
         .simulate_completed(&draws, &noise, 7, &|| {})
         .unwrap();
-    let series: Vec<&[Vec<f64>]> = evaluated
-        .iter()
-        .flat_map(|s| s.whiskers.iter().map(|w| &w[..]))
-        .collect();
-    let channels: Vec<usize> = (0..CHANNELS.len()).collect();
-    let measured = vibrissa_infer::noise::estimate_pooled(&series, &channels).unwrap();
+    let measured = ShapeSample::measured_noise(&evaluated).unwrap();
     let trained = family.classes()[0]
         .family
         .training_sensor_noise(&Noise {

@@ -6,7 +6,7 @@ use super::bank::CleanRuns;
 use super::family::{ShapeFamily, ShapeSample};
 use super::method::{check_shape_method, fit_shape_method, needs_clean_runs};
 use crate::error::{Error, Result};
-use crate::experiment::{Noise, Variant, CHANNELS};
+use crate::experiment::{Noise, Variant};
 use crate::family::Family;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -240,12 +240,7 @@ pub fn evaluate_shapes(
         family.simulate_completed(&eval_draws, &noise, settings.seed ^ 0xe3a2, &step)?;
     // What the estimator knows of the noise: what it measures on the recordings, pooled over
     // every whisker.
-    let series: Vec<&[Vec<f64>]> = evaluated
-        .iter()
-        .flat_map(|s| s.whiskers.iter().map(|w| &w[..]))
-        .collect();
-    let channels: Vec<usize> = (0..CHANNELS.len()).collect();
-    let measured = crate::noise::estimate_pooled(&series, &channels)?;
+    let measured = ShapeSample::measured_noise(&evaluated)?;
     let training_family = family.randomised_if(settings.randomise)?;
     let train_draws = family.draws(settings.train_per_class, true, settings.seed ^ 0xe3b1);
     // The random forces are part of the experiment's world, stated as a scenario's

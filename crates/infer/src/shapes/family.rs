@@ -39,6 +39,19 @@ pub struct ShapeSample {
     pub whiskers: Vec<Vec<Vec<f64>>>,
 }
 
+impl ShapeSample {
+    /// The sensor noise of every channel measured on `runs`, every whisker of every run pooled
+    /// ([`crate::noise::estimate_pooled`]).
+    pub fn measured_noise(runs: &[ShapeSample]) -> Result<[f64; 5]> {
+        let series: Vec<&[Vec<f64>]> = runs
+            .iter()
+            .flat_map(|s| s.whiskers.iter().map(|w| &w[..]))
+            .collect();
+        let channels: Vec<usize> = (0..crate::experiment::CHANNELS.len()).collect();
+        crate::noise::estimate_pooled(&series, &channels)
+    }
+}
+
 /// Names of the built-in shape families.
 pub const SHAPE_BUILTINS: [&str; 2] = ["e3", "e3-active"];
 
