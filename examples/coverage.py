@@ -2,7 +2,7 @@
 """Coverage of every method's intervals on labelled recordings: a table and a calibration plot.
 
     python3 examples/coverage.py --set NAME=DIR[:SCENARIO] [--set ...] [--method M ...]
-        [--randomise] [--out coverage] [--vibrissa target/release/vibrissa]
+        [--randomise] [--no-pool] [--out coverage] [--vibrissa target/release/vibrissa]
 
 Each set is a folder of labelled recordings (truth.csv beside the CSVs, as `vibrissa calibrate`
 reads them) and the scenario the methods are given (default: DIR/../nominal.toml). For every
@@ -76,6 +76,9 @@ def main():
     ap.add_argument("--set", action="append", required=True, help="NAME=DIR[:SCENARIO]")
     ap.add_argument("--method", action="append", help="method(s); default: all nine")
     ap.add_argument("--randomise", action="store_true", help="estimate --randomise")
+    ap.add_argument("--no-pool", action="store_true",
+                    help="pf: filter each recording alone, not the folder as one whisker's strikes "
+                    "(estimate --no-pool)")
     ap.add_argument("--out", default="coverage", help="output stem (OUT.json, OUT.md, OUT.png)")
     ap.add_argument("--vibrissa", default="target/release/vibrissa", help="the vibrissa binary")
     a = ap.parse_args()
@@ -90,7 +93,8 @@ def main():
             if a.randomise and m.startswith("template") and m != "template-warp":
                 continue
             print(f"{name}: {m}", file=sys.stderr, flush=True)
-            r = run_method(a.vibrissa, folder, scenario, m, extra)
+            alone = ["--no-pool"] if a.no_pool and m == "pf" else []
+            r = run_method(a.vibrissa, folder, scenario, m, extra + alone)
             if r is not None:
                 results[name][m] = r
     with open(a.out + ".json", "w") as f:

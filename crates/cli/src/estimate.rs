@@ -110,9 +110,14 @@ pub struct Args {
     /// together: it filters the batch, draws the whiskers it entertains around those the whole
     /// batch favours, and filters again (--pool-rounds times; no labels needed). For a whisker
     /// known only roughly (--randomise, or a scenario the recordings defy); at least 2
-    /// recordings.
-    #[arg(long)]
+    /// recordings. The default for a batch of 5 or more when the filter entertains several
+    /// whiskers and the scenario is not calibrated.
+    #[arg(long, conflicts_with = "no_pool")]
     pub(crate) pool: bool,
+    /// pf: filter every recording alone, even where pooling is the default (a batch that holds
+    /// recordings of different whiskers).
+    #[arg(long)]
+    pub(crate) no_pool: bool,
     /// pf --pool: rounds of pooling after the first filtering of the batch.
     #[arg(long, default_value_t = vibrissa_infer::pf::pool::ROUNDS, value_name = "N")]
     pub(crate) pool_rounds: usize,
@@ -327,6 +332,9 @@ pub fn run(args: &Args) -> Result<()> {
         || !args.prior.is_empty()
     {
         bail!("--trace, --inject, --channels and --prior apply to --method pf only");
+    }
+    if args.pool || args.no_pool {
+        bail!("--pool and --no-pool apply to --method pf only (the filter learns the whisker)");
     }
     let name = args.method.as_deref().unwrap_or_default();
     let probe = methods::by_name(name)?;

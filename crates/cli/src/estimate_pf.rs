@@ -81,7 +81,17 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
         }
         methods::by_name(name)?;
     }
-    if args.pool {
+    // A batch of one whisker known only roughly is pooled unless told otherwise.
+    let pool = args.pool
+        || (!args.no_pool && args.inject.is_none() && pf::pool::by_default(args.obs.len(), family));
+    if pool && !args.pool {
+        eprintln!(
+            "pf: pooling the {} recordings as strikes of one whisker, which the filter learns \
+             from all of them together (--no-pool filters each alone)",
+            args.obs.len()
+        );
+    }
+    if pool {
         if args.obs.len() < 2 {
             bail!(
                 "--pool learns the whisker from several recordings of it: give at least 2 (got 1)"
@@ -120,7 +130,7 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
         &mut inject,
         true,
     )?;
-    if args.pool {
+    if pool {
         let pooled = pf::pool::refine(
             ests,
             &options,

@@ -1405,12 +1405,13 @@ fn experiment_e3_scores_shapes_and_exports_every_evaluated_run() {
 #[test]
 fn estimate_pool_learns_one_whisker_from_several_recordings() {
     let dir = temp("pool");
-    // Four strikes by one whisker a quarter softer than the scenario says.
-    let strikes: Vec<PathBuf> = [
+    // Five strikes by one whisker a quarter softer than the scenario says.
+    let all: Vec<PathBuf> = [
         ("0.018", "0.5"),
         ("0.021", "0.9"),
         ("0.025", "1.2"),
         ("0.027", "0.7"),
+        ("0.016", "1.0"),
     ]
     .iter()
     .enumerate()
@@ -1422,6 +1423,7 @@ fn estimate_pool_learns_one_whisker_from_several_recordings() {
         csv
     })
     .collect();
+    let strikes = &all[..4];
     let run = |extra: &[&str], files: &[PathBuf]| {
         vibrissa()
             .args(["estimate", "--experiment", "e2", "--method", "pf", "--json"])
@@ -1435,7 +1437,7 @@ fn estimate_pool_learns_one_whisker_from_several_recordings() {
             .output()
             .unwrap()
     };
-    let out = run(&["--randomise", "--pool", "--pool-rounds", "3"], &strikes);
+    let out = run(&["--randomise", "--pool", "--pool-rounds", "3"], strikes);
     let err = String::from_utf8_lossy(&out.stderr).to_string();
     assert!(out.status.success(), "{err}");
     let rows: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout)
@@ -1472,19 +1474,15 @@ fn estimate_pool_learns_one_whisker_from_several_recordings() {
     // Refused: one recording, a whisker taken as known, --inject, and no rounds.
     for (extra, files, why) in [
         (&["--randomise", "--pool"][..], &strikes[..1], "at least 2"),
-        (
-            &["--no-randomise", "--pool"][..],
-            &strikes[..],
-            "--randomise",
-        ),
+        (&["--no-randomise", "--pool"][..], strikes, "--randomise"),
         (
             &["--randomise", "--pool", "--inject", "krr"][..],
-            &strikes[..],
+            strikes,
             "--inject",
         ),
         (
             &["--randomise", "--pool", "--pool-rounds", "0"][..],
-            &strikes[..],
+            strikes,
             "--pool-rounds",
         ),
     ] {
@@ -1492,5 +1490,50 @@ fn estimate_pool_learns_one_whisker_from_several_recordings() {
         assert!(!out.status.success(), "{extra:?}");
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(err.contains(why), "{extra:?}: {err}");
+    }
+    // Five recordings or more of a whisker known only roughly are pooled unless told not to;
+    // four are filtered each alone.
+    let said = |extra: &[&str], files: &[PathBuf]| {
+        let out = run(extra, files);
+        let err = String::from_utf8_lossy(&out.stderr).to_string();
+        assert!(out.status.success(), "{extra:?}: {err}");
+        assert_eq!(
+            String::from_utf8_lossy(&out.stdout).lines().count(),
+            files.len()
+        );
+        (
+            err.contains("pf: pooling the"),
+            err.contains("pooling round 1 of 1"),
+        )
+    };
+    assert_eq!(
+        said(&["--randomise", "--pool-rounds", "1"], &all),
+        (true, true)
+    );
+    assert_eq!(
+        said(&["--randomise", "--pool-rounds", "1", "--no-pool"], &all),
+        (false, false)
+    );
+    assert_eq!(
+        said(&["--randomise", "--pool-rounds", "1"], strikes),
+        (false, false)
+    );
+    // --no-pool is the filter's, and does not go with --pool.
+    for extra in [
+        &["--method", "pf", "--pool", "--no-pool"][..],
+        &["--method", "knn", "--no-pool"][..],
+    ] {
+        let out = vibrissa()
+            .args(["estimate", "--experiment", "e2"])
+            .args(extra)
+            .arg("--obs")
+            .arg(&all[0])
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "{extra:?}");
+        assert!(
+            String::from_utf8_lossy(&out.stderr).contains("--no-pool"),
+            "{extra:?}"
+        );
     }
 }

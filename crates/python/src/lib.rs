@@ -373,7 +373,7 @@ fn recording_pool(
 /// `vibrissa estimate --json` does; returns one estimate object per recording as JSON text,
 /// and the messages the command line prints on standard error (warnings, what is trained).
 #[pyfunction]
-#[pyo3(signature = (scenario, scenario_json, sets, inputs, method, noise, seed, randomise, particles, check, whisker=None, max_delay=0.0, pool=false, pool_rounds=None, whisker_from=None))]
+#[pyo3(signature = (scenario, scenario_json, sets, inputs, method, noise, seed, randomise, particles, check, whisker=None, max_delay=0.0, pool=None, pool_rounds=None, whisker_from=None))]
 #[allow(clippy::too_many_arguments)]
 fn estimate(
     py: Python<'_>,
@@ -389,14 +389,14 @@ fn estimate(
     check: bool,
     whisker: Option<&str>,
     max_delay: f64,
-    pool: bool,
+    pool: Option<bool>,
     pool_rounds: Option<usize>,
     whisker_from: Option<&str>,
 ) -> PyResult<(Vec<String>, Vec<String>)> {
     let pf = method == "pf";
-    if pool_rounds.is_some() && !pool {
+    if pool_rounds.is_some() && pool == Some(false) {
         return Err(value_error(
-            "pool_rounds: the rounds of pooling, with pool=True",
+            "pool_rounds: the rounds of pooling, with pool=True (or None)",
         ));
     }
     if pool_rounds == Some(0) {
@@ -405,12 +405,12 @@ fn estimate(
         ));
     }
     let rounds = pool_rounds.unwrap_or(vibrissa_infer::pf::pool::ROUNDS);
-    if pool && !pf {
+    if pool == Some(true) && !pf {
         return Err(value_error(
             "pool: the filter's option (method=\"pf\"): it learns one whisker from the recordings",
         ));
     }
-    if pool && inputs.len() < 2 {
+    if pool == Some(true) && inputs.len() < 2 {
         return Err(value_error(format!(
             "pool: learns the whisker from several recordings of it: give at least 2 (got {})",
             inputs.len()
@@ -559,6 +559,18 @@ fn estimate(
                 Ok(out)
             };
         let mut options = options;
+        // A batch of one whisker known only roughly is pooled unless told otherwise.
+        let pool = pool.unwrap_or_else(|| {
+            let auto = pf && vibrissa_infer::pf::pool::by_default(recordings.len(), &family);
+            if auto {
+                messages.push(format!(
+                    "pf: pooling the {} recordings as strikes of one whisker, which the filter \
+                     learns from all of them together (pool=False filters each alone)",
+                    recordings.len()
+                ));
+            }
+            auto
+        });
         let filtered = if !pf {
             Vec::new()
         } else if pool {

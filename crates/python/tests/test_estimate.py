@@ -103,6 +103,30 @@ def test_pooling_a_batch_gives_the_command_line_s_estimates(recordings):
         vibrissa.estimate(recordings, "e2", **dict(args, pool=False))
 
 
+def test_a_batch_of_five_is_pooled_unless_told_not_to(recordings, tmp_path):
+    batch = list(recordings)
+    for k, (d, v) in enumerate([(0.017, 0.5), (0.024, 1.3), (0.019, 0.9)]):
+        path = tmp_path / f"more{k}.csv"
+        write_csv(path, noisy_run(d, v, 10 + k))
+        batch.append(path)
+    args = dict(method="pf", particles=320, randomise=True, pool_rounds=1)
+    mine = vibrissa.estimate(batch, "e2", **args)
+    theirs = cli_estimates(batch, "--method", "pf", "--particles", "320", "--randomise",
+                           "--pool-rounds", "1")
+    pooled = cli_estimates(batch, "--method", "pf", "--particles", "320", "--randomise",
+                           "--pool", "--pool-rounds", "1")
+    assert len(mine) == 5
+    for m, t, p in zip(mine, theirs, pooled):
+        assert same(m, t) and same(m, p), (m, t, p)
+    alone = vibrissa.estimate(batch, "e2", method="pf", particles=320, randomise=True,
+                              pool=False)
+    theirs = cli_estimates(batch, "--method", "pf", "--particles", "320", "--randomise",
+                           "--no-pool")
+    for m, t in zip(alone, theirs):
+        assert same(m, t), (m, t)
+    assert any(a["d"] != m["d"] for a, m in zip(alone, mine))
+
+
 def test_arrays_a_frame_and_a_path_give_the_same_estimate(recordings):
     run = noisy_run(0.021, 0.7, 0)
     from_path = vibrissa.estimate(recordings[0], method="knn")

@@ -16,6 +16,21 @@ use vibrissa_core::whisker::{Damping, Follicle, WhiskerParams};
 /// Rounds of pooling after the first filtering of the batch, by default.
 pub const ROUNDS: usize = 6;
 
+/// Least batch that the filter pools by default ([`by_default`]): on the first 5 strikes of
+/// six foreign sets pooling gained on every one, and below 5 recordings the outlier rule
+/// ([`OUTLIER_LEAST`]) cannot name a recording of another whisker.
+pub const AUTO_LEAST: usize = 5;
+
+/// Whether the filter pools a batch of `recordings` of `family` when not told either way: when
+/// it entertains several whiskers (the family is randomised, by request or because the
+/// recordings defy its whisker), the whisker is not a calibrated one (whose fit is usually the
+/// better whisker), and the batch holds at least [`AUTO_LEAST`] recordings. A batch is taken
+/// to hold one whisker and one set of sensors; recordings of different whiskers must be
+/// estimated apart, or with pooling switched off.
+pub fn by_default(recordings: usize, family: &crate::Family) -> bool {
+    recordings >= AUTO_LEAST && family.randomisation().is_some() && !family.is_calibrated()
+}
+
 /// Least log-sd of the whisker parameters drawn around the batch's favourites: each round looks
 /// at least 5% around them, so that the rounds keep moving towards the whisker the batch
 /// favours instead of settling on the first one found.

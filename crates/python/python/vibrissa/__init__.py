@@ -248,7 +248,7 @@ def estimate(
     check=False,
     whisker=None,
     max_delay=0.0,
-    pool=False,
+    pool=None,
     pool_rounds=None,
     overrides=None,
     verbose=False,
@@ -299,14 +299,16 @@ def estimate(
         discriminative methods read them aligned at the contact's onset, the filter takes the
         start delay ``t0`` as an unknown. With 0 (the default), a batch in which a recording
         leaves rest later than any run of the scenario is read so, with a warning.
-    pool : bool
+    pool : bool, optional
         ``method="pf"`` on a list of recordings made with one whisker known only roughly: the
         filter learns that whisker from all of them together (six rounds, each filtering the
         batch among whiskers drawn around those the whole batch favours), as ``vibrissa
         estimate --pool`` does. Needs the filter's alternative whiskers (``randomise=True``, or a
-        scenario the recordings defy).
+        scenario the recordings defy). Default (None): pooled when the batch holds 5 recordings
+        or more, the filter entertains several whiskers and the scenario is not calibrated;
+        ``pool=False`` filters each recording alone (recordings of different whiskers).
     pool_rounds : int, optional
-        With ``pool=True``: the rounds of pooling after the first filtering of the batch
+        When pooling: the rounds of pooling after the first filtering of the batch
         (default 6, as ``--pool-rounds``); fewer are faster and learn the whisker less well.
     verbose : bool
         Print what is trained and every warning (they are also attached as ``"warnings"``).
@@ -353,7 +355,7 @@ def estimate(
         bool(check),
         whisker,
         max_delay,
-        bool(pool),
+        None if pool is None else bool(pool),
         pool_rounds,
         None if whisker_from is None else os.fspath(whisker_from),
     )

@@ -56,7 +56,7 @@ def estimate(
     check: bool = False,
     whisker: str | None = None,
     max_delay: float = 0.0,
-    pool: bool = False,
+    pool: bool | None = None,
     pool_rounds: int | None = None,
     overrides: Mapping[str, Value] | None = None,
     verbose: bool = False,
