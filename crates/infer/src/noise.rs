@@ -1,13 +1,16 @@
 //! Sensor noise estimated from the recordings themselves.
 //!
 //! A recording's sensor noise is measured by what a local polynomial cannot follow: every sample
-//! is compared with the least-squares cubic through the seven samples centred on it (a
-//! Savitzky–Golay smooth), and the residuals' scale is found robustly.
+//! is compared with the least-squares quintic through the seven samples centred on it (a
+//! Savitzky–Golay smooth; its residual is the sixth difference of the samples, scaled), and the
+//! residuals' scale is found robustly.
 //!
-//! - A cubic over 7 ms at 1 kHz follows the whisker's own ringing (51 Hz in the first mode for
-//!   `w30`) to a small fraction of a realistic noise level, where a second difference does not:
-//!   on clean `e2` strikes the second-difference estimate is 5–15% of a 3% noise level, this
-//!   one about 2%.
+//! - A quintic over 7 samples follows the whisker's own ringing (51 Hz in the first mode for
+//!   `w30`) to a small fraction of a realistic noise level at 500 Hz and above. The cubic over
+//!   the same 7 samples, used before, does so at 1 kHz (about 2% of a 3% noise level on clean
+//!   `e2` strikes) but not at 500 Hz, where a window spans 12 ms, two thirds of a period: on
+//!   strikes of a stand-in whisker at 500 Hz with 3% noise it read the noise 16–33% high per
+//!   channel, the quintic 1–11%. A second difference reads 5–15% of a 3% level even at 1 kHz.
 //! - Contact events and impacts make a few large residuals in a cluster. The scale starts from
 //!   the median absolute residual, then every residual beyond [`TRIM`] standard deviations is
 //!   dropped together with its neighbours within the smooth's half-width (a step in the signal
@@ -19,9 +22,9 @@
 //!
 //! Windows that hold a missing (`NaN`) value are skipped. A channel with fewer than
 //! [`MIN_RESIDUALS`] complete windows is refused ([`Error::Observation`], naming the channel);
-//! a channel that no cubic misses at all (constant, or exactly polynomial) has noise 0, and one
-//! that the cubic misses in fewer than half of its windows (long constant stretches, a coarsely
-//! quantised sensor) the root mean square of its residuals.
+//! a channel that no quintic misses at all (constant, or exactly polynomial) has noise 0, and
+//! one that the quintic misses in fewer than half of its windows (long constant stretches, a
+//! coarsely quantised sensor) the root mean square of its residuals.
 //!
 //! Several recordings of one rig give one estimate by pooling their residuals
 //! ([`estimate_pooled`]); [`batch_levels`] decides which recordings of a batch agree well enough
@@ -49,32 +52,31 @@ const PASSES: usize = 5;
 /// The median absolute deviation of a standard normal variable.
 const MAD_NORMAL: f64 = 0.674_489_750_196_081_7;
 
-/// Weights of the least-squares cubic's value at the centre of 7 equally spaced samples
-/// (Savitzky–Golay): (−2, 3, 6, 7, 6, 3, −2)/21.
-const WEIGHTS: [f64; 2 * HALF_WIDTH + 1] = [
-    -2.0 / 21.0,
-    3.0 / 21.0,
-    6.0 / 21.0,
-    7.0 / 21.0,
-    6.0 / 21.0,
-    3.0 / 21.0,
-    -2.0 / 21.0,
-];
+/// What the least-squares quintic through 7 equally spaced samples leaves at the centre sample
+/// (Savitzky–Golay): the residual `x₀ − Σ wⱼ xⱼ` is orthogonal to every polynomial of degree
+/// five or less over the window, so it is proportional to the window's sixth difference, with
+/// these binomial coefficients; the centre weight is `w₀ = 1 − 20²/924`.
+const SIXTH_DIFFERENCE: [f64; 2 * HALF_WIDTH + 1] = [1.0, -6.0, 15.0, -20.0, 15.0, -6.0, 1.0];
 
-/// Residuals of one series against its local cubic, scaled so that white noise of standard
+/// Residuals of one series against its local quintic, scaled so that white noise of standard
 /// deviation σ gives residuals of standard deviation σ; one per complete (all-finite) window.
 /// Each residual is paired with the index of its window's centre, so that neighbours can be
 /// found.
 fn residuals(x: &[f64]) -> Vec<(usize, f64)> {
-    let scale = 1.0 / (1.0 - WEIGHTS[HALF_WIDTH]).sqrt();
-    x.windows(WEIGHTS.len())
+    // White noise σ gives a sixth difference of standard deviation σ·√Σcⱼ² = σ·√924.
+    let scale = 1.0 / SIXTH_DIFFERENCE.iter().map(|c| c * c).sum::<f64>().sqrt();
+    x.windows(SIXTH_DIFFERENCE.len())
         .enumerate()
         .filter(|(_, w)| w.iter().all(|v| v.is_finite()))
         .map(|(k, w)| {
-            // x₀ − Σ wⱼ xⱼ = −Σ wⱼ (xⱼ − x₀), as the weights sum to 1: exactly 0 where the
-            // window is constant.
+            // x₀ minus the smooth is −(5/231)·Σ cⱼ (xⱼ − x₀); as the coefficients sum to 0, it is
+            // exactly 0 where the window is constant.
             let centre = w[HALF_WIDTH];
-            let r: f64 = w.iter().zip(&WEIGHTS).map(|(a, b)| b * (a - centre)).sum();
+            let r: f64 = w
+                .iter()
+                .zip(&SIXTH_DIFFERENCE)
+                .map(|(a, c)| c * (a - centre))
+                .sum();
             (k + HALF_WIDTH, -scale * r)
         })
         .collect()
@@ -145,7 +147,7 @@ pub fn channel_sigma(name: &str, series: &[&[f64]]) -> Result<f64> {
         return Err(Error::Observation(format!(
             "channel {name}: too few samples to estimate its noise ({samples} samples give {n} \
              complete windows of {}; at least {MIN_RESIDUALS} are needed)",
-            WEIGHTS.len()
+            SIXTH_DIFFERENCE.len()
         )));
     }
     Ok(robust_sigma(&sets))
@@ -327,19 +329,63 @@ mod tests {
     }
 
     #[test]
-    fn the_weights_are_the_cubic_smooth() {
-        // A cubic is reproduced exactly; the weights sum to one.
-        assert!((WEIGHTS.iter().sum::<f64>() - 1.0).abs() < 1e-15);
+    fn a_quintic_leaves_no_residual() {
+        // The coefficients annihilate every polynomial of degree five or less, and their
+        // residual is the quintic smooth's: the centre sample minus the least-squares quintic's
+        // value there, scaled by 1/√(1 − w₀).
+        assert_eq!(SIXTH_DIFFERENCE.iter().sum::<f64>(), 0.0);
         let x: Vec<f64> = (0..60)
             .map(|k| {
-                let t = k as f64;
-                0.3 - 0.2 * t + 0.05 * t * t - 0.001 * t * t * t
+                let t = k as f64 / 10.0;
+                0.3 - 0.2 * t + 0.05 * t * t - 0.01 * t.powi(3) + 0.002 * t.powi(4)
+                    - 1e-4 * t.powi(5)
             })
             .collect();
         for (_, r) in residuals(&x) {
             assert!(r.abs() < 1e-12, "{r}");
         }
         assert!(channel_sigma("theta01", &[&x]).unwrap() < 1e-12);
+        // A unit spike at a window's centre leaves the residual 1 − w₀ (the smooth keeps w₀
+        // of it), scaled by 1/√(1 − w₀): √(1 − w₀), with the quintic's centre weight over 7
+        // samples w₀ = 131/231 (its smoothing weights are (5, −30, 75, 131, 75, −30, 5)/231).
+        let mut spike = vec![0.0; 7];
+        spike[3] = 1.0;
+        let w0: f64 = 131.0 / 231.0;
+        let r = residuals(&spike)[0].1;
+        assert!((r - (1.0 - w0).sqrt()).abs() < 1e-12, "{r}");
+    }
+
+    /// A damped ringing at `f` Hz sampled at `rate`, amplitude 1, with white noise `sigma`.
+    fn ringing_at(n: usize, rate: f64, f: f64, sigma: f64, seed: u64) -> Vec<f64> {
+        let mut rng = Rng::stream(seed, 1);
+        (0..n)
+            .map(|k| {
+                let t = k as f64 / rate;
+                (2.0 * std::f64::consts::PI * f * t).sin() * (-3.0 * t).exp() + sigma * rng.normal()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn ringing_sampled_at_500_hz_is_not_read_as_noise() {
+        // 51 Hz sampled at 500 Hz: about ten samples a period. The noise is measured within a
+        // few percent; a cubic over the same seven samples reads it a fifth high or more.
+        let sigma = 0.01;
+        let x = ringing_at(1000, 500.0, 51.0, sigma, 9);
+        let s = channel_sigma("theta01", &[&x]).unwrap();
+        assert!((s / sigma - 1.0).abs() < 0.08, "{s}");
+        let cubic = [-2.0, 3.0, 6.0, 7.0, 6.0, 3.0, -2.0].map(|w: f64| w / 21.0);
+        let r: Vec<f64> = x
+            .windows(7)
+            .map(|w| {
+                (w[3] - w.iter().zip(&cubic).map(|(a, b)| a * b).sum::<f64>())
+                    / (1.0 - 7.0 / 21.0f64).sqrt()
+            })
+            .collect();
+        let mut abs: Vec<f64> = r.iter().map(|v| v.abs()).collect();
+        abs.sort_by(f64::total_cmp);
+        let cubic_mad = abs[abs.len() / 2] / MAD_NORMAL;
+        assert!(cubic_mad > 1.15 * s, "{cubic_mad} vs {s}");
     }
 
     #[test]

@@ -104,7 +104,7 @@ pub fn observation_sigma(sensor: [f64; 5], model: [f64; 5], temper: f64) -> [f64
 /// Sensor noise of each channel estimated from series alone: the median absolute second
 /// difference, scaled to a standard deviation (1.4826 / √6). Robust to contact events; for clean
 /// series it measures only the signal's own curvature, which at 1 kHz is 5–15% of a 3% noise
-/// level. The estimators measure the noise with [`crate::noise`] instead, whose local cubic
+/// level. The estimators measure the noise with [`crate::noise`] instead, whose local quintic
 /// follows that curvature.
 pub fn noise_from_series(samples: &[&[Vec<f64>]]) -> [f64; 5] {
     std::array::from_fn(|c| {
