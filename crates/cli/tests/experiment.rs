@@ -1071,6 +1071,24 @@ fn estimate_check_tells_a_recording_of_the_scenario_from_one_of_another_whisker(
     assert!(out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("end of its prior"), "{err}");
+    // A zero-width prior fixes d: the filter estimates the rest, also when it entertains other
+    // whiskers and widens its intervals on held-out runs (which then leave d alone).
+    let out = pf(
+        &other,
+        &[
+            "--randomise",
+            "--alternatives",
+            "15",
+            "--prior",
+            "d=0.021:0.021",
+            "--json",
+        ],
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(v["v"]["mean"].as_f64().unwrap().is_finite(), "{v}");
+    assert!(err.contains("intervals widened"), "{err}");
 
     // The figure needs --check and one recording; nothing is written when refused.
     let refused = dir.join("refused.png");

@@ -246,9 +246,11 @@ fn interval_scale(
     let runs = family.simulate_all(&params, noise, seed, &|| {})?;
     let rate = family.sample_rate();
     let names: Vec<String> = family.unknowns().iter().map(|k| k.to_string()).collect();
-    let pairs: Vec<Vec<(f64, f64)>> = runs
+    // Per run and unknown, the error and std of the filter's estimate; `None` for an unknown
+    // that the filter does not estimate (one a zero-width prior fixes), which is not widened.
+    let pairs: Vec<Vec<Option<(f64, f64)>>> = runs
         .par_iter()
-        .map(|run| -> Result<Vec<(f64, f64)>> {
+        .map(|run| -> Result<Vec<Option<(f64, f64)>>> {
             let t: Vec<f64> = (0..run.series[0].len()).map(|k| k as f64 / rate).collect();
             let columns = run.series.iter().cloned().map(Some).collect();
             let rec = Recording::from_columns(
@@ -261,31 +263,27 @@ fn interval_scale(
             )?;
             let est = estimate(filter, family, &rec, options)?;
             let post = &est.posterior;
-            names
+            Ok(names
                 .iter()
                 .zip(&run.params)
                 .map(|(name, truth)| {
-                    let i = post
-                        .unknowns
-                        .iter()
-                        .position(|n| n == name)
-                        .ok_or_else(|| {
-                            crate::Error::Setting(format!("the filter does not estimate {name}"))
-                        })?;
-                    Ok((post.last()[i].mean - truth, post.last()[i].std))
+                    let i = post.unknowns.iter().position(|n| n == name)?;
+                    Some((post.last()[i].mean - truth, post.last()[i].std))
                 })
-                .collect()
+                .collect())
         })
         .collect::<Result<_>>()?;
     Ok(names
         .into_iter()
         .enumerate()
-        .map(|(u, name)| {
-            let p: Vec<(f64, f64)> = pairs.iter().map(|r| r[u]).collect();
-            (
-                name,
-                crate::features::coverage_factor_at(&p, INTERVAL_QUANTILE).max(1.0),
-            )
+        .filter_map(|(u, name)| {
+            let p: Vec<(f64, f64)> = pairs.iter().filter_map(|r| r[u]).collect();
+            (!p.is_empty()).then(|| {
+                (
+                    name,
+                    crate::features::coverage_factor_at(&p, INTERVAL_QUANTILE).max(1.0),
+                )
+            })
         })
         .collect())
 }
