@@ -4,7 +4,7 @@
 //!
 //! `cargo run --release -p vibrissa-infer --example shape_dump -- OUT [TRAIN_PER_CLASS] [EVAL_PER_CLASS] [noisy|clean]`
 use std::io::Write;
-use vibrissa_infer::experiment::{Noise, Variant};
+use vibrissa_infer::experiment::Variant;
 use vibrissa_infer::shapes::{ShapeFamily, ShapeSample};
 use vibrissa_infer::Family;
 
@@ -42,13 +42,7 @@ fn main() {
         .simulate_completed(&eval_draws, &noise, 1 ^ 0xe3a2, &|| {})
         .unwrap();
     let measured = ShapeSample::measured_noise(&evaluated).unwrap();
-    let trained_noise = family.classes()[0]
-        .family
-        .training_sensor_noise(&Noise {
-            sensor: measured,
-            process: noise.process,
-        })
-        .unwrap();
+    let trained_noise = family.training_noise(measured, noise.process).unwrap();
     let draws = family.draws(train, true, 1 ^ 0xe3b1);
     let (training, _) = family
         .simulate_completed(&draws, &trained_noise, 1 ^ 0xe3b2, &|| {})

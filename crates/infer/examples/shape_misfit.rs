@@ -5,7 +5,7 @@
 //!
 //! `cargo run --release -p vibrissa-infer --example shape_misfit -- [TRAIN_PER_CLASS] [BANK_PER_CLASS]`
 //! (defaults 400 and 1600; a few minutes on 2 cores).
-use vibrissa_infer::experiment::{Noise, Variant};
+use vibrissa_infer::experiment::Variant;
 use vibrissa_infer::shapes::{CleanRuns, ShapeBank, ShapeFamily, ShapeSample};
 use vibrissa_infer::Family;
 
@@ -39,13 +39,7 @@ fn main() {
         .simulate_completed(&draws, &noise, 7, &|| {})
         .unwrap();
     let measured = ShapeSample::measured_noise(&evaluated).unwrap();
-    let trained = family.classes()[0]
-        .family
-        .training_sensor_noise(&Noise {
-            sensor: measured,
-            process: noise.process,
-        })
-        .unwrap();
+    let trained = family.training_noise(measured, noise.process).unwrap();
     let train_draws = family.draws(train, true, 1 ^ 0xe3b1);
     let (training, _) = family
         .simulate_completed(&train_draws, &trained, 1 ^ 0xe3b2, &|| {})

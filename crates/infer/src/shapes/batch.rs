@@ -9,7 +9,7 @@ use super::family::ShapeFamily;
 use super::method::{check_shape_method, fit_shape_method, needs_clean_runs};
 use crate::contract::EstimateRow;
 use crate::error::{Error, Result};
-use crate::experiment::{Noise, CHANNELS};
+use crate::experiment::CHANNELS;
 use crate::recording::Recording;
 use std::time::Instant;
 
@@ -116,11 +116,8 @@ pub fn estimate_batch(
     let sensor: [f64; 5] = std::array::from_fn(|c| options.stated[c].unwrap_or(measured[c]));
     // Training runs carry the scenario's random forces (its `process_noise`, 0 unless stated)
     // and the sensor noise that the measured level leaves beyond their response.
-    let class = &timed.classes()[0].family;
-    let noise = class.training_sensor_noise(&Noise {
-        sensor,
-        process: class.base().process_noise,
-    })?;
+    let process = timed.classes()[0].family.base().process_noise;
+    let noise = timed.training_noise(sensor, process)?;
     let train = timed.randomised_if(options.randomise)?;
     let draws = timed.draws(options.training, true, options.seed);
     let (runs, failed) = train.simulate_completed(&draws, &noise, options.seed ^ 0x5ea9, &|| {})?;

@@ -6,7 +6,7 @@ use super::bank::CleanRuns;
 use super::family::{ShapeFamily, ShapeSample};
 use super::method::{check_shape_method, fit_shape_method, needs_clean_runs};
 use crate::error::{Error, Result};
-use crate::experiment::{Noise, Variant};
+use crate::experiment::Variant;
 use crate::family::Family;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -246,10 +246,7 @@ pub fn evaluate_shapes(
     // The random forces are part of the experiment's world, stated as a scenario's
     // `process_noise` would state them (as for e1 and e2); training runs carry them and the
     // sensor noise that the measured level leaves beyond their response.
-    let trained_noise = family.classes()[0].family.training_sensor_noise(&Noise {
-        sensor: measured,
-        process: noise.process,
-    })?;
+    let trained_noise = family.training_noise(measured, noise.process)?;
     let (training, failed_training) = training_family.simulate_completed(
         &train_draws,
         &trained_noise,

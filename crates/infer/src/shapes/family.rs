@@ -172,6 +172,16 @@ impl ShapeFamily {
         &self.classes
     }
 
+    /// The noise training runs are simulated with, given the `sensor` noise measured on (or
+    /// stated for) the recordings and the random forces `process` of the family's world: those
+    /// forces, and the sensor noise that the measured level leaves beyond their response
+    /// ([`Family::training_sensor_noise`] of the first class; every class shares the whiskers).
+    pub fn training_noise(&self, sensor: [f64; 5], process: f64) -> Result<Noise> {
+        self.classes[0]
+            .family
+            .training_sensor_noise(&Noise { sensor, process })
+    }
+
     /// The class names, in order.
     pub fn class_names(&self) -> Vec<&str> {
         self.classes.iter().map(|c| c.name.as_str()).collect()
