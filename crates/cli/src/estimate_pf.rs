@@ -126,7 +126,7 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
         &recordings,
         &levels,
         &leads,
-        &options,
+        std::slice::from_ref(&options),
         &mut inject,
         true,
     )?;
@@ -391,14 +391,25 @@ fn filter_all(
     recordings: &[vibrissa_infer::Recording],
     levels: &[[f64; 5]],
     leads: &[usize],
-    options: &pf::recording::Options,
+    each: &[pf::recording::Options],
     inject: &mut Trained,
     verbose: bool,
 ) -> Result<Vec<pf::recording::Estimate>> {
-    let mut options = options.clone();
+    let Some(first) = each.first() else {
+        bail!("no filter options");
+    };
     let mut fitted: Option<([f64; 5], pf::Pf)> = None;
     let mut out = Vec::with_capacity(recordings.len());
-    for (((file, rec), level), &lead) in args.obs.iter().zip(recordings).zip(levels).zip(leads) {
+    for (r, (((file, rec), level), &lead)) in args
+        .obs
+        .iter()
+        .zip(recordings)
+        .zip(levels)
+        .zip(leads)
+        .enumerate()
+    {
+        // One recording's options: its own where each has some, else the batch's.
+        let mut options = each.get(r).unwrap_or(first).clone();
         if fitted.as_ref().map(|f| f.0) != Some(*level) {
             let filter = pf::recording::fitted(family, level, &options)?;
             let sigma = filter.sigma().context("the filter was not fitted")?;
