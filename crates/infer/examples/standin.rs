@@ -3,13 +3,16 @@
 //! ```sh
 //! cargo run --release -p vibrissa-infer --example standin -- --seed 3 --out DIR \
 //!     [--nominal e2|FILE.toml] [--segments 50] [--discretisation seed] [--off-grid 20] \
-//!     [--calib-noise 0] [--eval-noise 0.03] [--nominal-whisker] [--max-lead 0.04]
+//!     [--calib-noise 0] [--eval-noise 0.03] [--nominal-whisker] [--max-lead 0.04] \
+//!     [--compliance 6]
 //! ```
 //!
 //! DIR receives `calib/` (9 template strikes, clean unless `--calib-noise`), `eval/` (off-grid
 //! noisy strikes), `nominal.toml`, `standin.toml` (the truth as a scenario) and `truth.json`.
 //! `--max-lead S` records each off-grid strike from a random time up to S before its approach
-//! (every file S longer; `leads.csv` gives each one's lead-in). `--nominal-whisker` leaves the whisker and sensors as the nominal says (with `--segments 20
+//! (every file S longer; `leads.csv` gives each one's lead-in). `--compliance X` gives every
+//! stand-in a follicle X times as compliant as the nominal chain's base joint (drawn in 0.3–3,
+//! or clamped, otherwise). `--nominal-whisker` leaves the whisker and sensors as the nominal says (with `--segments 20
 //! --discretisation gregory`: recordings of our own simulator, the reference to compare with).
 
 use std::path::PathBuf;
@@ -41,6 +44,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
             "--eval-noise" => options.eval_noise = value()?.parse()?,
             "--nominal-whisker" => options.perturb = false,
             "--max-lead" => options.max_lead = value()?.parse()?,
+            "--compliance" => options.compliance = Some(value()?.parse()?),
             _ => return Err(format!("unknown option {flag}").into()),
         }
     }

@@ -56,6 +56,9 @@ pub struct Options {
     /// in [0, max_lead] before its approach, and every recording is `max_lead` longer than the
     /// nominal run (0: they start at the approach).
     pub max_lead: f64,
+    /// A follicle of this compliance, relative to the nominal chain's base joint's, in every
+    /// stand-in (`None`: drawn as above, with probability 2/3).
+    pub compliance: Option<f64>,
 }
 
 impl Default for Options {
@@ -68,6 +71,7 @@ impl Default for Options {
             calib_noise: 0.0,
             perturb: true,
             max_lead: 0.0,
+            compliance: None,
         }
     }
 }
@@ -143,7 +147,7 @@ pub fn make(nominal: &Document, seed: u64, options: &Options) -> Result<Standin>
     // A taper, a compliant follicle, or both.
     let variant = (rng.uniform() * 3.0) as usize;
     let taper = variant != 1;
-    let follicle = variant != 0;
+    let follicle = variant != 0 || options.compliance.is_some();
     if taper {
         w.tip_radius *= 0.5 + 0.4 * rng.uniform();
     }
@@ -151,7 +155,13 @@ pub fn make(nominal: &Document, seed: u64, options: &Options) -> Result<Standin>
         // Relative to the nominal chain's base joint (the user's belief, clamped).
         let reference = Reference::of(&base)?;
         let (k0, beta0) = (reference.k0, reference.beta0);
-        let compliance = (0.3f64.ln() + rng.uniform() * 10.0f64.ln()).exp();
+        let drawn = (0.3f64.ln() + rng.uniform() * 10.0f64.ln()).exp();
+        let compliance = options.compliance.unwrap_or(drawn);
+        if !(compliance.is_finite() && compliance > 0.0) {
+            return Err(Error::Setting(format!(
+                "stand-in follicle compliance: a finite ratio > 0 (got {compliance})"
+            )));
+        }
         let stiffness = k0 / compliance;
         let tau = beta0 * (2.0 * rng.uniform() - 1.0).exp();
         w.follicle = Follicle::Spring {
@@ -466,4 +476,38 @@ fn ranges(runs: &[Vec<[f64; 10]>]) -> [f64; 5] {
             1.0
         }
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_stated_compliance_gives_every_stand_in_that_follicle() {
+        let nominal = Document::load("e2", &[]).unwrap();
+        let base = nominal
+            .loaded_with(&["d=0.02".to_string(), "v=0.6".to_string()])
+            .unwrap()
+            .scenario;
+        let k0 = Reference::of(&base).unwrap().k0;
+        for seed in 1..6 {
+            let options = Options {
+                compliance: Some(6.0),
+                ..Options::default()
+            };
+            let s = make(&nominal, seed, &options).unwrap();
+            match s.truth.whisker.follicle {
+                Follicle::Spring { stiffness, .. } => {
+                    assert!((stiffness * 6.0 / k0 - 1.0).abs() < 1e-12, "seed {seed}")
+                }
+                Follicle::Clamped => panic!("seed {seed}: clamped"),
+            }
+        }
+        let bad = Options {
+            compliance: Some(-1.0),
+            ..Options::default()
+        };
+        let err = make(&nominal, 1, &bad).unwrap_err();
+        assert!(err.to_string().contains("compliance"), "{err}");
+    }
 }
