@@ -106,10 +106,9 @@ pub struct Args {
     /// pf with --randomise: whiskers entertained besides the scenario's.
     #[arg(long, default_value_t = vibrissa_infer::pf::ALTERNATIVES, value_name = "N")]
     pub(crate) alternatives: usize,
-    /// pf: the recordings come from one whisker and one set of sensors, which the filter learns
-    /// from all of them together: it filters the batch, draws the whiskers it entertains around
-    /// those the whole batch favours, gives each recording the joint angles' gains that the
-    /// others tell, and filters again (--pool-rounds times; no labels needed). For a whisker
+    /// pf: the recordings come from one whisker, which the filter learns from all of them
+    /// together: it filters the batch, draws the whiskers it entertains around those the whole
+    /// batch favours, and filters again (--pool-rounds times; no labels needed). For a whisker
     /// known only roughly (--randomise, or a scenario the recordings defy); at least 2
     /// recordings. The default for a batch of 5 or more when the filter entertains several
     /// whiskers and the scenario is not calibrated.

@@ -126,7 +126,7 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
         &recordings,
         &levels,
         &leads,
-        std::slice::from_ref(&options),
+        &options,
         &mut inject,
         true,
     )?;
@@ -391,25 +391,14 @@ fn filter_all(
     recordings: &[vibrissa_infer::Recording],
     levels: &[[f64; 5]],
     leads: &[usize],
-    each: &[pf::recording::Options],
+    options: &pf::recording::Options,
     inject: &mut Trained,
     verbose: bool,
 ) -> Result<Vec<pf::recording::Estimate>> {
-    let Some(first) = each.first() else {
-        bail!("no filter options");
-    };
+    let mut options = options.clone();
     let mut fitted: Option<([f64; 5], pf::Pf)> = None;
     let mut out = Vec::with_capacity(recordings.len());
-    for (r, (((file, rec), level), &lead)) in args
-        .obs
-        .iter()
-        .zip(recordings)
-        .zip(levels)
-        .zip(leads)
-        .enumerate()
-    {
-        // One recording's options: its own where each has some, else the batch's.
-        let mut options = each.get(r).unwrap_or(first).clone();
+    for (((file, rec), level), &lead) in args.obs.iter().zip(recordings).zip(levels).zip(leads) {
         if fitted.as_ref().map(|f| f.0) != Some(*level) {
             let filter = pf::recording::fitted(family, level, &options)?;
             let sigma = filter.sigma().context("the filter was not fitted")?;

@@ -347,7 +347,7 @@ fn recording_pool(
     options: &recording::Options,
     rounds: usize,
     seed: u64,
-    filter_all: &dyn Fn(&[recording::Options]) -> vibrissa_infer::Result<Vec<recording::Estimate>>,
+    filter_all: &dyn Fn(&recording::Options) -> vibrissa_infer::Result<Vec<recording::Estimate>>,
     messages: &mut Vec<String>,
 ) -> vibrissa_infer::Result<Vec<recording::Estimate>> {
     use vibrissa_infer::pf::pool;
@@ -546,14 +546,10 @@ fn estimate(
         let mut discriminative = discriminative.into_iter();
         // The filter on every recording, fitted once per noise level as on the command line.
         let filter_all =
-            |each: &[recording::Options]| -> vibrissa_infer::Result<Vec<recording::Estimate>> {
+            |options: &recording::Options| -> vibrissa_infer::Result<Vec<recording::Estimate>> {
                 let mut filtered: Option<([f64; 5], Pf)> = None;
                 let mut out = Vec::new();
-                for (r, (rec, level)) in recordings.iter().zip(&noise.levels).enumerate() {
-                    // One recording's options: its own where each has some, else the batch's.
-                    let options = each.get(r).or(each.first()).ok_or_else(|| {
-                        vibrissa_infer::Error::Observation("no filter options".into())
-                    })?;
+                for (rec, level) in recordings.iter().zip(&noise.levels) {
                     if filtered.as_ref().map(|f| f.0) != Some(*level) {
                         filtered = Some((*level, recording::fitted(&family, level, options)?));
                     }
@@ -587,7 +583,7 @@ fn estimate(
             }
             // Each round's whiskers are the batch's, not the prior's: no held-out widening.
             options.interval_runs = 0;
-            let first = filter_all(std::slice::from_ref(&options))?;
+            let first = filter_all(&options)?;
             recording_pool(
                 first,
                 &names,
@@ -598,7 +594,7 @@ fn estimate(
                 &mut messages,
             )?
         } else {
-            filter_all(std::slice::from_ref(&options))?
+            filter_all(&options)?
         };
         let mut filtered = filtered.into_iter();
         let mut rows = Vec::new();

@@ -3,7 +3,7 @@
 
 #[cfg(doc)]
 use super::map_joints;
-use super::sensors::{GainPrior, SensorSpread};
+use super::sensors::SensorSpread;
 use crate::error::{Error, Result};
 use crate::experiment::CHANNELS;
 use serde::Serialize;
@@ -95,10 +95,6 @@ pub struct Config {
     /// How far the sensors' gains and offsets may lie from `sensor_gain` and `sensor_offset`:
     /// the filter marginalises them within each particle (see [`SensorSpread`]).
     pub sensor_spread: SensorSpread,
-    /// The gains learnt from a batch of recordings of the same sensors, replacing
-    /// `sensor_gain` and the gains' spread when the sensors are unknowns (`None`: the
-    /// scenario's; see [`GainPrior`]).
-    pub gain_prior: Option<GainPrior>,
     /// Process-noise intensity on every segment, N·s^½·m^-½.
     pub process_noise: f64,
     /// Liu–West shrinkage `a` in (0, 1].
@@ -156,7 +152,6 @@ impl Config {
             sensor_gain: [1.0; 5],
             sensor_offset: [0.0; 5],
             sensor_spread: SensorSpread::default(),
-            gain_prior: None,
             process_noise: crate::experiment::PROCESS_NOISE,
             shrink: 0.98,
             ess_fraction: 0.5,
@@ -284,12 +279,6 @@ impl Config {
             return bad(
                 "sensor_spread",
                 "finite spreads of the sensors' gains and offsets, 0 or more",
-            );
-        }
-        if self.gain_prior.is_some_and(|p| !p.is_valid()) {
-            return bad(
-                "gain_prior",
-                "finite gains other than 0 with finite standard deviations > 0",
             );
         }
         if !(self.shrink > 0.0 && self.shrink <= 1.0) {

@@ -54,5 +54,5 @@ pub use method::{
     RANDOMISED_SEGMENTS, RANDOMISED_TEMPER, SENSOR_FLOOR,
 };
 pub use posterior::{Observations, Posterior, TraceRow};
-pub use sensors::{GainPrior, SensorSpread};
+pub use sensors::SensorSpread;
 pub use transition::map_joints;

@@ -7,15 +7,8 @@
 //! strike's favourite is not. Pooling proceeds in rounds: filter every recording, sum the
 //! evidences ([`scores`]), draw the next round's whiskers around those the batch favours
 //! ([`next_whiskers`]), and filter again. The last round's posteriors are the estimates.
-//!
-//! The sensors are shared too. Where the filter takes their gains as unknowns, each recording's
-//! posterior over them says what that recording alone tells of them (its message: the posterior
-//! divided by the prior it was filtered with, [`gain_messages`]); the next round filters each
-//! recording with the scenario's prior times the other recordings' messages ([`gains_without`]),
-//! so that no recording's own samples count twice.
 
 use super::recording::{Estimate, Options};
-use super::GainPrior;
 use crate::error::{Error, Result};
 use vibrissa_core::rng::Rng;
 use vibrissa_core::whisker::{Damping, Follicle, WhiskerParams};
@@ -338,90 +331,20 @@ fn best_evidence(estimates: &[Estimate]) -> Vec<f64> {
         .collect()
 }
 
-/// What one recording's filtering told of each channel's gain, in information form: the
-/// precision and the precision times the mean that its posterior adds to the prior it was
-/// filtered with (both normals, each channel's marginal). A channel whose posterior is no
-/// narrower than its prior (a mixture's moments can be wider) tells nothing.
-pub type GainMessage = [(f64, f64); 5];
-
-/// Channels whose gains are pooled: the joint angles'. The base wrench's gains trade against the
-/// whisker's stiffness, which the rounds move at the same time; pooled apart from it (each
-/// channel's marginal), the two ran away together on the other engine's set (modulus 3.9 to
-/// 4.9 GPa and the force gains to 0.6 in six rounds, the distance's error from 0.7 to 1.6 mm).
-/// A joint angle's gain (the recording chain's scale) does not depend on the stiffness.
-pub const POOLED_GAINS: [usize; 2] = [0, 1];
-
-/// Each recording's [`GainMessage`] (nothing for the channels not in [`POOLED_GAINS`]), or
-/// `None` where the filter took the gains as known.
-pub fn gain_messages(estimates: &[Estimate]) -> Option<Vec<GainMessage>> {
-    estimates
-        .iter()
-        .map(|e| {
-            let post = e.posterior.sensors.as_ref()?;
-            let prior = GainPrior::of(&e.config);
-            Some(std::array::from_fn(|c| {
-                let (m, s) = (post.gain[c].mean, post.gain[c].std);
-                let (m0, s0) = (prior.mean[c], prior.sd[c]);
-                let lambda = 1.0 / (s * s) - 1.0 / (s0 * s0);
-                if POOLED_GAINS.contains(&c) && lambda.is_finite() && lambda > 0.0 && m.is_finite()
-                {
-                    (lambda, m / (s * s) - m0 / (s0 * s0))
-                } else {
-                    (0.0, 0.0)
-                }
-            }))
-        })
-        .collect()
-}
-
-/// Each recording's prior over the gains for the next round: `base` (the scenario's, each
-/// channel's marginal) times the messages of every other recording of the batch.
-pub fn gains_without(base: &GainPrior, messages: &[GainMessage]) -> Vec<GainPrior> {
-    let mut total = [(0.0, 0.0); 5];
-    for m in messages {
-        for c in 0..5 {
-            total[c].0 += m[c].0;
-            total[c].1 += m[c].1;
-        }
-    }
-    messages
-        .iter()
-        .map(|own| {
-            let mut p = *base;
-            for c in 0..5 {
-                let l0 = 1.0 / (base.sd[c] * base.sd[c]);
-                let lambda = l0 + total[c].0 - own[c].0;
-                let eta = base.mean[c] * l0 + total[c].1 - own[c].1;
-                // Sums of many terms less one: keep the base where rounding leaves no more.
-                if lambda.is_finite() && lambda > l0 && eta.is_finite() {
-                    p.mean[c] = eta / lambda;
-                    p.sd[c] = lambda.sqrt().recip();
-                }
-            }
-            p
-        })
-        .collect()
-}
-
 /// `rounds` pooling rounds: from `first`, the batch's estimates with the family's whiskers, each
 /// round draws the next whiskers around those the batch favours ([`scores`],
 /// [`next_whiskers`]) and has `filter_all` filter every recording again with them
-/// ([`Options::whiskers`]), each recording with the sensors' gains the others tell where the
-/// filter takes them as unknowns ([`gains_without`], [`Options::gains`]). `filter_all` gets one
-/// [`Options`] per recording, in the batch's order. Tells `progress` each round's favourite.
-/// Returns the last round's estimates and each recording's shortfall under the last favourite
-/// ([`Pooled`]).
+/// ([`Options::whiskers`]). Tells `progress` each round's favourite. Returns the last
+/// round's estimates and each recording's shortfall under the last favourite ([`Pooled`]).
 pub fn refine(
     first: Vec<Estimate>,
     options: &Options,
     rounds: usize,
     seed: u64,
-    filter_all: &mut dyn FnMut(&[Options]) -> Result<Vec<Estimate>>,
+    filter_all: &mut dyn FnMut(&Options) -> Result<Vec<Estimate>>,
     progress: &mut dyn FnMut(String),
 ) -> Result<Pooled> {
     let mut best = best_evidence(&first);
-    // The scenario's gains, before any pooling.
-    let base = first.first().map(|e| GainPrior::of(&e.config));
     let mut estimates = first;
     let mut options = options.clone();
     for round in 1..=rounds {
@@ -447,21 +370,7 @@ pub fn refine(
             next.len()
         ));
         options.whiskers = Some(next);
-        let gains = match (&base, gain_messages(&estimates)) {
-            (Some(base), Some(messages)) => gains_without(base, &messages)
-                .into_iter()
-                .map(Some)
-                .collect(),
-            _ => vec![None; estimates.len()],
-        };
-        let each: Vec<Options> = gains
-            .into_iter()
-            .map(|g| Options {
-                gains: g,
-                ..options.clone()
-            })
-            .collect();
-        estimates = filter_all(&each)?;
+        estimates = filter_all(&options)?;
         for (b, e) in best.iter_mut().zip(best_evidence(&estimates)) {
             *b = b.max(e);
         }
@@ -528,37 +437,6 @@ mod tests {
         assert_eq!(w.len(), 2);
         assert!(w[0].starts_with("`r10.csv`") && w[0].contains("lost every particle"));
         assert!(w[1].starts_with("`r11.csv`") && w[1].contains("40.0 nats"));
-    }
-
-    #[test]
-    fn each_recording_s_gains_are_the_base_times_the_other_recordings_messages() {
-        let base = GainPrior {
-            mean: [1.0; 5],
-            sd: [0.5, 0.5, 0.1, 0.1, 0.1],
-        };
-        // Three recordings' messages: theta01's says 0.8 with sd 0.1, 0.9 with sd 0.2, nothing;
-        // fy's only from the first.
-        let msg = |m: f64, s: f64| (1.0 / (s * s), m / (s * s));
-        let mut messages = vec![[(0.0, 0.0); 5]; 3];
-        messages[0][0] = msg(0.8, 0.1);
-        messages[1][0] = msg(0.9, 0.2);
-        messages[0][4] = msg(1.2, 0.05);
-        let p = gains_without(&base, &messages);
-        assert_eq!(p.len(), 3);
-        // The first recording sees the base and the second's message.
-        let (l0, l1) = (1.0 / 0.25, 1.0 / 0.04);
-        let want = (1.0 * l0 + 0.9 * l1) / (l0 + l1);
-        assert!((p[0].mean[0] - want).abs() < 1e-12, "{}", p[0].mean[0]);
-        assert!((p[0].sd[0] - (l0 + l1).sqrt().recip()).abs() < 1e-12);
-        // The third sees both others'; its own (empty) message changes nothing.
-        let l2 = 100.0;
-        let want = (1.0 * l0 + 0.9 * l1 + 0.8 * l2) / (l0 + l1 + l2);
-        assert!((p[2].mean[0] - want).abs() < 1e-12);
-        // fy: the first recording's own message is left out, so it keeps the base.
-        assert_eq!((p[0].mean[4], p[0].sd[4]), (1.0, 0.1));
-        assert!(p[1].mean[4] > 1.15 && p[1].sd[4] < 0.05);
-        // Channels no one spoke of keep the base.
-        assert!(p.iter().all(|g| g.mean[2] == 1.0 && g.sd[2] == 0.1));
     }
 
     #[test]

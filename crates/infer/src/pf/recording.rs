@@ -56,9 +56,6 @@ pub struct Options {
     pub interval_runs: usize,
     /// The whiskers to entertain instead of the family's ([`super::Pf::whiskers`]).
     pub whiskers: Option<Vec<vibrissa_core::whisker::WhiskerParams>>,
-    /// The sensors' gains learnt from the rest of a batch ([`super::pool`]), for a filter whose
-    /// sensors are unknowns (ignored where they are known).
-    pub gains: Option<super::GainPrior>,
 }
 
 impl Options {
@@ -75,7 +72,6 @@ impl Options {
             alternatives: super::ALTERNATIVES,
             interval_runs: INTERVAL_RUNS,
             whiskers: None,
-            gains: None,
         }
     }
 }
@@ -245,11 +241,6 @@ fn interval_scale(
     options: &Options,
 ) -> Result<Vec<(String, f64)>> {
     use rayon::prelude::*;
-    // Held-out runs have sensors of their own: the scenario's gains' prior, not a batch's.
-    let options = &Options {
-        gains: None,
-        ..options.clone()
-    };
     let seed = options.seed ^ 0x1a7e_2f11;
     let params = family.random_params(options.interval_runs, seed);
     let runs = family.simulate_all(&params, noise, seed, &|| {})?;
@@ -321,9 +312,6 @@ pub fn estimate(
     }
     for &(k, p) in &options.priors {
         config.priors[k] = p;
-    }
-    if !config.sensor_spread.is_fixed() {
-        config.gain_prior = options.gains;
     }
     config.check()?;
     if let Some(e) = &options.inject {

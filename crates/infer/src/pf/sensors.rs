@@ -67,42 +67,6 @@ impl SensorSpread {
     }
 }
 
-/// The sensors' gains as independent normals, one per channel of [`crate::CHANNELS`]: what a
-/// batch of recordings made with the same sensors has learnt of them (see
-/// [`super::pool`]), replacing [`Config::sensor_gain`] and the gains' terms of
-/// [`Config::sensor_spread`]. The offsets keep the scenario's prior: a sensor's offset may drift
-/// between recordings, its gain does not.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct GainPrior {
-    /// Mean gain of each channel.
-    pub mean: [f64; 5],
-    /// Standard deviation of each channel's gain.
-    pub sd: [f64; 5],
-}
-
-impl GainPrior {
-    /// The gains' prior that `config` gives the filter, each channel's marginal: its
-    /// [`Config::gain_prior`], or the scenario's gains spread by [`Config::sensor_spread`].
-    pub fn of(config: &Config) -> GainPrior {
-        if let Some(p) = config.gain_prior {
-            return p;
-        }
-        let (g, s) = (config.sensor_gain, config.sensor_spread);
-        let wrench = (s.wrench_scale.powi(2) + s.wrench_gain.powi(2)).sqrt();
-        GainPrior {
-            mean: g,
-            sd: std::array::from_fn(|c| g[c].abs() * if c < 2 { s.angle_gain } else { wrench }),
-        }
-    }
-
-    /// Whether every mean is finite and not zero and every standard deviation finite and
-    /// positive.
-    pub fn is_valid(&self) -> bool {
-        self.mean.iter().all(|m| m.is_finite() && *m != 0.0)
-            && self.sd.iter().all(|s| s.is_finite() && *s > 0.0)
-    }
-}
-
 /// A Gaussian over `K` gains followed by their `K` offsets (`N = 2K`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Block<const N: usize> {
@@ -174,23 +138,6 @@ impl SensorBelief {
                 wrench.cov[i][j] = g[2 + i] * g[2 + j] * (spread.wrench_scale.powi(2) + own);
             }
             wrench.cov[3 + i][3 + i] = (spread.offset * sigma[2 + i]).powi(2);
-        }
-        if let Some(p) = config.gain_prior {
-            // The batch's gains replace the scenario's and their shared scale.
-            for j in 0..2 {
-                angles.mean[j] = p.mean[j];
-                angles.cov[j][j] = p.sd[j] * p.sd[j];
-            }
-            for i in 0..3 {
-                wrench.mean[i] = p.mean[2 + i];
-                for j in 0..3 {
-                    wrench.cov[i][j] = if i == j {
-                        p.sd[2 + i] * p.sd[2 + i]
-                    } else {
-                        0.0
-                    };
-                }
-            }
         }
         SensorBelief { angles, wrench }
     }
@@ -365,44 +312,6 @@ mod tests {
         // A known gain of 1 would have paid dearly for the same sample.
         let fixed = -0.5 * (0.6_f64 * 0.1 / 0.01).powi(2);
         assert!(fixed < -1.0);
-    }
-
-    #[test]
-    fn a_batch_s_gains_replace_the_scenario_s_and_their_shared_scale() {
-        let mut c = config(SensorSpread::rough());
-        c.sensor_gain = [1.0, 1.0, 2.0, 1.0, 1.0];
-        let before = GainPrior::of(&c);
-        assert_eq!(before.mean, c.sensor_gain);
-        let wrench = (0.05f64 * 0.05 + 0.05 * 0.05).sqrt();
-        let want = [0.5, 0.5, 2.0 * wrench, wrench, wrench];
-        assert!((0..5).all(|i| (before.sd[i] - want[i]).abs() < 1e-12));
-        let b = SensorBelief::prior(&c);
-        assert!((b.gain_variances()[2] - (2.0 * wrench).powi(2)).abs() < 1e-12);
-        let batch = GainPrior {
-            mean: [0.6, 0.3, 1.9, 1.05, 0.95],
-            sd: [0.02, 0.01, 0.05, 0.03, 0.03],
-        };
-        c.gain_prior = Some(batch);
-        assert_eq!(GainPrior::of(&c), batch);
-        let b = SensorBelief::prior(&c);
-        let (g, o) = b.means();
-        assert_eq!(g, batch.mean);
-        assert_eq!(o, c.sensor_offset);
-        let v = b.gain_variances();
-        assert!((0..5).all(|i| (v[i] - batch.sd[i] * batch.sd[i]).abs() < 1e-15));
-        // No shared scale is left: the wrench gains are independent.
-        assert_eq!(b.wrench.cov[0][1], 0.0);
-        // The offsets keep the scenario's spread.
-        assert_eq!(
-            b.offset_variances(),
-            SensorBelief::prior(&config(SensorSpread::rough())).offset_variances()
-        );
-        assert!(c.check().is_ok());
-        c.gain_prior = Some(GainPrior {
-            sd: [0.0; 5],
-            ..batch
-        });
-        assert!(c.check().is_err(), "a zero spread is refused");
     }
 
     #[test]
