@@ -54,6 +54,7 @@ fn check(name: &str, perturb: bool, segments: usize, discretisation: Discretisat
             calib_noise: 0.0,
             perturb,
             max_lead: 0.0,
+            compliance: None,
         };
         let dir = temp(&format!("{name}-{level}"));
         make(&nominal, 11, &options)
