@@ -121,6 +121,10 @@ pub struct Args {
     /// pf --pool: rounds of pooling after the first filtering of the batch.
     #[arg(long, default_value_t = vibrissa_infer::pf::pool::ROUNDS, value_name = "N")]
     pub(crate) pool_rounds: usize,
+    /// pf --pool: the rounds before the last filter at most this many recordings, spread through
+    /// the batch, while they search for its whisker; the last round filters every recording.
+    #[arg(long, default_value_t = vibrissa_infer::pf::pool::SEARCH_RECORDINGS, value_name = "N")]
+    pub(crate) pool_search: usize,
     /// pf: write the posterior (mean, std, 90% interval of every unknown, and the effective sample
     /// size) at every sample to this CSV, and its plot beside it (same name, .png). One file only.
     #[arg(long, value_name = "FILE.csv")]

@@ -103,6 +103,13 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
         if args.pool_rounds == 0 {
             bail!("--pool-rounds must be at least 1 (got 0)");
         }
+        if args.pool_search < 2 {
+            bail!(
+                "--pool-search: the search rounds learn the whisker from several recordings: at \
+                 least 2 (got {})",
+                args.pool_search
+            );
+        }
         if family.randomisation().is_none() {
             bail!(
                 "--pool needs a filter that entertains several whiskers: add --randomise (the \
@@ -120,23 +127,18 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
         options.interval_runs = 0;
     }
     let mut inject = Trained::default();
-    let mut ests = filter_all(
-        args,
-        family,
-        &recordings,
-        &levels,
-        &leads,
-        &options,
-        &mut inject,
-        true,
-    )?;
-    if pool {
+    let all: Vec<usize> = (0..recordings.len()).collect();
+    let ests = if pool {
+        // The noise and the widening are reported on the first filtering only.
+        let mut first = true;
         let pooled = pf::pool::refine(
-            ests,
+            recordings.len(),
             &options,
             args.pool_rounds,
+            args.pool_search,
             args.seed,
-            &mut |o| {
+            &mut |o, which| {
+                let verbose = std::mem::replace(&mut first, false);
                 filter_all(
                     args,
                     family,
@@ -145,7 +147,8 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
                     &leads,
                     o,
                     &mut inject,
-                    false,
+                    which,
+                    verbose,
                 )
                 .map_err(|e| vibrissa_infer::Error::Observation(format!("{e:#}")))
             },
@@ -155,8 +158,20 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
         for w in pf::pool::warnings(&pooled, &names) {
             eprintln!("warning: {w}");
         }
-        ests = pooled.estimates;
-    }
+        pooled.estimates
+    } else {
+        filter_all(
+            args,
+            family,
+            &recordings,
+            &levels,
+            &leads,
+            &options,
+            &mut inject,
+            &all,
+            true,
+        )?
+    };
 
     let mut rows: Vec<FileEstimate> = Vec::new();
     let mut posteriors = Vec::new();
@@ -393,12 +408,14 @@ fn filter_all(
     leads: &[usize],
     options: &pf::recording::Options,
     inject: &mut Trained,
+    which: &[usize],
     verbose: bool,
 ) -> Result<Vec<pf::recording::Estimate>> {
     let mut options = options.clone();
     let mut fitted: Option<([f64; 5], pf::Pf)> = None;
-    let mut out = Vec::with_capacity(recordings.len());
-    for (((file, rec), level), &lead) in args.obs.iter().zip(recordings).zip(levels).zip(leads) {
+    let mut out = Vec::with_capacity(which.len());
+    for &r in which {
+        let (file, rec, level, lead) = (&args.obs[r], &recordings[r], &levels[r], leads[r]);
         if fitted.as_ref().map(|f| f.0) != Some(*level) {
             let filter = pf::recording::fitted(family, level, &options)?;
             let sigma = filter.sigma().context("the filter was not fitted")?;

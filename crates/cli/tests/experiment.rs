@@ -1503,6 +1503,11 @@ fn estimate_pool_learns_one_whisker_from_several_recordings() {
             strikes,
             "--pool-rounds",
         ),
+        (
+            &["--randomise", "--pool", "--pool-search", "1"][..],
+            strikes,
+            "--pool-search",
+        ),
     ] {
         let out = run(extra, files);
         assert!(!out.status.success(), "{extra:?}");
@@ -1536,6 +1541,15 @@ fn estimate_pool_learns_one_whisker_from_several_recordings() {
         said(&["--randomise", "--pool-rounds", "1"], strikes),
         (false, false)
     );
+    // A search on 3 of the 5: the rounds before the last filter those, the last all five.
+    let out = run(
+        &["--randomise", "--pool-rounds", "2", "--pool-search", "3"],
+        &all,
+    );
+    let err = String::from_utf8_lossy(&out.stderr).to_string();
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("filter 3 of the 5 recordings"), "{err}");
+    assert_eq!(String::from_utf8_lossy(&out.stdout).lines().count(), 5);
     // --no-pool is the filter's, and does not go with --pool.
     for extra in [
         &["--method", "pf", "--pool", "--no-pool"][..],

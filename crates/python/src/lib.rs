@@ -339,24 +339,29 @@ enum Input<'py> {
     ),
 }
 
+/// Filters the recordings at the given indices with the given options.
+type FilterSome<'a> =
+    dyn Fn(&recording::Options, &[usize]) -> vibrissa_infer::Result<Vec<recording::Estimate>> + 'a;
+
 /// The pooling rounds of `vibrissa estimate --pool` ([`vibrissa_infer::pf::pool::refine`]),
 /// each round's favourite whisker reported in `messages`.
 fn recording_pool(
-    first: Vec<recording::Estimate>,
     names: &[String],
     options: &recording::Options,
     rounds: usize,
+    search: usize,
     seed: u64,
-    filter_all: &dyn Fn(&recording::Options) -> vibrissa_infer::Result<Vec<recording::Estimate>>,
+    filter: &FilterSome<'_>,
     messages: &mut Vec<String>,
 ) -> vibrissa_infer::Result<Vec<recording::Estimate>> {
     use vibrissa_infer::pf::pool;
     pool::refine(
-        first,
+        names.len(),
         options,
         rounds,
+        search,
         seed,
-        &mut |o| filter_all(o),
+        &mut |o, which| filter(o, which),
         &mut |m| messages.push(m),
     )
     .map(|p| {
@@ -373,7 +378,7 @@ fn recording_pool(
 /// `vibrissa estimate --json` does; returns one estimate object per recording as JSON text,
 /// and the messages the command line prints on standard error (warnings, what is trained).
 #[pyfunction]
-#[pyo3(signature = (scenario, scenario_json, sets, inputs, method, noise, seed, randomise, particles, check, whisker=None, max_delay=0.0, pool=None, pool_rounds=None, whisker_from=None))]
+#[pyo3(signature = (scenario, scenario_json, sets, inputs, method, noise, seed, randomise, particles, check, whisker=None, max_delay=0.0, pool=None, pool_rounds=None, pool_search=None, whisker_from=None))]
 #[allow(clippy::too_many_arguments)]
 fn estimate(
     py: Python<'_>,
@@ -391,6 +396,7 @@ fn estimate(
     max_delay: f64,
     pool: Option<bool>,
     pool_rounds: Option<usize>,
+    pool_search: Option<usize>,
     whisker_from: Option<&str>,
 ) -> PyResult<(Vec<String>, Vec<String>)> {
     let pf = method == "pf";
@@ -404,7 +410,18 @@ fn estimate(
             "pool_rounds = 0: at least 1 round of pooling (pool=False filters each recording alone)",
         ));
     }
+    if pool_search.is_some() && pool == Some(false) {
+        return Err(value_error(
+            "pool_search: how many recordings the search rounds filter, with pool=True (or None)",
+        ));
+    }
+    if pool_search.is_some_and(|n| n < 2) {
+        return Err(value_error(
+            "pool_search: the search rounds learn the whisker from several recordings: at least 2",
+        ));
+    }
     let rounds = pool_rounds.unwrap_or(vibrissa_infer::pf::pool::ROUNDS);
+    let search = pool_search.unwrap_or(vibrissa_infer::pf::pool::SEARCH_RECORDINGS);
     if pool == Some(true) && !pf {
         return Err(value_error(
             "pool: the filter's option (method=\"pf\"): it learns one whisker from the recordings",
@@ -545,19 +562,21 @@ fn estimate(
         };
         let mut discriminative = discriminative.into_iter();
         // The filter on every recording, fitted once per noise level as on the command line.
-        let filter_all =
-            |options: &recording::Options| -> vibrissa_infer::Result<Vec<recording::Estimate>> {
-                let mut filtered: Option<([f64; 5], Pf)> = None;
-                let mut out = Vec::new();
-                for (rec, level) in recordings.iter().zip(&noise.levels) {
-                    if filtered.as_ref().map(|f| f.0) != Some(*level) {
-                        filtered = Some((*level, recording::fitted(&family, level, options)?));
-                    }
-                    let fitted = &filtered.as_ref().expect("fitted above").1;
-                    out.push(recording::estimate(fitted, &family, rec, options)?);
+        let filter = |options: &recording::Options,
+                      which: &[usize]|
+         -> vibrissa_infer::Result<Vec<recording::Estimate>> {
+            let mut filtered: Option<([f64; 5], Pf)> = None;
+            let mut out = Vec::new();
+            for &r in which {
+                let (rec, level) = (&recordings[r], &noise.levels[r]);
+                if filtered.as_ref().map(|f| f.0) != Some(*level) {
+                    filtered = Some((*level, recording::fitted(&family, level, options)?));
                 }
-                Ok(out)
-            };
+                let fitted = &filtered.as_ref().expect("fitted above").1;
+                out.push(recording::estimate(fitted, &family, rec, options)?);
+            }
+            Ok(out)
+        };
         let mut options = options;
         // A batch of one whisker known only roughly is pooled unless told otherwise.
         let pool = pool.unwrap_or_else(|| {
@@ -583,18 +602,18 @@ fn estimate(
             }
             // Each round's whiskers are the batch's, not the prior's: no held-out widening.
             options.interval_runs = 0;
-            let first = filter_all(&options)?;
             recording_pool(
-                first,
                 &names,
                 &options,
                 rounds,
+                search,
                 seed,
-                &filter_all,
+                &filter,
                 &mut messages,
             )?
         } else {
-            filter_all(&options)?
+            let all: Vec<usize> = (0..recordings.len()).collect();
+            filter(&options, &all)?
         };
         let mut filtered = filtered.into_iter();
         let mut rows = Vec::new();

@@ -101,6 +101,8 @@ def test_pooling_a_batch_gives_the_command_line_s_estimates(recordings):
         vibrissa.estimate(recordings, "e2", **dict(args, pool_rounds=0))
     with pytest.raises(ValueError, match="with pool=True"):
         vibrissa.estimate(recordings, "e2", **dict(args, pool=False))
+    with pytest.raises(ValueError, match="pool_search.*at least 2"):
+        vibrissa.estimate(recordings, "e2", **dict(args, pool_search=1))
 
 
 def test_a_batch_of_five_is_pooled_unless_told_not_to(recordings, tmp_path):
@@ -118,6 +120,13 @@ def test_a_batch_of_five_is_pooled_unless_told_not_to(recordings, tmp_path):
     assert len(mine) == 5
     for m, t, p in zip(mine, theirs, pooled):
         assert same(m, t) and same(m, p), (m, t, p)
+    # A search on 3 of the 5, as the command line's --pool-search.
+    searched = vibrissa.estimate(batch, "e2", **dict(args, pool_search=3))
+    theirs = cli_estimates(batch, "--method", "pf", "--particles", "320", "--randomise",
+                           "--pool-rounds", "1", "--pool-search", "3")
+    assert len(searched) == 5
+    for m, t in zip(searched, theirs):
+        assert same(m, t), (m, t)
     alone = vibrissa.estimate(batch, "e2", method="pf", particles=320, randomise=True,
                               pool=False)
     theirs = cli_estimates(batch, "--method", "pf", "--particles", "320", "--randomise",

@@ -250,6 +250,7 @@ def estimate(
     max_delay=0.0,
     pool=None,
     pool_rounds=None,
+    pool_search=None,
     overrides=None,
     verbose=False,
     whisker_from=None,
@@ -310,6 +311,9 @@ def estimate(
     pool_rounds : int, optional
         When pooling: the rounds of pooling after the first filtering of the batch
         (default 6, as ``--pool-rounds``); fewer are faster and learn the whisker less well.
+    pool_search : int, optional
+        When pooling: the rounds before the last filter at most this many of the recordings,
+        spread through the list (default 20, as ``--pool-search``); the last round filters all.
     verbose : bool
         Print what is trained and every warning (they are also attached as ``"warnings"``).
     whisker_from : str or os.PathLike, optional
@@ -341,6 +345,8 @@ def estimate(
     max_delay = _seconds("max_delay", max_delay)
     if pool_rounds is not None:
         pool_rounds = _count("pool_rounds", pool_rounds, 1)
+    if pool_search is not None:
+        pool_search = _count("pool_search", pool_search, 2)
     name, text = _scenario_args(scenario)
     rows, messages = _vibrissa.estimate(
         name,
@@ -357,6 +363,7 @@ def estimate(
         max_delay,
         None if pool is None else bool(pool),
         pool_rounds,
+        pool_search,
         None if whisker_from is None else os.fspath(whisker_from),
     )
     if verbose:
