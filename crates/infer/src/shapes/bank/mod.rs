@@ -108,13 +108,9 @@ impl CleanRuns {
     ) -> Result<(CleanRuns, Vec<String>)> {
         let classes = train_family.classes().len();
         let trained = train_draws.len() / classes.max(1);
-        // The further draws continue the training draws' streams, over the ranges themselves:
-        // the recordings' prior, which the training runs' margins reach beyond.
-        let all = train_family.draws(per_class.max(trained), false, draw_seed);
-        let per = per_class.max(trained);
-        let extra_draws: Vec<(usize, Vec<f64>)> = (0..classes)
-            .flat_map(|k| all[k * per + trained..(k + 1) * per].iter().cloned())
-            .collect();
+        // The further runs lie over the ranges themselves (the recordings' prior, which the
+        // training runs' margins reach beyond), spread evenly rather than drawn independently.
+        let extra_draws = train_family.even_draws(per_class.saturating_sub(trained), draw_seed);
         let (twins, mut failed) =
             train_family.simulate_completed(train_draws, &Noise::NONE, train_seed, tick)?;
         let (extra, more) = train_family.simulate_completed(
