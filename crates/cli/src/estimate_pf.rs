@@ -127,7 +127,19 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
         options.interval_runs = 0;
     }
     let mut inject = Trained::default();
-    let all: Vec<usize> = (0..recordings.len()).collect();
+    let mut filter = |o: &pf::recording::Options, which: &[usize], verbose: bool| {
+        filter_all(
+            args,
+            family,
+            &recordings,
+            &levels,
+            &leads,
+            o,
+            &mut inject,
+            which,
+            verbose,
+        )
+    };
     let ests = if pool {
         // The noise and the widening are reported on the first filtering only.
         let mut first = true;
@@ -139,18 +151,8 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
             args.seed,
             &mut |o, which| {
                 let verbose = std::mem::replace(&mut first, false);
-                filter_all(
-                    args,
-                    family,
-                    &recordings,
-                    &levels,
-                    &leads,
-                    o,
-                    &mut inject,
-                    which,
-                    verbose,
-                )
-                .map_err(|e| vibrissa_infer::Error::Observation(format!("{e:#}")))
+                filter(o, which, verbose)
+                    .map_err(|e| vibrissa_infer::Error::Observation(format!("{e:#}")))
             },
             &mut |m| eprintln!("{m}"),
         )?;
@@ -160,17 +162,8 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
         }
         pooled.estimates
     } else {
-        filter_all(
-            args,
-            family,
-            &recordings,
-            &levels,
-            &leads,
-            &options,
-            &mut inject,
-            &all,
-            true,
-        )?
+        let all: Vec<usize> = (0..recordings.len()).collect();
+        filter(&options, &all, true)?
     };
 
     let mut rows: Vec<FileEstimate> = Vec::new();

@@ -393,13 +393,24 @@ pub fn refine(
             subset.len()
         ));
     }
-    let mut options = options.clone();
-    let mut estimates = filter(&options, &subset)?;
+    // Filters the recordings `on` and keeps each one's best log evidence over the rounds.
     let mut best = vec![f64::NEG_INFINITY; recordings];
-    let mut on = subset.clone();
-    for (&r, e) in on.iter().zip(best_evidence(&estimates)) {
-        best[r] = best[r].max(e);
-    }
+    let mut filter_on = |options: &Options, on: &[usize]| -> Result<Vec<Estimate>> {
+        let estimates = filter(options, on)?;
+        if estimates.len() != on.len() {
+            return Err(Error::Observation(format!(
+                "pooling the recordings: asked to filter {} recordings, got {} estimates",
+                on.len(),
+                estimates.len()
+            )));
+        }
+        for (&r, e) in on.iter().zip(best_evidence(&estimates)) {
+            best[r] = best[r].max(e);
+        }
+        Ok(estimates)
+    };
+    let mut options = options.clone();
+    let mut estimates = filter_on(&options, &subset)?;
     for round in 1..=rounds {
         let evidence: Vec<Vec<f64>> = estimates
             .iter()
@@ -423,22 +434,8 @@ pub fn refine(
             next.len()
         ));
         options.whiskers = Some(next);
-        on = if round == rounds {
-            all.clone()
-        } else {
-            subset.clone()
-        };
-        estimates = filter(&options, &on)?;
-        if estimates.len() != on.len() {
-            return Err(Error::Observation(format!(
-                "pooling the recordings: asked to filter {} recordings, got {} estimates",
-                on.len(),
-                estimates.len()
-            )));
-        }
-        for (&r, e) in on.iter().zip(best_evidence(&estimates)) {
-            best[r] = best[r].max(e);
-        }
+        let on = if round == rounds { &all } else { &subset };
+        estimates = filter_on(&options, on)?;
     }
     // The last round's favourite: its whiskers' pooled best.
     let evidence: Vec<Vec<f64>> = estimates
