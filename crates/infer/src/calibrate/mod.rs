@@ -585,12 +585,7 @@ fn worst_undetermined(
     reference: &Reference,
 ) -> Option<(Held, String)> {
     let free = setup.free_indices();
-    let gains: Vec<usize> = setup
-        .channels
-        .iter()
-        .copied()
-        .filter(|&c| setup.gain_free[c])
-        .collect();
+    let gains = setup.gains();
     let step = setup
         .runs
         .iter()

@@ -67,12 +67,7 @@ pub(super) fn assemble(
     }
 
     // Gains and offsets.
-    let gains: Vec<usize> = setup
-        .channels
-        .iter()
-        .copied()
-        .filter(|&c| setup.gain_free[c])
-        .collect();
+    let gains = setup.gains();
     for &c in &setup.channels {
         let k = gains.iter().position(|&g| g == c);
         if let Some(k) = k {
