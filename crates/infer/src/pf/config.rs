@@ -131,6 +131,89 @@ pub fn coarse_segments(whisker: &WhiskerParams) -> usize {
     }
 }
 
+/// Segment counts the coarse chain may take for a whisker known only roughly, fewest first
+/// ([`rough_segments`]).
+pub const ROUGH_SEGMENTS: [usize; 3] = [8, 12, 16];
+
+/// Largest relative error of a chain's compliance where a contact meets it ([`chain_follows`]):
+/// a contact is then placed within about half a per cent of its distance from the base (the
+/// deflection grows about as the cube of that distance), 0.15 mm at 30 mm.
+pub const CHAIN_TOLERANCE: f64 = 0.015;
+
+/// Points along the outer two thirds of the whisker where [`chain_follows`] compares compliances.
+const COMPLIANCE_POINTS: usize = 60;
+
+/// The deflection at arc length `s` of the straight `whisker` under a unit force there, square to
+/// it (m/N): Euler–Bernoulli, `∫₀ˢ (s − x)² / EI(x) dx`, plus `s² / k_f` for a compliant follicle.
+fn beam_compliance(whisker: &vibrissa_core::whisker::Whisker, s: f64) -> f64 {
+    use vibrissa_core::beam::BeamProfile;
+    // Gauss–Legendre, 5 points on each of 16 pieces: EI(x) is a quartic, the integrand rational.
+    const NODES: [(f64, f64); 5] = [
+        (0.0, 0.568_888_888_888_888_9),
+        (-0.538_469_310_105_683_1, 0.478_628_670_499_366_5),
+        (0.538_469_310_105_683_1, 0.478_628_670_499_366_5),
+        (-0.906_179_845_938_664, 0.236_926_885_056_189_1),
+        (0.906_179_845_938_664, 0.236_926_885_056_189_1),
+    ];
+    let pieces = 16;
+    let h = s / pieces as f64;
+    let mut total = 0.0;
+    for i in 0..pieces {
+        let mid = (i as f64 + 0.5) * h;
+        for (x, w) in NODES {
+            let at = mid + 0.5 * h * x;
+            total += 0.5 * h * w * (s - at).powi(2) / whisker.ei(at);
+        }
+    }
+    if let Follicle::Spring { stiffness, .. } = whisker.params().follicle {
+        total += s * s / stiffness;
+    }
+    total
+}
+
+/// Whether a chain of `segments` segments (the coarse model's default stiffness rule) follows
+/// `whisker` where contacts meet it: at every one of [`COMPLIANCE_POINTS`] points along its outer
+/// two thirds, the deflection under a force there is within [`CHAIN_TOLERANCE`] of the
+/// Euler–Bernoulli beam's ([`beam_compliance`]). A tapered whisker's bending stiffness falls as
+/// the fourth power of its radius, so a few segments lump its flexible outer part into joints
+/// that are too stiff between them and too soft at them.
+pub fn chain_follows(whisker: &WhiskerParams, segments: usize) -> Result<bool> {
+    use vibrissa_core::chain::Model;
+    let checked = whisker
+        .check()
+        .map_err(|e| Error::Setting(format!("the filter's chain: {e}")))?;
+    let model = Model::new(&checked, segments, Discretisation::default())
+        .map_err(|e| Error::Setting(format!("the filter's chain of {segments} segments: {e}")))?;
+    let length = whisker.length;
+    let step = length / segments as f64;
+    Ok((0..COMPLIANCE_POINTS).all(|i| {
+        let s = length * (1.0 + 2.0 * (i + 1) as f64 / COMPLIANCE_POINTS as f64) / 3.0;
+        // The chain's joints sit at its nodes: joint j turns by (s − s_j) / k_j under the force.
+        let chain: f64 = model
+            .stiffness
+            .iter()
+            .enumerate()
+            .map(|(j, k)| (s - j as f64 * step).max(0.0).powi(2) / k)
+            .sum();
+        let beam = beam_compliance(&checked, s);
+        (chain / beam - 1.0).abs() <= CHAIN_TOLERANCE
+    }))
+}
+
+/// Segments of the coarse chain for a family whose whisker is known only roughly, around `base`:
+/// the fewest of [`ROUGH_SEGMENTS`] whose chain follows `base` ([`chain_follows`]), else the
+/// most. 8 for the uniform `e2` whisker; 16 for one whose tip has half the base's radius. The
+/// whiskers the filter entertains around it taper further, where the chain follows them less
+/// closely (within 5% of the compliance with 8 segments at half the radius of a uniform one).
+pub fn rough_segments(base: &WhiskerParams) -> Result<usize> {
+    for &n in &ROUGH_SEGMENTS {
+        if chain_follows(base, n)? {
+            return Ok(n);
+        }
+    }
+    Ok(ROUGH_SEGMENTS[ROUGH_SEGMENTS.len() - 1])
+}
+
 impl Config {
     /// The `e2` family: d ∈ [14, 31] mm, v ∈ [0.2, 1.6] m/s (the experiment's ranges, widened by
     /// 1 mm and 0.1 m/s), known start, 10 mm frictionless box,
@@ -323,5 +406,56 @@ impl Config {
             .filter(|&k| self.priors[k].is_free())
             .map(|k| PARAMS[k])
             .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_beam_compliance_is_the_cantilever_formula_on_a_uniform_whisker() {
+        let w = WhiskerParams::w30().check().unwrap();
+        use vibrissa_core::beam::BeamProfile;
+        let ei = w.ei(0.0);
+        for s in [0.01, 0.02, 0.03] {
+            let exact = s * s * s / (3.0 * ei);
+            assert!((beam_compliance(&w, s) / exact - 1.0).abs() < 1e-12);
+        }
+        let mut sprung = WhiskerParams::w30();
+        sprung.follicle = Follicle::Spring {
+            stiffness: 1e-4,
+            damping: 0.0,
+        };
+        let sprung = sprung.check().unwrap();
+        let s = 0.02;
+        let exact = s * s * s / (3.0 * ei) + s * s / 1e-4;
+        assert!((beam_compliance(&sprung, s) / exact - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_few_segments_follow_a_uniform_whisker_but_not_a_tapered_one() {
+        let mut w = WhiskerParams::w30();
+        assert_eq!(w.tip_radius, w.base_radius);
+        assert!(chain_follows(&w, 8).unwrap());
+        // A tip of half the base's radius: the outer segments are up to 16 times more flexible.
+        w.tip_radius = 0.5 * w.base_radius;
+        assert!(!chain_follows(&w, 8).unwrap());
+        assert!(chain_follows(&w, 16).unwrap());
+        assert!(chain_follows(&w, 64).unwrap());
+    }
+
+    #[test]
+    fn the_rough_chain_grows_with_the_taper() {
+        let mut w = WhiskerParams::w30();
+        assert_eq!(rough_segments(&w).unwrap(), ROUGH_SEGMENTS[0]);
+        w.tip_radius = 0.5 * w.base_radius;
+        assert_eq!(rough_segments(&w).unwrap(), 16);
+        let bad = WhiskerParams {
+            length: -1.0,
+            ..w.clone()
+        };
+        let e = rough_segments(&bad).unwrap_err().to_string();
+        assert!(e.contains("length"), "{e}");
     }
 }

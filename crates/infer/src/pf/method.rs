@@ -150,10 +150,6 @@ pub const RANDOMISED_TEMPER: f64 = 2.5;
 /// (docs/filter.md).
 pub const CALIBRATED_TEMPER: f64 = 1.3;
 
-/// Segments of the coarse transition model on a randomised family: its whiskers taper or sit in
-/// follicle springs ([`super::coarse_segments`]).
-pub const RANDOMISED_SEGMENTS: usize = 8;
-
 /// `count` whiskers drawn from the randomisation `prior` around `family`'s, for the filter's
 /// alternatives: the draws of its whisker alone (modulus, density, damping, follicle, taper).
 /// The recording's chain and the sensors' gains, which the prior also draws for training runs,
@@ -309,7 +305,7 @@ impl Pf {
             if !family.is_calibrated() {
                 c.sensor_spread = self.sensor_spread.unwrap_or_else(SensorSpread::rough);
                 if self.model == TransitionModel::Coarse && self.segments.is_none() {
-                    c.segments = RANDOMISED_SEGMENTS;
+                    c.segments = super::config::rough_segments(&family.base().whisker)?;
                 }
             }
         }
@@ -486,7 +482,7 @@ mod tests {
         assert_eq!(fit(&rough), temper_for(1000) * RANDOMISED_TEMPER);
         let c = Pf::new(1000).config(&rough, [1.0; 5]).unwrap();
         assert_eq!(c.alternatives.len(), ALTERNATIVES);
-        assert_eq!(c.segments, RANDOMISED_SEGMENTS);
+        assert_eq!(c.segments, super::super::ROUGH_SEGMENTS[0]);
         assert_eq!(c.sensor_spread, SensorSpread::rough());
         assert!(c.alternatives.iter().all(|w| w.check().is_ok()));
         assert_ne!(c.alternatives[0], c.alternatives[1]);

@@ -43,7 +43,10 @@ mod sensors;
 mod transition;
 mod whiskers;
 
-pub use config::{coarse_segments, Config, Injection, Prior, PARAMS};
+pub use config::{
+    chain_follows, coarse_segments, rough_segments, Config, Injection, Prior, CHAIN_TOLERANCE,
+    PARAMS, ROUGH_SEGMENTS,
+};
 pub use filter::{run, Filter, Particles};
 pub use likelihood::{
     noise_from_series, observation_sigma, per_time_factor, temper_for, TransitionModel,
@@ -51,7 +54,7 @@ pub use likelihood::{
 };
 pub use method::{
     alternative_whiskers, default_particles, Pf, ALTERNATIVES, CALIBRATED_TEMPER,
-    RANDOMISED_SEGMENTS, RANDOMISED_TEMPER, SENSOR_FLOOR,
+    RANDOMISED_TEMPER, SENSOR_FLOOR,
 };
 pub use posterior::{Observations, Posterior, TraceRow};
 pub use sensors::SensorSpread;
