@@ -413,8 +413,9 @@ fn filter_all(
             let filter = pf::recording::fitted(family, level, &options)?;
             let sigma = filter.sigma().context("the filter was not fitted")?;
             if verbose {
+                let chain = filter.config(family, sigma)?.segments;
                 eprintln!(
-                    "pf ({} particles): observation noise {}",
+                    "pf ({} particles, a {chain}-segment transition chain): observation noise {}",
                     options.particles,
                     options
                         .channels
