@@ -136,6 +136,21 @@ pub fn load_for_tip_deflection(ei: f64, length: f64, c: f64, tip_deflection: f64
     tip_deflection * ei / unit
 }
 
+/// Small-deflection compliance of the straight clamped `profile` at arc length `s`: the
+/// deflection there under a unit force at `s` square to it, `∫₀ˢ (s − x)² / EI(x) dx` (m/N), by
+/// Gauss–Legendre quadrature on 16 pieces (exact for a uniform beam).
+pub fn point_compliance(profile: &dyn BeamProfile, s: f64) -> f64 {
+    let rule = crate::chain::gauss_legendre(5);
+    let pieces = 16;
+    let h = s / pieces as f64;
+    (0..pieces)
+        .map(|i| {
+            let a = i as f64 * h;
+            crate::chain::integrate(&rule, a, a + h, |x| (s - x).powi(2) / profile.ei(x))
+        })
+        .sum()
+}
+
 // ---------------------------------------------------------------------------
 // 2. Large-deflection elastica
 // ---------------------------------------------------------------------------
@@ -770,6 +785,16 @@ pub fn kaneko_omega(ei: f64, tip_mass: f64, length: f64, c: f64) -> f64 {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn point_compliance_is_the_cantilever_formula_on_a_uniform_beam() {
+        let w = crate::whisker::WhiskerParams::w30().check().unwrap();
+        let ei = w.ei(0.0);
+        for s in [0.01, 0.02, 0.03] {
+            let exact = s * s * s / (3.0 * ei);
+            assert!((point_compliance(&w, s) / exact - 1.0).abs() < 1e-12);
+        }
+    }
+
     use super::*;
 
     /// Uniform test beam: L = 50 mm, EI = 2e-7 N·m².

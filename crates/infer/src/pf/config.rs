@@ -144,31 +144,14 @@ pub const CHAIN_TOLERANCE: f64 = 0.015;
 const COMPLIANCE_POINTS: usize = 60;
 
 /// The deflection at arc length `s` of the straight `whisker` under a unit force there, square to
-/// it (m/N): Euler–Bernoulli, `∫₀ˢ (s − x)² / EI(x) dx`, plus `s² / k_f` for a compliant follicle.
+/// it (m/N): the Euler–Bernoulli beam's ([`vibrissa_core::beam::point_compliance`]) plus
+/// `s² / k_f` for a compliant follicle.
 fn beam_compliance(whisker: &vibrissa_core::whisker::Whisker, s: f64) -> f64 {
-    use vibrissa_core::beam::BeamProfile;
-    // Gauss–Legendre, 5 points on each of 16 pieces: EI(x) is a quartic, the integrand rational.
-    const NODES: [(f64, f64); 5] = [
-        (0.0, 0.568_888_888_888_888_9),
-        (-0.538_469_310_105_683_1, 0.478_628_670_499_366_5),
-        (0.538_469_310_105_683_1, 0.478_628_670_499_366_5),
-        (-0.906_179_845_938_664, 0.236_926_885_056_189_1),
-        (0.906_179_845_938_664, 0.236_926_885_056_189_1),
-    ];
-    let pieces = 16;
-    let h = s / pieces as f64;
-    let mut total = 0.0;
-    for i in 0..pieces {
-        let mid = (i as f64 + 0.5) * h;
-        for (x, w) in NODES {
-            let at = mid + 0.5 * h * x;
-            total += 0.5 * h * w * (s - at).powi(2) / whisker.ei(at);
-        }
-    }
-    if let Follicle::Spring { stiffness, .. } = whisker.params().follicle {
-        total += s * s / stiffness;
-    }
-    total
+    let follicle = match whisker.params().follicle {
+        Follicle::Spring { stiffness, .. } => s * s / stiffness,
+        Follicle::Clamped => 0.0,
+    };
+    vibrissa_core::beam::point_compliance(whisker, s) + follicle
 }
 
 /// Whether a chain of `segments` segments (the coarse model's default stiffness rule) follows
