@@ -158,7 +158,7 @@ pub fn run(args: &Args) -> Result<()> {
     })?;
     let seconds = start.elapsed().as_secs_f64();
 
-    let labelled = args.labelled.display().to_string();
+    let labelled = recorded_folder(&args.labelled, &args.out);
     let fitted = fit.document(&nominal, &labelled)?;
     let figure = match &args.plot {
         Some(png) => Some(draw(png, &fit, &args.scenario)?),
@@ -289,6 +289,30 @@ impl Render for Report {
 
 /// The recordings one after another (a gap between them), with the nominal and the fitted
 /// simulations, one panel per channel.
+/// The labelled folder as the fitted file records it, so that estimating finds it again from
+/// anywhere (each training run then carries the fit's residual on one of its strikes): relative
+/// to the fitted file's directory when the folder lies under it (the two move together),
+/// absolute otherwise, as given when it cannot be resolved.
+fn recorded_folder(labelled: &Path, out: &Path) -> String {
+    let Ok(folder) = std::fs::canonicalize(labelled) else {
+        return labelled.display().to_string();
+    };
+    let beside = out
+        .parent()
+        .map(|p| {
+            if p.as_os_str().is_empty() {
+                Path::new(".")
+            } else {
+                p
+            }
+        })
+        .and_then(|p| std::fs::canonicalize(p).ok());
+    match beside.and_then(|b| folder.strip_prefix(b).ok().map(Path::to_path_buf)) {
+        Some(rel) if !rel.as_os_str().is_empty() => rel.display().to_string(),
+        _ => folder.display().to_string(),
+    }
+}
+
 fn draw(png: &Path, fit: &Fit, nominal: &str) -> Result<Pending> {
     let mut t = Vec::new();
     let mut recorded: Vec<Vec<f64>> = vec![Vec::new(); UNITS.len()];
@@ -363,6 +387,26 @@ fn draw(png: &Path, fit: &Fit, nominal: &str) -> Result<Pending> {
 mod tests {
     use super::*;
     use vibrissa_io::scenario::Correlation;
+
+    #[test]
+    fn the_labelled_folder_is_recorded_so_that_it_is_found_again() {
+        let root = std::env::temp_dir().join(format!("vibrissa-recorded-{}", std::process::id()));
+        let (calib, elsewhere) = (root.join("rig").join("calib"), root.join("other"));
+        std::fs::create_dir_all(&calib).unwrap();
+        std::fs::create_dir_all(&elsewhere).unwrap();
+        let out = root.join("rig").join("fitted.toml");
+        // Under the fitted file's directory: relative to it, so that the two move together.
+        assert_eq!(recorded_folder(&calib, &out), "calib");
+        // Elsewhere: absolute.
+        let abs = recorded_folder(&calib, &elsewhere.join("fitted.toml"));
+        assert!(
+            Path::new(&abs).is_absolute() && abs.ends_with("calib"),
+            "{abs}"
+        );
+        // Not found: as given.
+        assert_eq!(recorded_folder(Path::new("no/such"), &out), "no/such");
+        let _ = std::fs::remove_dir_all(&root);
+    }
 
     fn report(matrix: Vec<Vec<f64>>) -> Report {
         Report {

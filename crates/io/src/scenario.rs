@@ -58,7 +58,8 @@
 //!                            # channel's unit (default 0); also theta12, m0, fx, fy
 //!
 //! [calibration]              # written by `vibrissa calibrate`; a record, no effect on the run
-//! labelled = "calib"         # the folder of labelled recordings fitted
+//! labelled = "calib"         # the folder of labelled recordings fitted (relative to this
+//!                            # file's directory, or absolute); training reads its residuals
 //! recordings = 9             # how many
 //! rms_before = { theta01 = 1.2e-2, m0 = 3.1e-6 }  # residual RMS per channel, nominal scenario
 //! rms_after = { theta01 = 4.0e-4, m0 = 2.2e-7 }   # the same, fitted scenario
