@@ -9,6 +9,7 @@
 
 use crate::error::{Error, Result};
 use crate::experiment::{Noise, Sample, Variant, CHANNELS, SENSOR_NOISE_FRACTION};
+use crate::model_error::ModelError;
 use crate::randomise::{Around, FittedSpread, Randomisation};
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -50,6 +51,10 @@ pub struct Family {
     /// drawn uniformly in [0, start_jitter) before it (its length unchanged), so that the contact
     /// falls anywhere between samples, as in a recording with an unknown lead-in (0: never).
     start_jitter: f64,
+    /// The folder of labelled strikes a calibrated file was fitted to, where it is found.
+    labelled: Option<std::path::PathBuf>,
+    /// Residuals of the fitted whisker added to every run ([`Family::with_model_error`]).
+    model_error: Option<std::sync::Arc<ModelError>>,
 }
 
 /// Stream of a run's random start (see the field `start_jitter`), apart from its other streams.
@@ -120,6 +125,12 @@ impl Family {
                 .map(std::sync::Arc::new),
             mounts: loaded.whiskers.into_iter().enumerate().collect(),
             start_jitter: 0.0,
+            labelled: loaded
+                .calibration
+                .as_ref()
+                .and_then(|c| c.labelled.as_deref())
+                .and_then(|dir| find_labelled(spec, dir)),
+            model_error: None,
         })
     }
 
@@ -406,8 +417,35 @@ impl Family {
     pub fn nominal(&self) -> Family {
         Family {
             randomised: None,
+            model_error: None,
             ..self.clone()
         }
+    }
+
+    /// The folder of labelled strikes that calibration fitted this file's whisker to, where it
+    /// is found (as the record names it, from the working directory or from the file's own);
+    /// `None` on a file calibration did not write.
+    pub fn labelled_strikes(&self) -> Option<&std::path::Path> {
+        self.labelled.as_deref()
+    }
+
+    /// The same family with `residuals` added to every run it simulates (one strike's, drawn
+    /// per run: see [`ModelError`]), or none. [`Family::nominal`] drops them.
+    pub fn with_model_error(&self, residuals: Option<std::sync::Arc<ModelError>>) -> Family {
+        Family {
+            model_error: residuals,
+            ..self.clone()
+        }
+    }
+
+    /// The residuals added to every run, if any.
+    pub fn model_error(&self) -> Option<&ModelError> {
+        self.model_error.as_deref()
+    }
+
+    /// The scenario file as read (overrides applied).
+    pub fn document(&self) -> &Document {
+        &self.doc
     }
 
     /// Whether the scenario was fitted to labelled recordings by calibration (its file has a
@@ -516,9 +554,12 @@ impl Family {
         let kept =
             ((self.base.duration + delay) * self.base.sample_rate + 1e-9).floor() as usize + 1;
         // Columns 1..=5 of the contract's rows are the observed channels.
-        let series = (0..CHANNELS.len())
+        let mut series: Vec<Vec<f64>> = (0..CHANNELS.len())
             .map(|c| out.rows.iter().take(kept).map(|r| r[c + 1]).collect())
             .collect();
+        if let Some(me) = &self.model_error {
+            me.add(&mut series, self.base.sample_rate, delay + jitter, seed);
+        }
         Ok(Sample {
             series,
             params: p.to_vec(),
@@ -810,6 +851,21 @@ fn product(values: &[Vec<f64>]) -> Vec<Vec<f64>> {
             .collect();
     }
     out
+}
+
+/// The folder `dir` of a calibration record, for the scenario `spec`: an absolute path as it
+/// is, a relative one from the scenario file's own directory (where `vibrissa calibrate` writes
+/// it relative to) or else from the working directory; `None` where none is a folder.
+fn find_labelled(spec: &str, dir: &str) -> Option<std::path::PathBuf> {
+    let given = std::path::Path::new(dir);
+    let beside = std::path::Path::new(spec)
+        .parent()
+        .filter(|_| given.is_relative())
+        .map(|p| p.join(given));
+    beside
+        .into_iter()
+        .chain(std::iter::once(given.to_path_buf()))
+        .find(|p| p.is_dir())
 }
 
 #[cfg(test)]

@@ -25,6 +25,7 @@ pub mod lead_in;
 mod linalg;
 pub mod method;
 pub mod methods;
+pub mod model_error;
 pub mod noise;
 pub mod pf;
 pub mod randomise;

@@ -7,8 +7,10 @@
 use crate::evaluate::training_for;
 use crate::experiment::CHANNELS;
 use crate::method::Method;
+use crate::model_error::ModelError;
 use crate::recording::Recording;
 use crate::{methods, Family, Result};
+use std::sync::Arc;
 use std::time::Instant;
 
 /// What a fitted method is kept by: sample rate (Hz), samples, sensor noise per channel, the
@@ -20,6 +22,9 @@ type Key = (f64, usize, [f64; 5], Option<usize>, usize);
 #[derive(Default)]
 pub struct Trained {
     fitted: Vec<(Key, Box<dyn Method>)>,
+    /// Per calibrated family (by name), the residuals of its fit on its labelled strikes, once
+    /// read (`None`: none to read, or unreadable).
+    residuals: Vec<(String, Option<Arc<ModelError>>)>,
     /// Wall time of all training, s.
     pub seconds: f64,
     /// Simulated runs trained on, over all timings.
@@ -121,7 +126,17 @@ impl Trained {
                     Short(rate),
                     describe_noise(noise, &method.channels())
                 ));
-                let noise = timed.training_noise(*noise);
+                let residuals = self.residuals_of(family, log);
+                let (timed, noise) = match &residuals {
+                    Some(me) => (
+                        timed.with_model_error(Some(me.clone())),
+                        timed.training_noise(me.remaining(noise)),
+                    ),
+                    None => {
+                        let noise = timed.training_noise(*noise);
+                        (timed, noise)
+                    }
+                };
                 let training = training_for(&timed, &noise, method.as_ref(), seed)?;
                 method.fit(&training)?;
                 let secs = t0.elapsed().as_secs_f64();
@@ -134,6 +149,58 @@ impl Trained {
             }
         };
         Ok(self.fitted[k].1.as_ref())
+    }
+
+    /// The residuals of `family`'s fit on the labelled strikes it was fitted to
+    /// ([`ModelError`]), read on first use, when `family` was written by calibration and its
+    /// record names a folder that is found; `log` hears what they are, or why there are none.
+    fn residuals_of(
+        &mut self,
+        family: &Family,
+        log: &mut dyn FnMut(String),
+    ) -> Option<Arc<ModelError>> {
+        if !family.is_calibrated() {
+            return None;
+        }
+        if let Some((_, me)) = self.residuals.iter().find(|(n, _)| n == family.name()) {
+            return me.clone();
+        }
+        let me = match family.labelled_strikes() {
+            None => {
+                log(format!(
+                    "note: {} was calibrated on labelled strikes that are not found from here: \
+                     training without the fit's model error, so intervals may be too narrow \
+                     where the fitted whisker differs from yours",
+                    family.name()
+                ));
+                None
+            }
+            Some(dir) => {
+                match ModelError::of(family, dir) {
+                    Ok(me) => {
+                        let rms = me.rms();
+                        log(format!(
+                        "adding to every training run the fitted whisker's residual on one of its \
+                         {} labelled strikes ({}; RMS {}), less their own noise from the runs' \
+                         sensor noise",
+                        me.strikes(),
+                        dir.display(),
+                        describe_noise(&rms, &(0..CHANNELS.len()).filter(|&c| rms[c].is_finite()).collect::<Vec<_>>())
+                    ));
+                        Some(Arc::new(me))
+                    }
+                    Err(e) => {
+                        log(format!(
+                            "note: training without the fit's model error ({e}); intervals may be \
+                         too narrow where the fitted whisker differs from yours"
+                        ));
+                        None
+                    }
+                }
+            }
+        };
+        self.residuals.push((family.name().to_string(), me.clone()));
+        me
     }
 }
 

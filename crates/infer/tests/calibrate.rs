@@ -157,3 +157,72 @@ fn bad_settings_are_refused_before_any_simulation() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A calibrated scenario file beside `dir` that names it as its labelled strikes (by its name
+/// alone, so that it is found from the file's directory), with the short strikes' timing.
+fn calibrated_file(dir: &Path) -> PathBuf {
+    let name = dir.file_name().unwrap().to_str().unwrap();
+    let path = dir.with_extension("toml");
+    let text = format!(
+        "experiment = \"e2\"\nduration = 0.08\n\n[calibration]\nlabelled = \"{name}\"\n\
+         recordings = 1\nrms_before = {{}}\nrms_after = {{}}\nnoise = {{}}\nparameters = []\n"
+    );
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+#[test]
+fn the_fit_s_residuals_are_what_its_strikes_differ_by_and_runs_carry_them() {
+    use vibrissa_infer::experiment::{Noise, CHANNELS};
+    use vibrissa_infer::model_error::ModelError;
+    use vibrissa_infer::Family;
+    // Strikes of the scenario's own whisker: nothing to add.
+    let same = folder("residual-same");
+    strikes(&same, &[SHORT], &[(0.018, 0.6), (0.027, 1.1)]);
+    let family = Family::open(calibrated_file(&same).to_str().unwrap(), &[]).unwrap();
+    assert_eq!(family.labelled_strikes(), Some(same.as_path()));
+    let me = ModelError::of(&family, family.labelled_strikes().unwrap()).unwrap();
+    assert_eq!(me.strikes(), 2);
+    for (c, r) in me.rms().iter().enumerate() {
+        assert!(*r < 1e-12, "{}: {r}", CHANNELS[c]);
+    }
+
+    // One strike of a whisker 15% stiffer: its residual, added to the scenario's run at its
+    // labels, gives the strike back.
+    let stiffer = folder("residual-stiffer");
+    strikes(
+        &stiffer,
+        &[SHORT, "whisker.youngs_modulus=3.45e9"],
+        &[(0.021, 0.8)],
+    );
+    let family = Family::open(calibrated_file(&stiffer).to_str().unwrap(), &[]).unwrap();
+    let me = ModelError::of(&family, &stiffer).unwrap();
+    assert!(me.rms()[1] > 1e-3, "theta12 residual {}", me.rms()[1]);
+    let recorded = vibrissa_io::series::read_csv(stiffer.join("strike0.csv")).unwrap();
+    let run = family
+        .with_model_error(Some(std::sync::Arc::new(me)))
+        .simulate(&[0.021, 0.8], &Noise::NONE, 3)
+        .unwrap();
+    for (c, name) in CHANNELS.iter().enumerate() {
+        let want = recorded.column(name).unwrap();
+        for (got, want) in run.series[c].iter().zip(want) {
+            assert!(
+                (got - want).abs() <= 1e-12 * (1.0 + want.abs()),
+                "{name}: {got} against {want}"
+            );
+        }
+    }
+    // The nominal family adds nothing.
+    let plain = family
+        .nominal()
+        .simulate(&[0.021, 0.8], &Noise::NONE, 3)
+        .unwrap();
+    assert!(plain.series[1]
+        .iter()
+        .zip(recorded.column("theta12").unwrap())
+        .any(|(a, b)| (a - b).abs() > 1e-4));
+    for dir in [same, stiffer] {
+        let _ = std::fs::remove_file(dir.with_extension("toml"));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
