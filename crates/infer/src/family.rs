@@ -91,7 +91,13 @@ impl Family {
         whisker: Option<&scenario::WhiskerSource>,
     ) -> Result<Family> {
         let (doc, loaded) = scenario::open_adopting(spec, text, sets, whisker)?;
-        Family::from_loaded(spec, doc, loaded)
+        let mut family = Family::from_loaded(spec, doc, loaded)?;
+        if whisker.is_some() {
+            // The record's labelled strikes are of the whisker's own scenario: what the fit
+            // missed there says nothing of runs of this one.
+            family.labelled = None;
+        }
+        Ok(family)
     }
 
     fn from_loaded(

@@ -168,36 +168,37 @@ impl Trained {
         let me = match family.labelled_strikes() {
             None => {
                 log(format!(
-                    "note: {} was calibrated on labelled strikes that are not found from here: \
-                     training without the fit's model error, so intervals may be too narrow \
-                     where the fitted whisker differs from yours",
+                    "note: training without the fit's model error: {} names no labelled strikes \
+                     found from here for this scenario (or gives the whisker of another), so \
+                     intervals may be too narrow where the fitted whisker differs from yours",
                     family.name()
                 ));
                 None
             }
-            Some(dir) => {
-                match ModelError::of(family, dir) {
-                    Ok(me) => {
-                        let rms = me.rms();
-                        log(format!(
+            Some(dir) => match ModelError::of(family, dir) {
+                Ok(me) => {
+                    let rms = me.rms();
+                    let seen: Vec<usize> = (0..CHANNELS.len())
+                        .filter(|&c| rms[c].is_finite())
+                        .collect();
+                    log(format!(
                         "adding to every training run the fitted whisker's residual on one of its \
                          {} labelled strikes ({}; RMS {}), less their own noise from the runs' \
                          sensor noise",
                         me.strikes(),
                         dir.display(),
-                        describe_noise(&rms, &(0..CHANNELS.len()).filter(|&c| rms[c].is_finite()).collect::<Vec<_>>())
+                        describe_noise(&rms, &seen)
                     ));
-                        Some(Arc::new(me))
-                    }
-                    Err(e) => {
-                        log(format!(
-                            "note: training without the fit's model error ({e}); intervals may be \
-                         too narrow where the fitted whisker differs from yours"
-                        ));
-                        None
-                    }
+                    Some(Arc::new(me))
                 }
-            }
+                Err(e) => {
+                    log(format!(
+                        "note: training without the fit's model error ({e}); intervals may be \
+                         too narrow where the fitted whisker differs from yours"
+                    ));
+                    None
+                }
+            },
         };
         self.residuals.push((family.name().to_string(), me.clone()));
         me
