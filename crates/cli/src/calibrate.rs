@@ -287,8 +287,6 @@ impl Render for Report {
     }
 }
 
-/// The recordings one after another (a gap between them), with the nominal and the fitted
-/// simulations, one panel per channel.
 /// The labelled folder as the fitted file records it, so that estimating finds it again from
 /// anywhere (each training run then carries the fit's residual on one of its strikes): relative
 /// to the fitted file's directory when the folder lies under it (the two move together),
@@ -313,6 +311,8 @@ fn recorded_folder(labelled: &Path, out: &Path) -> String {
     }
 }
 
+/// The recordings one after another (a gap between them), with the nominal and the fitted
+/// simulations, one panel per channel.
 fn draw(png: &Path, fit: &Fit, nominal: &str) -> Result<Pending> {
     let mut t = Vec::new();
     let mut recorded: Vec<Vec<f64>> = vec![Vec::new(); UNITS.len()];

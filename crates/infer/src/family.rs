@@ -429,7 +429,7 @@ impl Family {
     }
 
     /// The folder of labelled strikes that calibration fitted this file's whisker to, where it
-    /// is found (as the record names it, from the working directory or from the file's own);
+    /// is found (as the record names it, from the file's own directory or the working one);
     /// `None` on a file calibration did not write.
     pub fn labelled_strikes(&self) -> Option<&std::path::Path> {
         self.labelled.as_deref()
@@ -442,11 +442,6 @@ impl Family {
             model_error: residuals,
             ..self.clone()
         }
-    }
-
-    /// The residuals added to every run, if any.
-    pub fn model_error(&self) -> Option<&ModelError> {
-        self.model_error.as_deref()
     }
 
     /// The scenario file as read (overrides applied).

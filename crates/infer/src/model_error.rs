@@ -96,14 +96,15 @@ impl ModelError {
                         .collect()
                 })
             });
-            values.push(std::array::from_fn::<Vec<f64>, 5, _>(|c| {
-                rec.channel(CHANNELS[c])
-                    .map_or_else(Vec::new, |x| x.to_vec())
-            }));
+            values.push(
+                CHANNELS
+                    .iter()
+                    .map(|name| rec.channel(name).map_or_else(Vec::new, |x| x.to_vec()))
+                    .collect::<Vec<_>>(),
+            );
             residuals.push(series);
         }
-        let series: Vec<Vec<Vec<f64>>> = values.iter().map(|v| v.to_vec()).collect();
-        let refs: Vec<&[Vec<f64>]> = series.iter().map(|v| v.as_slice()).collect();
+        let refs: Vec<&[Vec<f64>]> = values.iter().map(|v| v.as_slice()).collect();
         let present: Vec<usize> = (0..CHANNELS.len())
             .filter(|&c| values.iter().all(|v| !v[c].is_empty()))
             .collect();
