@@ -133,6 +133,54 @@ fn recordings_of_the_nominal_whisker_leave_it_as_it_is() {
 }
 
 #[test]
+fn a_tip_thinner_than_the_tapered_nominal_in_a_soft_follicle_is_found() {
+    // The user believes their whisker tapers to half its base radius in a clamped follicle; it
+    // tapers to 0.35 of it and sits in a follicle 6 times as compliant as the nominal chain's
+    // base joint. Both lie outside where a scan of the nominal's neighbourhood alone starts.
+    let dir = folder("soft");
+    let plain = Document::load("e2", &[SHORT.to_string()]).unwrap();
+    let w = plain.loaded().unwrap().scenario;
+    let tapered = format!("whisker.tip_radius={:?}", 0.5 * w.whisker.base_radius);
+    let nominal = Document::load("e2", &[SHORT.to_string(), tapered.clone()]).unwrap();
+    let base = nominal.loaded().unwrap().scenario;
+    let checked = base.whisker.check().unwrap();
+    let k0 = vibrissa_core::chain::Model::new(&checked, base.segments, base.discretisation)
+        .unwrap()
+        .stiffness[0];
+    let (tip, stiffness) = (0.35 * w.whisker.base_radius, k0 / 6.0);
+    let truth = [
+        SHORT.to_string(),
+        format!("whisker.tip_radius={tip:?}"),
+        format!(
+            "whisker.follicle={{ kind = \"spring\", stiffness = {stiffness:?}, damping = {:?} }}",
+            1e-4 * stiffness
+        ),
+    ];
+    let truth: Vec<&str> = truth.iter().map(String::as_str).collect();
+    let labels = [
+        (0.016, 0.4),
+        (0.022, 0.9),
+        (0.028, 1.4),
+        (0.019, 1.2),
+        (0.025, 0.6),
+    ];
+    strikes(&dir, &truth, &labels);
+    let set = read_labelled(&dir, &nominal, &Options::default()).unwrap();
+    let fit = calibrate(&nominal, &set, &Settings::default(), &mut |_| {}).unwrap();
+    let found_tip = value(&fit, "whisker.tip_radius");
+    let found_follicle = value(&fit, "whisker.follicle.stiffness");
+    assert!(
+        (found_tip / tip - 1.0).abs() < 0.1,
+        "tip radius {found_tip}, truth {tip}"
+    );
+    assert!(
+        (found_follicle / stiffness).ln().abs() < 0.5_f64.ln().abs(),
+        "follicle stiffness {found_follicle}, truth {stiffness}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
 fn bad_settings_are_refused_before_any_simulation() {
     let dir = folder("settings");
     strikes(&dir, &[SHORT], &[(0.02, 0.6)]);

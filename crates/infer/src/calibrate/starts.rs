@@ -13,10 +13,15 @@ pub(super) const SCAN_DENSITY: (f64, f64, usize) = (-0.6, 0.6, 9);
 pub(super) const SCAN_MODULUS: [f64; 3] = [-0.2, 0.0, 0.2];
 
 /// Follicle compliances of the starting scan, relative to the nominal chain's base joint
-/// (0: clamped, the lower bound of the parametrisation).
-pub(super) const SCAN_FOLLICLE: [f64; 9] = [0.0, 0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5, 3.0];
+/// (0: clamped, the lower bound of the parametrisation), up to the randomisation prior's
+/// largest ([`crate::randomise::Randomisation::default`]).
+pub(super) const SCAN_FOLLICLE: [f64; 11] =
+    [0.0, 0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5, 3.0, 5.0, 10.0];
 
-/// Tip-to-base radius ratios of the starting scan, besides the parameter's own start.
+/// Tip-to-base radius ratios of the starting scan, besides the parameter's own start; the
+/// start's ratio times each of them is scanned too, so that a whisker whose tip is thinner
+/// than its tapered nominal says (by the factor 0.5–0.9 that a user's guess is often off) is
+/// started near. On a uniform nominal the two sets are one.
 pub(super) const SCAN_TAPER: [f64; 2] = [0.7, 0.5];
 
 /// Relative prior standard deviation of the gains while the start is searched for.
@@ -42,6 +47,20 @@ pub(super) struct Minimum {
     pub(super) x: Vec<Option<f64>>,
     /// The gains and offsets there.
     pub(super) resp: [Response; CHANNELS],
+}
+
+/// The taper coordinates (ln tip/base) the scan visits from the start `z0`: the start, each
+/// ratio of [`SCAN_TAPER`], and the start thinned by each of them; a value within 1e-9 of one
+/// already listed is not repeated.
+fn scan_tapers(z0: f64) -> Vec<f64> {
+    let mut out = vec![z0];
+    let ratios = SCAN_TAPER.iter().map(|q| q.ln());
+    for z in ratios.clone().chain(ratios.map(|r| z0 + r)) {
+        if out.iter().all(|&x| (x - z).abs() > 1e-9) {
+            out.push(z);
+        }
+    }
+    out
 }
 
 /// The start of the final fit: the best of several short fits.
@@ -94,9 +113,7 @@ pub(super) fn best_start(
         None => vec![None],
     };
     let tapers: Vec<Option<f64>> = match taper {
-        Some(j) => std::iter::once(Some(z0[j]))
-            .chain(SCAN_TAPER.iter().map(|&q| Some(f64::ln(q))))
-            .collect(),
+        Some(j) => scan_tapers(z0[j]).into_iter().map(Some).collect(),
         None => vec![None],
     };
     let mut points: Vec<Vec<f64>> = Vec::new();
