@@ -295,16 +295,11 @@ fn recorded_folder(labelled: &Path, out: &Path) -> String {
     let Ok(folder) = std::fs::canonicalize(labelled) else {
         return labelled.display().to_string();
     };
-    let beside = out
+    let dir = out
         .parent()
-        .map(|p| {
-            if p.as_os_str().is_empty() {
-                Path::new(".")
-            } else {
-                p
-            }
-        })
-        .and_then(|p| std::fs::canonicalize(p).ok());
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let beside = std::fs::canonicalize(dir).ok();
     match beside.and_then(|b| folder.strip_prefix(b).ok().map(Path::to_path_buf)) {
         Some(rel) if !rel.as_os_str().is_empty() => rel.display().to_string(),
         _ => folder.display().to_string(),

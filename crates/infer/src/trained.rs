@@ -126,17 +126,11 @@ impl Trained {
                     Short(rate),
                     describe_noise(noise, &method.channels())
                 ));
+                // The residuals carry the labelled strikes' own noise: the runs get the rest.
                 let residuals = self.residuals_of(family, log);
-                let (timed, noise) = match &residuals {
-                    Some(me) => (
-                        timed.with_model_error(Some(me.clone())),
-                        timed.training_noise(me.remaining(noise)),
-                    ),
-                    None => {
-                        let noise = timed.training_noise(*noise);
-                        (timed, noise)
-                    }
-                };
+                let noise = residuals.as_ref().map_or(*noise, |me| me.remaining(noise));
+                let timed = timed.with_model_error(residuals);
+                let noise = timed.training_noise(noise);
                 let training = training_for(&timed, &noise, method.as_ref(), seed)?;
                 method.fit(&training)?;
                 let secs = t0.elapsed().as_secs_f64();
