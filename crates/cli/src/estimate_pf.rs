@@ -425,6 +425,17 @@ fn filter_all(
                         .join(", ")
                 );
             }
+            if let (true, Some(r)) = (verbose, filter.fit_residual()) {
+                eprintln!(
+                    "pf: the calibration's residual beyond noise is part of that noise ({})",
+                    options
+                        .channels
+                        .iter()
+                        .map(|&c| format!("{} {:.3e}", CHANNELS[c], r[c]))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                );
+            }
             if verbose && !filter.interval_scale.is_empty() {
                 eprintln!(
                     "pf: intervals widened ({}) to hold {:.0}% of the errors on {} held-out runs \

@@ -44,6 +44,9 @@ pub struct Family {
     calibrated: bool,
     /// The calibration's joint uncertainty of whisker and gains, where the record gives it.
     spread: Option<std::sync::Arc<FittedSpread>>,
+    /// What the fitted whisker misses of the labelled strikes beyond their noise, per channel of
+    /// [`CHANNELS`], where the calibration record gives both ([`Family::fit_residual`]).
+    fit_residual: Option<[f64; 5]>,
     /// The file's `[[whiskers]]` kept (empty: the one whisker of `base`, at the origin), each
     /// with its place in the file's array (which seeds its random streams).
     mounts: Vec<(usize, Mount)>,
@@ -129,6 +132,7 @@ impl Family {
                 .as_ref()
                 .and_then(FittedSpread::of)
                 .map(std::sync::Arc::new),
+            fit_residual: loaded.calibration.as_ref().and_then(fit_residual),
             mounts: loaded.whiskers.into_iter().enumerate().collect(),
             start_jitter: 0.0,
             labelled: loaded
@@ -447,6 +451,15 @@ impl Family {
     /// The scenario file as read (overrides applied).
     pub fn document(&self) -> &Document {
         &self.doc
+    }
+
+    /// The root-mean-square residual of the fitted whisker on the labelled strikes it was fitted
+    /// to, less those strikes' own sensor noise (in quadrature), per channel of [`CHANNELS`] and
+    /// in its unit: how far the fitted whisker is from the recordings' beyond noise. `None` on a
+    /// file calibration did not write, or whose record lacks `rms_after` or `noise` for a channel
+    /// it fitted; 0 for a channel the record does not name (the fit did not see it).
+    pub fn fit_residual(&self) -> Option<[f64; 5]> {
+        self.fit_residual
     }
 
     /// Whether the scenario was fitted to labelled recordings by calibration (its file has a
@@ -867,6 +880,27 @@ fn find_labelled(spec: &str, dir: &str) -> Option<std::path::PathBuf> {
         .into_iter()
         .chain(std::iter::once(given.to_path_buf()))
         .find(|p| p.is_dir())
+}
+
+/// [`Family::fit_residual`] from a calibration record: per channel √(rms_after² − noise²),
+/// floored at 0; 0 where the record names neither, `None` where it names one without the other,
+/// a value that is not finite and non-negative, or no channel at all.
+fn fit_residual(record: &vibrissa_io::scenario::Calibration) -> Option<[f64; 5]> {
+    let after = record.rms_after.to_array();
+    let noise = record.noise.to_array();
+    let mut out = [0.0; 5];
+    let mut named = false;
+    for c in 0..5 {
+        match (after[c], noise[c]) {
+            (None, None) => {}
+            (Some(r), Some(n)) if r.is_finite() && n.is_finite() && r >= 0.0 && n >= 0.0 => {
+                out[c] = (r * r - n * n).max(0.0).sqrt();
+                named = true;
+            }
+            _ => return None,
+        }
+    }
+    named.then_some(out)
 }
 
 #[cfg(test)]
