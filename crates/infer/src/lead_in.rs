@@ -9,7 +9,7 @@
 //! read them whatever their lead-in.
 
 use crate::error::{Error, Result};
-use crate::experiment::Noise;
+use crate::experiment::{Noise, THETA12};
 use crate::family::Family;
 use crate::recording::Recording;
 
@@ -33,9 +33,17 @@ pub const CLEAN_SHARE: f64 = 0.02;
 /// softer follicle rises more slowly through the noise).
 pub const ONSET_SLACK: f64 = 0.004;
 
+/// A recording's departure from rest tells its start only when the strike stands clear of the
+/// noise: some channel must reach this many times its departure threshold
+/// ([`DEPART_Z`] noise deviations) from its first sample. A strike that barely rises through the
+/// noise (a light touch near the tip under 10% noise: every channel's peak within 1.3 times the
+/// threshold) crosses it at a time the noise chooses, tens of milliseconds after contact.
+pub const CLEAR_PEAK: f64 = 2.0;
+
 /// Further slack, as a share of the scenario's latest departure: a slow strike of a softer
 /// whisker rises through the noise later in proportion (one of stand-in 14's strikes, recorded
-/// from its approach, left rest at 24 ms where the scenario's latest run did at 11 ms).
+/// from its approach, left rest at 24 ms where the scenario's latest run did at 11 ms). Shorter
+/// lead-ins show in a batch instead ([`batch_leads`]).
 pub const SLACK_SHARE: f64 = 1.0;
 
 /// Fewest slack samples (at low sample rates).
@@ -91,6 +99,22 @@ pub fn onset_time(theta12: &[f64], threshold: f64) -> Option<f64> {
     Some((k - 1) as f64 + share)
 }
 
+/// Share of a theta12 series' peak deviation up to which [`contact_start`] follows its rise.
+pub const RISE_SHARE: f64 = 0.5;
+
+/// When the contact began, in samples from the first (fractional, may be below 0): the rise of
+/// theta12 from [`ONSET_SHARE`] to [`RISE_SHARE`] of its peak deviation, extended back as a line
+/// to no deviation. Unlike the time at which a series leaves rest through its noise, this hardly
+/// depends on how strong the strike is or how noisy the recording: the box pushes the whisker
+/// at its own speed from the moment it meets it, so the early rise is close to a line. `None`
+/// when the series never rises that far.
+pub fn contact_start(theta12: &[f64]) -> Option<f64> {
+    let peak = peak_deviation(theta12);
+    let low = onset_time(theta12, ONSET_SHARE * peak)?;
+    let high = onset_time(theta12, RISE_SHARE * peak)?;
+    Some(low - (high - low) * ONSET_SHARE / (RISE_SHARE - ONSET_SHARE))
+}
+
 /// `window` samples of every channel of `series` shifted so that the time `onset` (in samples,
 /// fractional) lands on sample `pre`, linearly interpolated between samples: before the
 /// series' start each channel holds its first value, past its end its last. Empty channels stay
@@ -143,6 +167,9 @@ pub struct OnsetRange {
     pub earliest: usize,
     /// See `earliest`.
     pub latest: usize,
+    /// The earliest and latest [`contact_start`] of theta12 among the runs, samples (`None`
+    /// when the recording lacks theta12 or no run rises).
+    pub starts: Option<[f64; 2]>,
 }
 
 impl OnsetRange {
@@ -186,11 +213,22 @@ impl OnsetRange {
             .iter()
             .filter_map(|r| departure(r, &thresholds))
             .collect();
+        let starts: Vec<f64> = runs
+            .iter()
+            .filter_map(|r| contact_start(r.get(THETA12)?))
+            .collect();
+        let starts = (present(THETA12) && !starts.is_empty()).then(|| {
+            [
+                starts.iter().copied().fold(f64::INFINITY, f64::min),
+                starts.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+            ]
+        });
         Ok(OnsetRange {
             timing: (rec.rate, rec.t.len(), *noise),
             thresholds,
             earliest: onsets.iter().copied().min().unwrap_or(0),
             latest: onsets.iter().copied().max().unwrap_or(0),
+            starts,
         })
     }
 
@@ -203,24 +241,60 @@ impl OnsetRange {
 }
 
 /// A recording's evident lead-in, in samples: when it leaves rest later than every run of the
-/// scenario does (by more than [`ONSET_SLACK`] and [`SLACK_SHARE`] of the latest), the most
-/// samples of rest it can start with (its departure less the scenario's earliest); `None`
-/// otherwise, or when it never leaves rest. Capped at [`MAX_LEAD_SHARE`] of the recording.
+/// scenario does (by more than [`ONSET_SLACK`] and [`SLACK_SHARE`] of the latest), the most samples of rest it can start with (its
+/// departure less the scenario's earliest); `None` otherwise, when it never leaves rest, or when
+/// no channel stands clear of the noise ([`CLEAR_PEAK`]). Capped at [`MAX_LEAD_SHARE`] of the
+/// recording.
 ///
-/// A recording that moves already within that span ([`moves_within`]) has no evident lead-in,
-/// however late it crosses the departure threshold: a whisker softer or thinner near its tip than
-/// the scenario's rises slowly through the noise after a strike near the tip (a whisker tapered
-/// to 28 µm in a soft follicle, struck 2.7 mm from its tip at 0.46 m/s, crossed it 45 ms in where
-/// the scenario's latest run did at 10 ms), and its rise begins at the approach all the same.
+/// A recording that moves already within the rest that such a lead-in would leave
+/// ([`moves_within`] over the span, or over its departure less the scenario's latest where that
+/// is longer) has no evident lead-in, however late it crosses the departure threshold: a whisker
+/// softer or thinner near its tip than the scenario's rises slowly through the noise after a
+/// strike near the tip (a whisker tapered to 28 µm in a soft follicle, struck 2.7 mm from its tip
+/// at 0.46 m/s, crossed it 45 ms in where the scenario's latest run did at 10 ms), and its rise
+/// begins at the approach all the same.
 pub fn evident_lead(range: &OnsetRange, rec: &Recording) -> Option<usize> {
+    let clear = rec
+        .values
+        .iter()
+        .zip(&range.thresholds)
+        .any(|(x, &thr)| stands_clear(x, thr));
+    if !clear {
+        return None;
+    }
     let onset = departure(&rec.values, &range.thresholds)?;
     let slack = ((ONSET_SLACK * rec.rate).ceil() as usize).max(MIN_SLACK_SAMPLES)
         + (SLACK_SHARE * range.latest as f64).ceil() as usize;
     let span = range.latest + slack;
-    (onset > span && !moves_within(&rec.values, &range.thresholds, span)).then(|| {
+    // The rest that any lead-in explaining this departure leaves: the recording's first
+    // `onset - latest` samples at least (all of the span where that is longer).
+    let rest = span.max(onset.saturating_sub(range.latest));
+    (onset > span && !moves_within(&rec.values, &range.thresholds, rest)).then(|| {
         (onset - range.earliest).min((MAX_LEAD_SHARE * rec.t.len() as f64).floor() as usize)
     })
 }
+
+/// Whether a channel `x` with departure threshold `thr` (0: not looked at) rises at least
+/// [`CLEAR_PEAK`] times above it.
+fn stands_clear(x: &[f64], thr: f64) -> bool {
+    thr > 0.0 && !x.is_empty() && peak_deviation(x) >= CLEAR_PEAK * thr
+}
+
+/// How much later `rec`'s contact starts than any run of `range`'s scenario, in samples: the
+/// [`contact_start`] of its theta12 (the joint angle next to the base, which the contact moves
+/// from its first instant) less the latest of the runs'. `None` where theta12 does not stand
+/// clear of the noise ([`stands_clear`]).
+fn late_start(range: &OnsetRange, rec: &Recording) -> Option<f64> {
+    let [_, latest] = range.starts?;
+    let x = &rec.values[THETA12];
+    stands_clear(x, range.thresholds[THETA12])
+        .then(|| contact_start(x))
+        .flatten()
+        .map(|start| start - latest)
+}
+
+/// Fewest recordings of one timing whose contact starts [`batch_leads`] weighs together.
+pub const BATCH_STARTS: usize = 5;
 
 /// Whether `series` moves within its first `last + 1` samples: the least-squares slope of each
 /// channel with a threshold above 0, over those samples, divided by its standard error for
@@ -263,6 +337,13 @@ pub fn moves_within(series: &[Vec<f64>], thresholds: &[f64; 5], last: usize) -> 
 /// `warn` for each): the largest of them, for every recording of that timing (a short lead-in does not
 /// show, and they train once), and 0 when none shows one. `names` name the recordings in
 /// messages.
+///
+/// When none shows one alone, [`BATCH_STARTS`] or more recordings of one timing are weighed
+/// together: if the median of their [`contact_start`]s (those whose theta12 stands clear of the
+/// noise) is later than the latest of the scenario's runs, most of the batch met the object
+/// later than the scenario can, and every recording of that timing is read as possibly starting
+/// early, up to the longest departure from rest among them less the scenario's earliest (one
+/// warning for the batch).
 pub fn batch_leads(
     max_delay: f64,
     family: &Family,
@@ -284,6 +365,7 @@ pub fn batch_leads(
     }
     let mut ranges: Vec<OnsetRange> = Vec::new();
     let mut evident = Vec::with_capacity(recordings.len());
+    let mut range_of = Vec::with_capacity(recordings.len());
     for ((name, rec), given) in names.iter().zip(recordings).zip(noise) {
         // Every channel the recording holds is looked at: one alone (theta12 of another chain)
         // may rise later than the scenario's through the same noise.
@@ -316,10 +398,63 @@ pub fn batch_leads(
             ));
         }
         evident.push(lead);
+        range_of.push(k);
     }
     let same_timing = |a: &Recording, b: &Recording| {
         (a.rate - b.rate).abs() <= 1e-9 * a.rate && a.t.len() == b.t.len()
     };
+    // A batch whose contacts begin later than any run's: each lead-in may be too short to show
+    // alone, but most of the batch cannot be that late without one.
+    let mut judged = vec![false; recordings.len()];
+    for i in 0..recordings.len() {
+        if judged[i] {
+            continue;
+        }
+        let group: Vec<usize> = (0..recordings.len())
+            .filter(|&j| same_timing(&recordings[i], &recordings[j]))
+            .collect();
+        for &j in &group {
+            judged[j] = true;
+        }
+        if group.iter().any(|&j| evident[j].is_some()) {
+            continue;
+        }
+        let mut late: Vec<f64> = group
+            .iter()
+            .filter_map(|&j| late_start(&ranges[range_of[j]], &recordings[j]))
+            .collect();
+        if late.len() < BATCH_STARTS {
+            continue;
+        }
+        late.sort_by(f64::total_cmp);
+        let median = 0.5 * (late[(late.len() - 1) / 2] + late[late.len() / 2]);
+        if median <= 0.0 {
+            continue;
+        }
+        let rec = &recordings[i];
+        let cap = (MAX_LEAD_SHARE * rec.t.len() as f64).floor() as usize;
+        let mut longest = 0;
+        for &j in &group {
+            let range = &ranges[range_of[j]];
+            if let Some(onset) = departure(&recordings[j].values, &range.thresholds) {
+                let lead = onset.saturating_sub(range.earliest).clamp(1, cap);
+                evident[j] = Some(lead);
+                longest = longest.max(lead);
+            }
+        }
+        let ms = |samples: f64| samples / rec.rate * 1e3;
+        warn(format!(
+            "{} recordings: their contacts begin later than in any run of the scenario (by \
+             {:.1} ms, the median over the {} whose strikes stand clear of the noise, each \
+             strike's rise extended back): they seem to start before the approach, so each is \
+             read as starting up to {:.1} ms before it (say so with a maximum delay, \
+             --max-delay SECONDS; the time to contact then tells nothing)",
+            group.len(),
+            ms(median),
+            late.len(),
+            ms(longest as f64)
+        ));
+    }
     // Recordings of one timing come from one rig and protocol: when one shows a lead-in, each
     // may have one (a short one does not show), so all are read alike.
     Ok(recordings
@@ -376,6 +511,7 @@ mod tests {
             thresholds: [DEPART_Z; 5],
             earliest: 2,
             latest: 10,
+            starts: None,
         };
         let (mut slow, mut beyond, mut late, mut rest) = (0, 0, 0, 0);
         for seed in 0..20 {
@@ -404,6 +540,99 @@ mod tests {
             24
         ));
         assert!(!moves_within(&drift.values, &[0.0; 5], 24));
+    }
+
+    #[test]
+    fn a_contact_starts_where_its_rise_extended_back_meets_rest() {
+        // Rest at 0.3, then a rise of 0.05 per sample from sample 19 to a peak at sample 40.
+        let x: Vec<f64> = (0..60)
+            .map(|k| 0.3 + 0.05 * (k.min(40) as f64 - 19.0).max(0.0))
+            .collect();
+        let start = contact_start(&x).unwrap();
+        assert!((start - 19.0).abs() < 1e-9, "{start}");
+        assert_eq!(contact_start(&[0.3; 10]), None);
+    }
+
+    #[test]
+    fn a_strike_that_barely_clears_the_noise_tells_no_lead_in() {
+        let range = OnsetRange {
+            timing: (1000.0, 100, [1.0; 5]),
+            thresholds: [DEPART_Z; 5],
+            earliest: 2,
+            latest: 10,
+            starts: None,
+        };
+        // Rest for 40 samples, then a step to 1.5 thresholds on every channel: late, but weak.
+        let step = |height: f64| Recording {
+            t: (0..100).map(|k| k as f64 * 1e-3).collect(),
+            values: vec![
+                (0..100)
+                    .map(|k| if k >= 40 { height } else { 0.0 })
+                    .collect();
+                5
+            ],
+            rate: 1000.0,
+            segments: None,
+        };
+        assert_eq!(evident_lead(&range, &step(1.5 * DEPART_Z)), None);
+        assert_eq!(evident_lead(&range, &step(4.0 * DEPART_Z)), Some(38));
+    }
+
+    /// Eight `e2` strikes with sensor noise of 3% of each channel's range and the `noisy`
+    /// variant's random forces, each recorded from `lead(k)` seconds before its approach and
+    /// cut to one length.
+    fn e2_batch(lead: impl Fn(usize) -> f64) -> Vec<Recording> {
+        let e2 = Family::builtin("e2").unwrap();
+        let mut noise = e2.noise(crate::experiment::Variant::Noisy).unwrap();
+        noise.sensor = noise
+            .sensor
+            .map(|s| s * 0.03 / crate::experiment::SENSOR_NOISE_FRACTION);
+        let runs: Vec<Vec<Vec<f64>>> = (0..8)
+            .map(|k| {
+                let p = [0.016 + 0.0018 * k as f64, 0.4 + 0.15 * k as f64];
+                e2.simulate_delayed(&p, lead(k), &noise, k as u64)
+                    .unwrap()
+                    .series
+            })
+            .collect();
+        let n = runs.iter().map(|r| r[0].len()).min().unwrap();
+        runs.into_iter()
+            .map(|r| Recording {
+                t: (0..n).map(|k| k as f64 * 1e-3).collect(),
+                values: r.into_iter().map(|c| c[..n].to_vec()).collect(),
+                rate: 1000.0,
+                segments: None,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_batch_whose_contacts_begin_late_is_read_as_starting_early() {
+        let e2 = Family::builtin("e2").unwrap();
+        let names: Vec<String> = (0..8).map(|k| format!("r{k}")).collect();
+        let leads = |recs: &[Recording]| {
+            let mut said = Vec::new();
+            let l = batch_leads(0.0, &e2, &names, recs, &[[0.0; 5]; 8], &mut |w| {
+                said.push(w)
+            })
+            .unwrap();
+            (l, said)
+        };
+        // From the approach: no lead-in.
+        let (l, said) = leads(&e2_batch(|_| 0.0));
+        assert!(
+            l.iter().all(|&x| x == 0) && said.is_empty(),
+            "{l:?} {said:?}"
+        );
+        // 3–10 ms of rest first: too short to show alone, plain in the batch.
+        let (l, said) = leads(&e2_batch(|k| 0.003 + 0.001 * k as f64));
+        assert_eq!(said.len(), 1, "{said:?}");
+        assert!(
+            said[0].contains("8 recordings: their contacts"),
+            "{}",
+            said[0]
+        );
+        assert!(l.iter().all(|&x| x >= 10 && x == l[0]), "{l:?}");
     }
 
     #[test]
