@@ -126,11 +126,11 @@ impl Trained {
                     Short(rate),
                     describe_noise(noise, &method.channels())
                 ));
-                // The residuals carry the labelled strikes' own noise: the runs get the rest.
+                // The residuals carry the labelled strikes' own noise too, but as one of a few
+                // fixed patterns: the runs still get fresh noise at the recordings' full level.
                 let residuals = self.residuals_of(family, log);
-                let noise = residuals.as_ref().map_or(*noise, |me| me.remaining(noise));
                 let timed = timed.with_model_error(residuals);
-                let noise = timed.training_noise(noise);
+                let noise = timed.training_noise(*noise);
                 let training = training_for(&timed, &noise, method.as_ref(), seed)?;
                 method.fit(&training)?;
                 let secs = t0.elapsed().as_secs_f64();
@@ -177,8 +177,7 @@ impl Trained {
                         .collect();
                     log(format!(
                         "adding to every training run the fitted whisker's residual on one of its \
-                         {} labelled strikes ({}; RMS {}), less their own noise from the runs' \
-                         sensor noise",
+                         {} labelled strikes ({}; RMS {}), beside the runs' own sensor noise",
                         me.strikes(),
                         dir.display(),
                         describe_noise(&rms, &seen)
