@@ -417,23 +417,13 @@ fn filter_all(
                 eprintln!(
                     "pf ({} particles, a {chain}-segment transition chain): observation noise {}",
                     options.particles,
-                    options
-                        .channels
-                        .iter()
-                        .map(|&c| format!("{} {:.3e}", CHANNELS[c], sigma[c]))
-                        .collect::<Vec<_>>()
-                        .join(", ")
+                    per_channel(&options.channels, &sigma)
                 );
             }
             if let (true, Some(r)) = (verbose, filter.fit_residual()) {
                 eprintln!(
                     "pf: the calibration's residual beyond noise is part of that noise ({})",
-                    options
-                        .channels
-                        .iter()
-                        .map(|&c| format!("{} {:.3e}", CHANNELS[c], r[c]))
-                        .collect::<Vec<_>>()
-                        .join(", ")
+                    per_channel(&options.channels, &r)
                 );
             }
             if verbose && !filter.interval_scale.is_empty() {
@@ -471,4 +461,13 @@ fn filter_all(
         out.push(est);
     }
     Ok(out)
+}
+
+/// `theta01 1.234e-3, …`: `values` of `channels`, for messages.
+fn per_channel(channels: &[usize], values: &[f64; 5]) -> String {
+    channels
+        .iter()
+        .map(|&c| format!("{} {:.3e}", CHANNELS[c], values[c]))
+        .collect::<Vec<_>>()
+        .join(", ")
 }

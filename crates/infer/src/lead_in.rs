@@ -167,9 +167,9 @@ pub struct OnsetRange {
     pub earliest: usize,
     /// See `earliest`.
     pub latest: usize,
-    /// The earliest and latest [`contact_start`] of theta12 among the runs, samples (`None`
-    /// when the recording lacks theta12 or no run rises).
-    pub starts: Option<[f64; 2]>,
+    /// The latest [`contact_start`] of theta12 among the runs, samples (`None` when the
+    /// recording lacks theta12 or no run rises).
+    pub latest_start: Option<f64>,
 }
 
 impl OnsetRange {
@@ -213,22 +213,17 @@ impl OnsetRange {
             .iter()
             .filter_map(|r| departure(r, &thresholds))
             .collect();
-        let starts: Vec<f64> = runs
+        let latest_start = runs
             .iter()
             .filter_map(|r| contact_start(r.get(THETA12)?))
-            .collect();
-        let starts = (present(THETA12) && !starts.is_empty()).then(|| {
-            [
-                starts.iter().copied().fold(f64::INFINITY, f64::min),
-                starts.iter().copied().fold(f64::NEG_INFINITY, f64::max),
-            ]
-        });
+            .reduce(f64::max)
+            .filter(|_| present(THETA12));
         Ok(OnsetRange {
             timing: (rec.rate, rec.t.len(), *noise),
             thresholds,
             earliest: onsets.iter().copied().min().unwrap_or(0),
             latest: onsets.iter().copied().max().unwrap_or(0),
-            starts,
+            latest_start,
         })
     }
 
@@ -241,10 +236,10 @@ impl OnsetRange {
 }
 
 /// A recording's evident lead-in, in samples: when it leaves rest later than every run of the
-/// scenario does (by more than [`ONSET_SLACK`] and [`SLACK_SHARE`] of the latest), the most samples of rest it can start with (its
-/// departure less the scenario's earliest); `None` otherwise, when it never leaves rest, or when
-/// no channel stands clear of the noise ([`CLEAR_PEAK`]). Capped at [`MAX_LEAD_SHARE`] of the
-/// recording.
+/// scenario does (by more than [`ONSET_SLACK`] and [`SLACK_SHARE`] of the latest), the most
+/// samples of rest it can start with (its departure less the scenario's earliest); `None`
+/// otherwise, when it never leaves rest, or when no channel stands clear of the noise
+/// ([`CLEAR_PEAK`]). Capped at [`MAX_LEAD_SHARE`] of the recording.
 ///
 /// A recording that moves already within the rest that such a lead-in would leave
 /// ([`moves_within`] over the span, or over its departure less the scenario's latest where that
@@ -285,7 +280,7 @@ fn stands_clear(x: &[f64], thr: f64) -> bool {
 /// from its first instant) less the latest of the runs'. `None` where theta12 does not stand
 /// clear of the noise ([`stands_clear`]).
 fn late_start(range: &OnsetRange, rec: &Recording) -> Option<f64> {
-    let [_, latest] = range.starts?;
+    let latest = range.latest_start?;
     let x = &rec.values[THETA12];
     stands_clear(x, range.thresholds[THETA12])
         .then(|| contact_start(x))
@@ -503,16 +498,21 @@ mod tests {
         }
     }
 
-    #[test]
-    fn a_slow_rise_from_the_start_is_no_lead_in_and_rest_then_a_strike_is() {
-        // The scenario's runs leave rest within 2–10 samples: the span looked at is 10 + 4 + 10.
-        let range = OnsetRange {
+    /// A scenario whose runs leave rest within 2–10 samples of unit noise at 1 kHz.
+    fn unit_range() -> OnsetRange {
+        OnsetRange {
             timing: (1000.0, 100, [1.0; 5]),
             thresholds: [DEPART_Z; 5],
             earliest: 2,
             latest: 10,
-            starts: None,
-        };
+            latest_start: None,
+        }
+    }
+
+    #[test]
+    fn a_slow_rise_from_the_start_is_no_lead_in_and_rest_then_a_strike_is() {
+        // The scenario's runs leave rest within 2–10 samples: the span looked at is 10 + 4 + 10.
+        let range = unit_range();
         let (mut slow, mut beyond, mut late, mut rest) = (0, 0, 0, 0);
         for seed in 0..20 {
             // A drift of 0.12 noise deviations per sample from sample 3: beyond the threshold
@@ -555,13 +555,7 @@ mod tests {
 
     #[test]
     fn a_strike_that_barely_clears_the_noise_tells_no_lead_in() {
-        let range = OnsetRange {
-            timing: (1000.0, 100, [1.0; 5]),
-            thresholds: [DEPART_Z; 5],
-            earliest: 2,
-            latest: 10,
-            starts: None,
-        };
+        let range = unit_range();
         // Rest for 40 samples, then a step to 1.5 thresholds on every channel: late, but weak.
         let step = |height: f64| Recording {
             t: (0..100).map(|k| k as f64 * 1e-3).collect(),

@@ -253,7 +253,7 @@ impl Pf {
         } else {
             1.0
         };
-        let whisker = if self.calibrated && self.fit_residual.is_some() {
+        let whisker = if self.fit_residual.is_some() {
             1.0
         } else if self.calibrated {
             CALIBRATED_TEMPER
@@ -397,13 +397,11 @@ impl crate::Method for Pf {
         };
         self.randomised = training.family.randomisation().is_some();
         self.calibrated = training.family.is_calibrated();
-        self.fit_residual = None;
-        if self.calibrated {
-            if let Some(r) = training.family.fit_residual() {
-                for (m, r) in model.iter_mut().zip(r) {
-                    *m = m.hypot(r);
-                }
-                self.fit_residual = Some(r);
+        // Only a file calibration wrote has a fit residual.
+        self.fit_residual = training.family.fit_residual();
+        if let Some(r) = self.fit_residual {
+            for (m, r) in model.iter_mut().zip(r) {
+                *m = m.hypot(r);
             }
         }
         self.sigma = Some(observation_sigma(sensor, model, self.effective_temper()));
