@@ -140,13 +140,13 @@ pub fn load_for_tip_deflection(ei: f64, length: f64, c: f64, tip_deflection: f64
 /// deflection there under a unit force at `s` square to it, `∫₀ˢ (s − x)² / EI(x) dx` (m/N), by
 /// Gauss–Legendre quadrature on 16 pieces (exact for a uniform beam).
 pub fn point_compliance(profile: &dyn BeamProfile, s: f64) -> f64 {
-    let rule = crate::chain::gauss_legendre(5);
+    let rule = crate::quadrature::gauss_legendre(5);
     let pieces = 16;
     let h = s / pieces as f64;
     (0..pieces)
         .map(|i| {
             let a = i as f64 * h;
-            crate::chain::integrate(&rule, a, a + h, |x| (s - x).powi(2) / profile.ei(x))
+            crate::quadrature::integrate(&rule, a, a + h, |x| (s - x).powi(2) / profile.ei(x))
         })
         .sum()
 }

@@ -24,6 +24,7 @@
 
 use crate::beam::BeamProfile;
 use crate::error::{Error, Result};
+use crate::quadrature::{gauss_legendre, integrate};
 use crate::whisker::{Damping, Follicle, Whisker};
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
@@ -101,43 +102,6 @@ pub struct Model {
     pub rest: Vec<f64>,
     /// Whisker radius at node i, m: `[N+1]` (contact happens at the surface).
     pub radius: Vec<f64>,
-}
-
-/// Gauss–Legendre nodes and weights on [-1, 1], by Newton iteration on P_n.
-pub(crate) fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
-    let mut out = Vec::with_capacity(n);
-    for i in 0..n {
-        // Chebyshev-like first guess for root i, then Newton on the three-term recurrence.
-        let mut x = (std::f64::consts::PI * (i as f64 + 0.75) / (n as f64 + 0.5)).cos();
-        let mut dp = 1.0;
-        for _ in 0..100 {
-            let (mut p0, mut p1) = (1.0, x);
-            for k in 2..=n {
-                let p2 = ((2 * k - 1) as f64 * x * p1 - (k - 1) as f64 * p0) / k as f64;
-                p0 = p1;
-                p1 = p2;
-            }
-            let p = if n == 0 { 1.0 } else { p1 };
-            let pm1 = if n == 1 { 1.0 } else { p0 };
-            dp = n as f64 * (x * p - pm1) / (x * x - 1.0);
-            let dx = p / dp;
-            x -= dx;
-            if dx.abs() < 1e-16 {
-                break;
-            }
-        }
-        out.push((x, 2.0 / ((1.0 - x * x) * dp * dp)));
-    }
-    out
-}
-
-/// Integrates `f` over `[a, b]` with the given Gauss–Legendre rule.
-pub(crate) fn integrate(rule: &[(f64, f64)], a: f64, b: f64, mut f: impl FnMut(f64) -> f64) -> f64 {
-    let (mid, half) = (0.5 * (a + b), 0.5 * (b - a));
-    rule.iter()
-        .map(|&(x, w)| w * f(mid + half * x))
-        .sum::<f64>()
-        * half
 }
 
 /// Point of the rest curve at arc length `s` (constant curvature `kappa`), base at the origin along +x.

@@ -33,6 +33,7 @@ pub mod error;
 pub mod inverse;
 pub mod objects;
 mod planar;
+mod quadrature;
 pub mod rng;
 pub mod scenes;
 pub mod sensors;

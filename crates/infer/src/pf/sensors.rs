@@ -7,8 +7,8 @@
 //! particle's weight is the predictive density of the sample with the gains and offsets
 //! integrated out (Rao–Blackwellisation), and no particle has to guess them.
 //!
-//! Two independent blocks: the joint angles (`theta01`, `theta12`), whose scale depends on the
-//! recording's chain (a joint angle is curvature times joint spacing) and on how the angles were
+//! Independent blocks: each joint angle (`theta01`, `theta12`) on its own, whose scale depends on
+//! the recording's chain (a joint angle is curvature times joint spacing) and on how the angles were
 //! measured, and the base wrench (`m0`, `fx`, `fy`), whose gains share one scale (the whisker's
 //! stiffness, which a nominal file gets wrong, moves all three together) besides each sensor's
 //! own gain. The ratios within the wrench (the contact's lever arm) stay informative.
@@ -85,16 +85,17 @@ impl<const N: usize> Block<N> {
         let ph: [f64; N] = std::array::from_fn(|i| self.cov[i][j] * x + self.cov[i][k + j]);
         let s = (x * ph[j] + ph[k + j] + var).max(var);
         let r = y - (self.mean[j] * x + self.mean[k + j]);
-        // The Kalman gain, ph / s.
+        // The Kalman gain, ph / s; the covariance falls by ph·phᵀ / s, computed once per pair so
+        // that it stays exactly symmetric.
         let inv_s = 1.0 / s;
         let gain: [f64; N] = std::array::from_fn(|i| ph[i] * inv_s);
-        for ((m, row), g) in self.mean.iter_mut().zip(self.cov.iter_mut()).zip(gain) {
-            *m += g * r;
-            for (c, p) in row.iter_mut().zip(ph) {
-                *c -= g * p;
-            }
-        }
         for i in 0..N {
+            self.mean[i] += gain[i] * r;
+            for c in i..N {
+                let v = self.cov[i][c] - gain[i] * ph[c];
+                self.cov[i][c] = v;
+                self.cov[c][i] = v;
+            }
             self.cov[i][i] = self.cov[i][i].max(0.0);
         }
         (r * r * inv_s, s / var)
@@ -104,8 +105,8 @@ impl<const N: usize> Block<N> {
 /// One particle's belief over the five channels' gains and offsets.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct SensorBelief {
-    /// `theta01`, `theta12`: gains, then offsets.
-    angles: Block<4>,
+    /// `theta01` and `theta12`, each its own gain and offset (no prior or sample couples them).
+    angles: [Block<2>; 2],
     /// `m0`, `fx`, `fy`: gains, then offsets.
     wrench: Block<6>,
 }
@@ -116,14 +117,13 @@ impl SensorBelief {
     pub(super) fn prior(config: &Config) -> SensorBelief {
         let spread = config.sensor_spread;
         let (g, o, sigma) = (config.sensor_gain, config.sensor_offset, config.sigma);
-        let mut angles = Block {
-            mean: [g[0], g[1], o[0], o[1]],
-            cov: [[0.0; 4]; 4],
-        };
-        for j in 0..2 {
-            angles.cov[j][j] = (spread.angle_gain * g[j]).powi(2);
-            angles.cov[2 + j][2 + j] = (spread.offset * sigma[j]).powi(2);
-        }
+        let angles = std::array::from_fn(|j| Block {
+            mean: [g[j], o[j]],
+            cov: [
+                [(spread.angle_gain * g[j]).powi(2), 0.0],
+                [0.0, (spread.offset * sigma[j]).powi(2)],
+            ],
+        });
         let mut wrench = Block {
             mean: [g[2], g[3], g[4], o[2], o[3], o[4]],
             cov: [[0.0; 6]; 6],
@@ -159,7 +159,7 @@ impl SensorBelief {
             if seen[c] {
                 let var = sigma[c] * sigma[c];
                 let (z, r) = if c < 2 {
-                    self.angles.take(c, x[c], y[c], var)
+                    self.angles[c].take(0, x[c], y[c], var)
                 } else {
                     self.wrench.take(c - 2, x[c], y[c], var)
                 };
@@ -197,26 +197,26 @@ impl SensorBelief {
 
     /// Mean gain and offset of each channel (in [`crate::experiment::CHANNELS`] order).
     pub(super) fn means(&self) -> ([f64; 5], [f64; 5]) {
-        let a = &self.angles.mean;
+        let [a0, a1] = self.angles.map(|b| b.mean);
         let w = &self.wrench.mean;
         (
-            [a[0], a[1], w[0], w[1], w[2]],
-            [a[2], a[3], w[3], w[4], w[5]],
+            [a0[0], a1[0], w[0], w[1], w[2]],
+            [a0[1], a1[1], w[3], w[4], w[5]],
         )
     }
 
     /// Variance of each channel's gain.
     pub(super) fn gain_variances(&self) -> [f64; 5] {
-        let a = &self.angles.cov;
+        let [a0, a1] = self.angles.map(|b| b.cov);
         let w = &self.wrench.cov;
-        [a[0][0], a[1][1], w[0][0], w[1][1], w[2][2]]
+        [a0[0][0], a1[0][0], w[0][0], w[1][1], w[2][2]]
     }
 
     /// Variance of each channel's offset.
     pub(super) fn offset_variances(&self) -> [f64; 5] {
-        let a = &self.angles.cov;
+        let [a0, a1] = self.angles.map(|b| b.cov);
         let w = &self.wrench.cov;
-        [a[2][2], a[3][3], w[3][3], w[4][4], w[5][5]]
+        [a0[1][1], a1[1][1], w[3][3], w[4][4], w[5][5]]
     }
 }
 
