@@ -80,6 +80,7 @@ impl<const N: usize> Block<N> {
     /// variance `s` and that variance's ratio to `var` (at least 1). The log predictive density,
     /// less the constant of a known-gain Gaussian (−½ ln 2πσ², so that it reduces to −½ z² when
     /// the gains are known), is `−½ (z² + ln(s/var))`.
+    #[allow(clippy::needless_range_loop)] // one index over the mean, the gain and a triangle
     fn take(&mut self, j: usize, x: f64, y: f64, var: f64) -> (f64, f64) {
         let k = N / 2;
         let ph: [f64; N] = std::array::from_fn(|i| self.cov[i][j] * x + self.cov[i][k + j]);
