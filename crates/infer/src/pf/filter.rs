@@ -511,7 +511,7 @@ impl Filter {
         // Posterior summary.
         let estimates = self
             .free
-            .iter()
+            .par_iter()
             .map(|&p| {
                 let vals: Vec<f64> = self.objs.iter().map(|o| param(o, p, config.gap)).collect();
                 summarise(&vals, &w)

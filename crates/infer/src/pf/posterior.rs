@@ -158,17 +158,19 @@ pub(super) fn summarise(vals: &[f64], w: &[f64]) -> Estimate {
         .zip(w)
         .map(|(x, w)| w * (x - mean) * (x - mean))
         .sum();
-    let mut idx: Vec<usize> = (0..vals.len()).collect();
-    idx.sort_by(|&a, &b| vals[a].total_cmp(&vals[b]));
+    // Values with their weights in ascending order (equal values in any order: a quantile is one
+    // of the values, the same whichever of equal ones the cumulative weight stops at).
+    let mut sorted: Vec<(f64, f64)> = vals.iter().copied().zip(w.iter().copied()).collect();
+    sorted.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
     let quantile = |q: f64| {
         let mut cum = 0.0;
-        for &i in &idx {
-            cum += w[i];
+        for &(x, wi) in &sorted {
+            cum += wi;
             if cum >= q {
-                return vals[i];
+                return x;
             }
         }
-        vals[*idx.last().expect("at least one particle")]
+        sorted.last().expect("at least one particle").0
     };
     Estimate {
         mean,
