@@ -158,8 +158,9 @@ pub(super) fn summarise(vals: &[f64], w: &[f64]) -> Estimate {
         .zip(w)
         .map(|(x, w)| w * (x - mean) * (x - mean))
         .sum();
-    // Values with their weights in ascending order (equal values in any order: a quantile is one
-    // of the values, the same whichever of equal ones the cumulative weight stops at).
+    // Values with their weights in ascending order. Equal values may come in any order: the
+    // quantile is the value at which the cumulative weight crosses q, whichever of the equal ones
+    // it stops at (their order moves that sum only by rounding).
     let mut sorted: Vec<(f64, f64)> = vals.iter().copied().zip(w.iter().copied()).collect();
     sorted.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
     let quantile = |q: f64| {
