@@ -648,10 +648,12 @@ fn lane_contact(
     for i in 0..=n {
         ws.node[i] = [sc.node[i][0].0[l], sc.node[i][1].0[l]];
     }
+    // Each value is read from its lane in place (mapping a `[Wide; 3]` by value would copy all
+    // of its lanes first).
     for i in 0..n {
         let (from, to) = (&sc.seg[i], &mut ws.seg[i]);
-        to.vel = from.vel.map(|x| x.0[l]);
-        to.u_vec = from.u_vec.map(|x| x.0[l]);
+        to.vel = std::array::from_fn(|k| from.vel[k].0[l]);
+        to.u_vec = std::array::from_fn(|k| from.u_vec[k].0[l]);
         to.inv_d = from.inv_d.0[l];
         ws.qdd[i] = sc.qdd[i].0[l];
         ws.q[i] = sc.q[i].0[l];
@@ -659,8 +661,8 @@ fn lane_contact(
         start[1][i] = state.v[i].0[l];
         start[2][i] = state.a[i].0[l];
     }
-    ws.seg[0].acc = sc.seg[0].acc.map(|x| x.0[l]);
-    ws.pa0 = sc.pa0.map(|x| x.0[l]);
+    ws.seg[0].acc = std::array::from_fn(|k| sc.seg[0].acc[k].0[l]);
+    ws.pa0 = std::array::from_fn(|k| sc.pa0[k].0[l]);
     let from = StepStart {
         q: &start[0],
         v: &start[1],
