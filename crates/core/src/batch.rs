@@ -14,9 +14,9 @@ use std::cell::RefCell;
 thread_local! {
     /// Workspaces kept between parallel calls on this thread (a call makes one per rayon split,
     /// which for a particle filter is thousands of allocations per second otherwise).
-    static SPARE: RefCell<Vec<Workspace>> = const { RefCell::new(Vec::new()) };
+    static SPARE: RefCell<Vec<Box<Workspace>>> = const { RefCell::new(Vec::new()) };
     /// The same for lane groups.
-    static SPARE_LANES: RefCell<Vec<LaneWorkspace>> = const { RefCell::new(Vec::new()) };
+    static SPARE_LANES: RefCell<Vec<Box<LaneWorkspace>>> = const { RefCell::new(Vec::new()) };
 }
 
 /// Most workspaces of each kind a thread keeps.
@@ -24,8 +24,9 @@ const SPARE_MAX: usize = 4;
 
 /// Scratch that a thread keeps spares of between parallel calls.
 trait Spare: Sized + 'static {
-    /// This thread's spares.
-    const POOL: &'static std::thread::LocalKey<RefCell<Vec<Self>>>;
+    /// This thread's spares (boxed: a lent scratch is moved into and out of rayon's closures,
+    /// which would otherwise copy all of it each time).
+    const POOL: &'static std::thread::LocalKey<RefCell<Vec<Box<Self>>>>;
     /// Scratch for `model`.
     fn new(model: &Model) -> Self;
     /// Whether this scratch serves `model` (its segment count).
@@ -33,7 +34,7 @@ trait Spare: Sized + 'static {
 }
 
 impl Spare for Workspace {
-    const POOL: &'static std::thread::LocalKey<RefCell<Vec<Self>>> = &SPARE;
+    const POOL: &'static std::thread::LocalKey<RefCell<Vec<Box<Self>>>> = &SPARE;
     fn new(model: &Model) -> Self {
         Workspace::new(model)
     }
@@ -43,7 +44,7 @@ impl Spare for Workspace {
 }
 
 impl Spare for LaneWorkspace {
-    const POOL: &'static std::thread::LocalKey<RefCell<Vec<Self>>> = &SPARE_LANES;
+    const POOL: &'static std::thread::LocalKey<RefCell<Vec<Box<Self>>>> = &SPARE_LANES;
     fn new(model: &Model) -> Self {
         LaneWorkspace::new(model)
     }
@@ -53,7 +54,7 @@ impl Spare for LaneWorkspace {
 }
 
 /// Scratch lent from this thread's spares (or made), handed back when dropped.
-struct Lent<T: Spare>(Option<T>);
+struct Lent<T: Spare>(Option<Box<T>>);
 
 impl<T: Spare> Lent<T> {
     fn new(model: &Model) -> Lent<T> {
@@ -62,7 +63,7 @@ impl<T: Spare> Lent<T> {
             let i = s.iter().position(|w| w.serves(model))?;
             Some(s.swap_remove(i))
         });
-        Lent(Some(found.unwrap_or_else(|| T::new(model))))
+        Lent(Some(found.unwrap_or_else(|| Box::new(T::new(model)))))
     }
 
     fn get(&mut self) -> &mut T {

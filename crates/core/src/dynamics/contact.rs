@@ -103,14 +103,11 @@ pub(crate) struct StepStart<'a> {
 /// Generalised force of a unit world force `f` at world point `p` of segment `seg`:
 /// joint j ≤ seg gets `(p - p_j) × f`.
 fn generalised(ws: &Workspace, seg: usize, p: [f64; 2], f: [f64; 2], out: &mut [f64]) {
-    for (j, o) in out.iter_mut().enumerate() {
-        *o = if j <= seg {
-            let r = ws.node[j];
-            (p[0] - r[0]) * f[1] - (p[1] - r[1]) * f[0]
-        } else {
-            0.0
-        };
+    let (moved, still) = out.split_at_mut((seg + 1).min(out.len()));
+    for (o, r) in moved.iter_mut().zip(&ws.node) {
+        *o = (p[0] - r[0]) * f[1] - (p[1] - r[1]) * f[0];
     }
+    still.fill(0.0);
 }
 
 /// Response of the joint accelerations to a unit world force `f` at world point `p` of segment
@@ -243,10 +240,15 @@ pub(crate) fn solve(
     let cv = h * gamma / (1.0 - am);
     {
         let c = &mut ws.contacts;
+        let kq = h * h * (0.5 - beta - beta * am / (1.0 - am));
+        let kv = h * (1.0 - gamma - gamma * am / (1.0 - am));
+        // Slices of one length, so that the loop indexes without checks.
+        let (sq, sv, sa) = (&start.q[..n], &start.v[..n], &start.a[..n]);
+        let (q0, v0) = (&mut c.q0[..n], &mut c.v0[..n]);
         for i in 0..n {
-            let (q, v, a) = (start.q[i], start.v[i], start.a[i]);
-            c.q0[i] = q + h * v + h * h * (0.5 - beta - beta * am / (1.0 - am)) * a;
-            c.v0[i] = v + h * (1.0 - gamma - gamma * am / (1.0 - am)) * a;
+            let (q, v, a) = (sq[i], sv[i], sa[i]);
+            q0[i] = q + h * v + kq * a;
+            v0[i] = v + kv * a;
         }
     }
 
@@ -330,7 +332,9 @@ pub(crate) fn solve(
             };
             let taken = prev_tip;
             prev_tip = None;
-            for c in std::iter::once(near).chain(end) {
+            // By reference: an iterator that moves the candidates copies each of them.
+            let found = [Some(near), end];
+            for c in found.iter().flatten() {
                 if c.u <= 0.0 && taken.is_some_and(|p| p == c.on_whisker) {
                     continue;
                 }
@@ -430,10 +434,12 @@ pub(crate) fn solve(
         let mut dn = 0.0;
         let mut vt = 0.0;
         let mut vn = 0.0;
+        // Slices of one length, so that the loop indexes without checks.
+        let (q0, v0, qdd, q) = (&sc.q0[..n], &sc.v0[..n], &ws.qdd[..n], &ws.q[..n]);
         for i in 0..n {
-            let q_end = sc.q0[i] + cq * ws.qdd[i];
-            let v_end = sc.v0[i] + cv * ws.qdd[i];
-            dn += jn[i] * (q_end - ws.q[i]);
+            let q_end = q0[i] + cq * qdd[i];
+            let v_end = v0[i] + cv * qdd[i];
+            dn += jn[i] * (q_end - q[i]);
             vn += jn[i] * v_end;
             vt += jt[i] * v_end;
         }

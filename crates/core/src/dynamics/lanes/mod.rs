@@ -72,15 +72,25 @@ impl LaneState {
         }
     }
 
+    /// The group's five parts, joint by joint, in the order a `State` holds them.
+    fn parts(&mut self) -> [&mut Vec<Wide>; 5] {
+        [
+            &mut self.q,
+            &mut self.v,
+            &mut self.a,
+            &mut self.v_prev,
+            &mut self.a_contact,
+        ]
+    }
+
     /// Lane `l` takes `s`.
     fn gather(&mut self, l: usize, s: &State) {
+        assert!(l < LANES, "lane {l} of {LANES}");
         let n = self.q.len();
-        for i in 0..n {
-            self.q[i].0[l] = s.x[i];
-            self.v[i].0[l] = s.x[n + i];
-            self.a[i].0[l] = s.x[2 * n + i];
-            self.v_prev[i].0[l] = s.x[3 * n + i];
-            self.a_contact[i].0[l] = s.x[4 * n + i];
+        for (part, x) in self.parts().into_iter().zip(s.x.chunks_exact(n)) {
+            for (w, x) in part.iter_mut().zip(x) {
+                w.0[l] = *x;
+            }
         }
         self.t.0[l] = s.t;
         self.base[l] = s.base;
@@ -116,13 +126,13 @@ impl LaneState {
 
     /// `s` takes lane `l`.
     fn scatter(&self, l: usize, s: &mut State) {
+        assert!(l < LANES, "lane {l} of {LANES}");
         let n = self.q.len();
-        for i in 0..n {
-            s.x[i] = self.q[i].0[l];
-            s.x[n + i] = self.v[i].0[l];
-            s.x[2 * n + i] = self.a[i].0[l];
-            s.x[3 * n + i] = self.v_prev[i].0[l];
-            s.x[4 * n + i] = self.a_contact[i].0[l];
+        let parts = [&self.q, &self.v, &self.a, &self.v_prev, &self.a_contact];
+        for (part, x) in parts.into_iter().zip(s.x.chunks_exact_mut(n)) {
+            for (w, x) in part.iter().zip(x) {
+                *x = w.0[l];
+            }
         }
         s.t = self.t.0[l];
         s.base = self.base[l];
