@@ -88,8 +88,9 @@ impl LaneState {
         assert!(l < LANES, "lane {l} of {LANES}");
         let n = self.q.len();
         for (part, x) in self.parts().into_iter().zip(s.x.chunks_exact(n)) {
-            for (w, x) in part.iter_mut().zip(x) {
-                w.0[l] = *x;
+            let (part, x) = (&mut part[..n], &x[..n]);
+            for i in 0..n {
+                part[i].0[l] = x[i];
             }
         }
         self.t.0[l] = s.t;
@@ -130,8 +131,9 @@ impl LaneState {
         let n = self.q.len();
         let parts = [&self.q, &self.v, &self.a, &self.v_prev, &self.a_contact];
         for (part, x) in parts.into_iter().zip(s.x.chunks_exact_mut(n)) {
-            for (w, x) in part.iter().zip(x) {
-                *x = w.0[l];
+            let (part, x) = (&part[..n], &mut x[..n]);
+            for i in 0..n {
+                x[i] = part[i].0[l];
             }
         }
         s.t = self.t.0[l];
