@@ -72,22 +72,19 @@ impl LaneState {
         }
     }
 
-    /// The group's five parts, joint by joint, in the order a `State` holds them.
-    fn parts(&mut self) -> [&mut Vec<Wide>; 5] {
-        [
+    /// Lane `l` takes `s`.
+    fn gather(&mut self, l: usize, s: &State) {
+        assert!(l < LANES, "lane {l} of {LANES}");
+        let n = self.q.len();
+        // The five parts in the order a `State` holds them.
+        let parts = [
             &mut self.q,
             &mut self.v,
             &mut self.a,
             &mut self.v_prev,
             &mut self.a_contact,
-        ]
-    }
-
-    /// Lane `l` takes `s`.
-    fn gather(&mut self, l: usize, s: &State) {
-        assert!(l < LANES, "lane {l} of {LANES}");
-        let n = self.q.len();
-        for (part, x) in self.parts().into_iter().zip(s.x.chunks_exact(n)) {
+        ];
+        for (part, x) in parts.into_iter().zip(s.x.chunks_exact(n)) {
             let (part, x) = (&mut part[..n], &x[..n]);
             for i in 0..n {
                 part[i].0[l] = x[i];
