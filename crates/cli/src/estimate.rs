@@ -125,6 +125,11 @@ pub struct Args {
     /// the batch, while they search for its whisker; the last round filters every recording.
     #[arg(long, default_value_t = vibrissa_infer::pf::pool::SEARCH_RECORDINGS, value_name = "N")]
     pub(crate) pool_search: usize,
+    /// pf --pool: each recording learns its joint angles' gains alone, as when the angles of the
+    /// batch's recordings were read in different ways; by default the batch learns them together
+    /// (they stand for the recording's chain and angle tracker, which its strikes share).
+    #[arg(long)]
+    pub(crate) no_pool_gains: bool,
     /// pf: write the posterior (mean, std, 90% interval of every unknown, and the effective sample
     /// size) at every sample to this CSV, and its plot beside it (same name, .png). One file only.
     #[arg(long, value_name = "FILE.csv")]
@@ -337,8 +342,11 @@ pub fn run(args: &Args) -> Result<()> {
     {
         bail!("--trace, --inject, --channels and --prior apply to --method pf only");
     }
-    if args.pool || args.no_pool {
-        bail!("--pool and --no-pool apply to --method pf only (the filter learns the whisker)");
+    if args.pool || args.no_pool || args.no_pool_gains {
+        bail!(
+            "--pool, --no-pool and --no-pool-gains apply to --method pf only (the filter learns \
+             the whisker)"
+        );
     }
     let name = args.method.as_deref().unwrap_or_default();
     let probe = methods::by_name(name)?;

@@ -91,6 +91,12 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
             args.obs.len()
         );
     }
+    if args.no_pool_gains && !pool {
+        bail!(
+            "--no-pool-gains applies to a pooled batch (--pool, or 5 recordings or more of a \
+             whisker known only roughly); this one is filtered recording by recording"
+        );
+    }
     if pool {
         if args.obs.len() < 2 {
             bail!(
@@ -125,6 +131,7 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
         }
         // Each round's whiskers are the batch's, not the prior's: no held-out widening.
         options.interval_runs = 0;
+        options.pool_gains = !args.no_pool_gains;
     }
     let mut inject = Trained::default();
     let mut filter = |o: &pf::recording::Options, which: &[usize], verbose: bool| {
@@ -456,7 +463,7 @@ fn filter_all(
             }
             None => None,
         };
-        let est = pf::recording::estimate(filter, family, rec, &options)
+        let est = pf::recording::estimate(filter, family, rec, &options.for_recording(r))
             .with_context(|| format!("filtering `{}`", file.display()))?;
         out.push(est);
     }

@@ -1489,7 +1489,8 @@ fn estimate_pool_learns_one_whisker_from_several_recordings() {
         (ratio / truth).ln().abs() < 0.5 * (3e9 / 1100.0 / truth).ln().abs(),
         "{last}"
     );
-    // Refused: one recording, a whisker taken as known, --inject, and no rounds.
+    // Refused: one recording, a whisker taken as known, --inject, no rounds, too small a search,
+    // and the gains learnt apart where nothing is pooled.
     for (extra, files, why) in [
         (&["--randomise", "--pool"][..], &strikes[..1], "at least 2"),
         (&["--no-randomise", "--pool"][..], strikes, "--randomise"),
@@ -1507,6 +1508,12 @@ fn estimate_pool_learns_one_whisker_from_several_recordings() {
             &["--randomise", "--pool", "--pool-search", "1"][..],
             strikes,
             "--pool-search",
+        ),
+        // Four strikes are filtered each alone: there is no batch to learn the gains apart in.
+        (
+            &["--randomise", "--no-pool-gains"][..],
+            strikes,
+            "--no-pool-gains",
         ),
     ] {
         let out = run(extra, files);
@@ -1554,6 +1561,7 @@ fn estimate_pool_learns_one_whisker_from_several_recordings() {
     for extra in [
         &["--method", "pf", "--pool", "--no-pool"][..],
         &["--method", "knn", "--no-pool"][..],
+        &["--method", "knn", "--no-pool-gains"][..],
     ] {
         let out = vibrissa()
             .args(["estimate", "--experiment", "e2"])

@@ -378,7 +378,7 @@ fn recording_pool(
 /// `vibrissa estimate --json` does; returns one estimate object per recording as JSON text,
 /// and the messages the command line prints on standard error (warnings, what is trained).
 #[pyfunction]
-#[pyo3(signature = (scenario, scenario_json, sets, inputs, method, noise, seed, randomise, particles, check, whisker=None, max_delay=0.0, pool=None, pool_rounds=None, pool_search=None, whisker_from=None))]
+#[pyo3(signature = (scenario, scenario_json, sets, inputs, method, noise, seed, randomise, particles, check, whisker=None, max_delay=0.0, pool=None, pool_rounds=None, pool_search=None, whisker_from=None, pool_gains=true))]
 #[allow(clippy::too_many_arguments)]
 fn estimate(
     py: Python<'_>,
@@ -398,8 +398,15 @@ fn estimate(
     pool_rounds: Option<usize>,
     pool_search: Option<usize>,
     whisker_from: Option<&str>,
+    pool_gains: bool,
 ) -> PyResult<(Vec<String>, Vec<String>)> {
     let pf = method == "pf";
+    if !pool_gains && pool == Some(false) {
+        return Err(PyValueError::new_err(
+            "pool_gains=False: each recording learns its joint angles' gains alone when pooling, \
+             with pool=True (or None)",
+        ));
+    }
     if pool_rounds.is_some() && pool == Some(false) {
         return Err(value_error(
             "pool_rounds: the rounds of pooling, with pool=True (or None)",
@@ -573,7 +580,12 @@ fn estimate(
                     filtered = Some((*level, recording::fitted(&family, level, options)?));
                 }
                 let fitted = &filtered.as_ref().expect("fitted above").1;
-                out.push(recording::estimate(fitted, &family, rec, options)?);
+                out.push(recording::estimate(
+                    fitted,
+                    &family,
+                    rec,
+                    &options.for_recording(r),
+                )?);
             }
             Ok(out)
         };
@@ -602,6 +614,7 @@ fn estimate(
             }
             // Each round's whiskers are the batch's, not the prior's: no held-out widening.
             options.interval_runs = 0;
+            options.pool_gains = pool_gains;
             recording_pool(
                 &names,
                 &options,

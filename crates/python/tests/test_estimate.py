@@ -103,6 +103,14 @@ def test_pooling_a_batch_gives_the_command_line_s_estimates(recordings):
         vibrissa.estimate(recordings, "e2", **dict(args, pool=False))
     with pytest.raises(ValueError, match="pool_search.*at least 2"):
         vibrissa.estimate(recordings, "e2", **dict(args, pool_search=1))
+    # The joint angles' gains learnt recording by recording, as --no-pool-gains.
+    apart = vibrissa.estimate(recordings, "e2", **dict(args, pool_gains=False))
+    theirs = cli_estimates(recordings, "--method", "pf", "--particles", "320", "--randomise",
+                           "--pool", "--pool-rounds", "2", "--no-pool-gains")
+    for m, t in zip(apart, theirs):
+        assert same(m, t), (m, t)
+    with pytest.raises(ValueError, match="pool_gains=False.*with pool=True"):
+        vibrissa.estimate(recordings, "e2", **dict(args, pool=False, pool_gains=False))
 
 
 def test_a_batch_of_five_is_pooled_unless_told_not_to(recordings, tmp_path):

@@ -1,6 +1,7 @@
 //! The filter's settings: the priors of the object's unknowns, hypothesis injection, and the
 //! checks of a run's configuration.
 
+use super::gains::AngleGains;
 #[cfg(doc)]
 use super::map_joints;
 use super::sensors::SensorSpread;
@@ -95,6 +96,10 @@ pub struct Config {
     /// How far the sensors' gains and offsets may lie from `sensor_gain` and `sensor_offset`:
     /// the filter marginalises them within each particle (see [`SensorSpread`]).
     pub sensor_spread: SensorSpread,
+    /// The prior of the joint angles' gains when it is not the one `sensor_gain` and
+    /// `sensor_spread` give: what the other recordings of a batch learnt of them (see
+    /// [`AngleGains`]). Only where `sensor_spread` leaves the gains unknown.
+    pub angle_gains: Option<AngleGains>,
     /// Process-noise intensity on every segment, N·s^½·m^-½.
     pub process_noise: f64,
     /// Liu–West shrinkage `a` in (0, 1].
@@ -218,6 +223,7 @@ impl Config {
             sensor_gain: [1.0; 5],
             sensor_offset: [0.0; 5],
             sensor_spread: SensorSpread::default(),
+            angle_gains: None,
             process_noise: crate::experiment::PROCESS_NOISE,
             shrink: 0.98,
             ess_fraction: 0.5,
@@ -346,6 +352,20 @@ impl Config {
                 "sensor_spread",
                 "finite spreads of the sensors' gains and offsets, 0 or more",
             );
+        }
+        if let Some(g) = &self.angle_gains {
+            if !g.is_valid() {
+                return bad(
+                    "angle_gains",
+                    "finite gains other than 0 with finite variances, 0 or more",
+                );
+            }
+            if self.sensor_spread.is_fixed() {
+                return bad(
+                    "angle_gains",
+                    "none where the sensors' gains and offsets are known (sensor_spread zero)",
+                );
+            }
         }
         if !(self.shrink > 0.0 && self.shrink <= 1.0) {
             return bad("shrink", "a Liu–West shrinkage in (0, 1]");

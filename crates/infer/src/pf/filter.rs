@@ -262,6 +262,9 @@ impl Filter {
     pub fn finish(mut self) -> Posterior {
         let np = self.config.particles;
         self.post.ringing_share = self.ringing_samples as f64 / (np * self.samples.max(1)) as f64;
+        if let (false, Some((_, w))) = (self.config.sensor_spread.is_fixed(), &self.last) {
+            self.post.angle_gains = Some(SensorBelief::angle_gains(&self.sensors, w));
+        }
         self.post
     }
 

@@ -33,6 +33,7 @@ use vibrissa_core::dynamics::State;
 mod config;
 mod draws;
 mod filter;
+pub mod gains;
 mod likelihood;
 mod method;
 pub mod pool;

@@ -8,6 +8,7 @@
 //! evidences ([`scores`]), draw the next round's whiskers around those the batch favours
 //! ([`next_whiskers`]), and filter again. The last round's posteriors are the estimates.
 
+use super::gains::{self, AngleGains, GainMessage};
 use super::recording::{Estimate, Options};
 use crate::error::{Error, Result};
 use vibrissa_core::rng::Rng;
@@ -411,6 +412,35 @@ pub fn refine(
     };
     let mut options = options.clone();
     let mut estimates = filter_on(&options, &subset)?;
+    // What each recording of the first filtering says about the joint angles' gains, and each
+    // recording's prior of them for the later filterings.
+    if options.pool_gains {
+        let messages: Vec<Option<GainMessage>> = (0..recordings)
+            .map(|r| {
+                let at = subset.iter().position(|&s| s == r)?;
+                let e = &estimates[at];
+                let q = e.posterior.angle_gains?;
+                Some(q.divided_by(&AngleGains::of(&e.config)))
+            })
+            .collect();
+        if let (Some(e), true) = (estimates.first(), messages.iter().any(Option::is_some)) {
+            // One more recording's prior, under every message: what the batch reads.
+            let mut priors = messages.clone();
+            priors.push(None);
+            let mut priors = gains::batch_priors(&AngleGains::nominal(&e.config), &priors);
+            let batch = priors.pop().expect("one prior per recording and one more");
+            progress(format!(
+                "pooling: the batch reads the joint angles' gains as theta01 {:.3} ± {:.3}, \
+                 theta12 {:.3} ± {:.3} (from one recording to the next); each recording is \
+                 filtered on with what the others read",
+                batch.mean[0],
+                batch.var[0].sqrt(),
+                batch.mean[1],
+                batch.var[1].sqrt()
+            ));
+            options.batch_gains = priors;
+        }
+    }
     for round in 1..=rounds {
         let evidence: Vec<Vec<f64>> = estimates
             .iter()
@@ -499,6 +529,86 @@ mod tests {
         assert_eq!(w.len(), 2);
         assert!(w[0].starts_with("`r10.csv`") && w[0].contains("lost every particle"));
         assert!(w[1].starts_with("`r11.csv`") && w[1].contains("40.0 nats"));
+    }
+
+    #[test]
+    fn each_recording_is_filtered_under_the_others_angle_gains() {
+        use super::super::{Config, Posterior, SensorSpread};
+        // Recording r measures theta12's gain as `seen[r]` with precision `each` (exactly
+        // normal): a filter begun under N(μ, v) ends at the product. After a round, every
+        // recording's prior must be the nominal times the other recordings' measurements.
+        let seen = [0.42, 0.38, 0.45, 0.40, 0.36];
+        let each = 400.0;
+        let mut config = Config::e2([0.01, 0.01, 1e-6, 1e-4, 1e-4], 10, 1);
+        config.sensor_spread = SensorSpread::rough();
+        config.alternatives = vec![WhiskerParams {
+            youngs_modulus: 2.5e9,
+            ..config.whisker.clone()
+        }];
+        let nominal = AngleGains::nominal(&config);
+        let priors_seen = std::cell::RefCell::new(Vec::<Vec<Option<AngleGains>>>::new());
+        let mut filter = |options: &Options, which: &[usize]| -> Result<Vec<Estimate>> {
+            let used = which.iter().map(|&r| options.for_recording(r).angle_gains);
+            priors_seen.borrow_mut().push(used.collect());
+            Ok(which
+                .iter()
+                .map(|&r| {
+                    let mut config = config.clone();
+                    config.angle_gains = options.for_recording(r).angle_gains;
+                    let prior = AngleGains::of(&config);
+                    let precision = 1.0 / prior.var[1] + each;
+                    let mut post = prior;
+                    post.var[1] = 1.0 / precision;
+                    post.mean[1] = (prior.mean[1] / prior.var[1] + each * seen[r]) / precision;
+                    let mut posterior = Posterior::empty(vec!["d"]);
+                    posterior.whisker_log_evidence = vec![-1.0, -2.0];
+                    posterior.angle_gains = Some(post);
+                    Estimate {
+                        posterior,
+                        config,
+                        sensor: [0.01; 5],
+                        sigma: [0.01; 5],
+                        misfit: 1.0,
+                        seconds: 0.0,
+                    }
+                })
+                .collect())
+        };
+        let options = Options::new(10);
+        refine(5, &options, 2, 20, 1, &mut filter, &mut |_| {}).unwrap();
+        // The first filtering knew nothing of the batch; each later one held the others.
+        let first = priors_seen.take();
+        assert_eq!(first.len(), 3);
+        assert!(first[0].iter().all(Option::is_none));
+        let v0 = nominal.var[1];
+        for round in &first[1..] {
+            for (r, prior) in round.iter().enumerate() {
+                let prior = prior.expect("a batch prior");
+                let others: f64 = (0..5).filter(|&s| s != r).map(|s| seen[s]).sum();
+                let precision = 1.0 / v0 + 4.0 * each;
+                let mean = (nominal.mean[1] / v0 + each * others) / precision;
+                assert!((prior.var[1] - 1.0 / precision).abs() < 1e-12 / precision);
+                assert!(
+                    (prior.mean[1] - mean).abs() < 1e-9,
+                    "{} vs {mean}",
+                    prior.mean[1]
+                );
+                // theta01's gain was not measured: its prior stays the nominal.
+                assert_eq!(
+                    (prior.mean[0], prior.var[0]),
+                    (nominal.mean[0], nominal.var[0])
+                );
+            }
+        }
+        // Told not to, the batch leaves each recording's gains alone.
+        let apart = Options {
+            pool_gains: false,
+            ..Options::new(10)
+        };
+        refine(5, &apart, 2, 20, 1, &mut filter, &mut |_| {}).unwrap();
+        let second = priors_seen.take();
+        assert_eq!(second.len(), 3);
+        assert!(second.iter().flatten().all(Option::is_none));
     }
 
     #[test]

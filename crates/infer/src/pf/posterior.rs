@@ -1,6 +1,7 @@
 //! What the filter reads and returns: observations, the per-sample trace and the posterior, and
 //! the weighted summary of one unknown.
 
+use super::gains::AngleGains;
 use crate::method::Estimate;
 use serde::Serialize;
 
@@ -82,6 +83,10 @@ pub struct Posterior {
     /// [`crate::experiment::CHANNELS`], when the filter was not told them exactly
     /// ([`super::Config::sensor_spread`]).
     pub sensors: Option<SensorPosterior>,
+    /// The joint angles' gains after the last sample (the particles' beliefs matched to one
+    /// normal each), when the filter was not told them exactly: what a batch pools.
+    #[serde(skip)]
+    pub angle_gains: Option<AngleGains>,
     /// The whisker parameters that differ between the whiskers the filter entertains, after
     /// the last sample, by their keys (`whisker.youngs_modulus`, …, the follicle by
     /// `whisker.follicle.compliance`); empty when it was told its whisker.
@@ -120,6 +125,7 @@ impl Posterior {
             log_evidence: 0.0,
             rate_widening: 1.0,
             sensors: None,
+            angle_gains: None,
             whisker: Vec::new(),
             whisker_log_evidence: Vec::new(),
         }

@@ -4,6 +4,7 @@
 //! of (a collapsed effective sample size, data that no particle explains, a posterior at an end
 //! of its prior, diverged steps).
 
+use super::gains::AngleGains;
 use super::{run, Config, Injection, Observations, Pf, Posterior, Prior, TransitionModel, PARAMS};
 use crate::evaluate::training_for;
 use crate::recording::Recording;
@@ -56,6 +57,16 @@ pub struct Options {
     pub interval_runs: usize,
     /// The whiskers to entertain instead of the family's ([`super::Pf::whiskers`]).
     pub whiskers: Option<Vec<vibrissa_core::whisker::WhiskerParams>>,
+    /// The prior of the joint angles' gains ([`Config::angle_gains`]; `None`: the scenario's
+    /// gains with the filter's spread).
+    pub angle_gains: Option<AngleGains>,
+    /// Per recording of a batch, the prior of its joint angles' gains that pooling learnt from
+    /// the others ([`super::pool::refine`]); empty when none. [`Options::for_recording`] takes
+    /// it.
+    pub batch_gains: Vec<AngleGains>,
+    /// Whether pooling a batch also pools the joint angles' gains ([`super::gains`]; the
+    /// default), or each recording learns them alone.
+    pub pool_gains: bool,
 }
 
 impl Options {
@@ -72,6 +83,19 @@ impl Options {
             alternatives: super::ALTERNATIVES,
             interval_runs: INTERVAL_RUNS,
             whiskers: None,
+            angle_gains: None,
+            batch_gains: Vec::new(),
+            pool_gains: true,
+        }
+    }
+
+    /// These options for recording `r` of the batch: its gains' prior from
+    /// [`Options::batch_gains`], where there is one.
+    pub fn for_recording(&self, r: usize) -> Options {
+        Options {
+            angle_gains: self.batch_gains.get(r).copied().or(self.angle_gains),
+            batch_gains: Vec::new(),
+            ..self.clone()
         }
     }
 }
@@ -312,6 +336,9 @@ pub fn estimate(
     }
     for &(k, p) in &options.priors {
         config.priors[k] = p;
+    }
+    if !config.sensor_spread.is_fixed() {
+        config.angle_gains = options.angle_gains;
     }
     config.check()?;
     if let Some(e) = &options.inject {

@@ -14,6 +14,7 @@
 //! own gain. The ratios within the wrench (the contact's lever arm) stay informative.
 
 use super::config::Config;
+use super::gains::AngleGains;
 use super::posterior::SensorPosterior;
 use crate::method::Estimate;
 use serde::Serialize;
@@ -118,10 +119,11 @@ impl SensorBelief {
     pub(super) fn prior(config: &Config) -> SensorBelief {
         let spread = config.sensor_spread;
         let (g, o, sigma) = (config.sensor_gain, config.sensor_offset, config.sigma);
+        let angle_gains = AngleGains::of(config);
         let angles = std::array::from_fn(|j| Block {
-            mean: [g[j], o[j]],
+            mean: [angle_gains.mean[j], o[j]],
             cov: [
-                [(spread.angle_gain * g[j]).powi(2), 0.0],
+                [angle_gains.var[j], 0.0],
                 [0.0, (spread.offset * sigma[j]).powi(2)],
             ],
         });
@@ -141,6 +143,23 @@ impl SensorBelief {
             wrench.cov[3 + i][3 + i] = (spread.offset * sigma[2 + i]).powi(2);
         }
         SensorBelief { angles, wrench }
+    }
+
+    /// The joint angles' gains over the particles' `beliefs` with normalised weights `w`: for
+    /// each, the mixture of the particles' normals matched to one (its mean and variance).
+    pub(super) fn angle_gains(beliefs: &[SensorBelief], w: &[f64]) -> AngleGains {
+        let (mut m1, mut m2) = ([0.0f64; 2], [0.0f64; 2]);
+        for (b, &wi) in beliefs.iter().zip(w) {
+            for j in 0..2 {
+                let block = &b.angles[j];
+                m1[j] += wi * block.mean[0];
+                m2[j] += wi * (block.cov[0][0] + block.mean[0] * block.mean[0]);
+            }
+        }
+        AngleGains {
+            mean: m1,
+            var: [0, 1].map(|j| (m2[j] - m1[j] * m1[j]).max(0.0)),
+        }
     }
 
     /// Takes a sample: `x` the particle's model values, `y` the recorded ones, `seen` which

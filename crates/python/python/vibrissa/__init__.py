@@ -251,6 +251,7 @@ def estimate(
     pool=None,
     pool_rounds=None,
     pool_search=None,
+    pool_gains=True,
     overrides=None,
     verbose=False,
     whisker_from=None,
@@ -314,6 +315,10 @@ def estimate(
     pool_search : int, optional
         When pooling: the rounds before the last filter at most this many of the recordings,
         spread through the list (default 20, as ``--pool-search``); the last round filters all.
+    pool_gains : bool, optional
+        When pooling: whether the batch also learns the joint angles' gains together (the
+        default: they stand for the recording's chain and angle tracker, which its strikes
+        share); ``False`` lets each recording learn them alone (``--no-pool-gains``).
     verbose : bool
         Print what is trained and every warning (they are also attached as ``"warnings"``).
     whisker_from : str or os.PathLike, optional
@@ -365,6 +370,7 @@ def estimate(
         pool_rounds,
         pool_search,
         None if whisker_from is None else os.fspath(whisker_from),
+        bool(pool_gains),
     )
     if verbose:
         import sys
