@@ -126,8 +126,9 @@ pub struct Args {
     #[arg(long, default_value_t = vibrissa_infer::pf::pool::SEARCH_RECORDINGS, value_name = "N")]
     pub(crate) pool_search: usize,
     /// pf --pool: each recording learns its joint angles' gains alone, as when the angles of the
-    /// batch's recordings were read in different ways; by default the batch learns them together
-    /// (they stand for the recording's chain and angle tracker, which its strikes share).
+    /// batch's recordings were read in different ways; by default a batch of 10 or more learns
+    /// them together (they stand for the recording's chain and angle tracker, which its strikes
+    /// share).
     #[arg(long)]
     pub(crate) no_pool_gains: bool,
     /// pf: write the posterior (mean, std, 90% interval of every unknown, and the effective sample

@@ -316,9 +316,10 @@ def estimate(
         When pooling: the rounds before the last filter at most this many of the recordings,
         spread through the list (default 20, as ``--pool-search``); the last round filters all.
     pool_gains : bool, optional
-        When pooling: whether the batch also learns the joint angles' gains together (the
-        default: they stand for the recording's chain and angle tracker, which its strikes
-        share); ``False`` lets each recording learn them alone (``--no-pool-gains``).
+        When pooling 10 recordings or more: whether the batch also learns the joint angles'
+        gains together (the default: they stand for the recording's chain and angle tracker,
+        which its strikes share); ``False`` lets each recording learn them alone
+        (``--no-pool-gains``).
     verbose : bool
         Print what is trained and every warning (they are also attached as ``"warnings"``).
     whisker_from : str or os.PathLike, optional
