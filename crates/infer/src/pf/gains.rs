@@ -86,28 +86,6 @@ impl AngleGains {
         }
         m
     }
-
-    /// `self` (a prior) times the `messages`: the belief that holds them all. An angle whose
-    /// prior fixes its gain (variance 0) keeps it.
-    pub fn times<'a>(&self, messages: impl IntoIterator<Item = &'a GainMessage>) -> AngleGains {
-        let (mut precision, mut shift) = ([0.0; 2], [0.0; 2]);
-        for m in messages {
-            for j in 0..2 {
-                precision[j] += m.precision[j];
-                shift[j] += m.shift[j];
-            }
-        }
-        let mut out = *self;
-        for j in 0..2 {
-            let p = self.var[j];
-            if p > 0.0 && precision[j] > 0.0 {
-                let total = 1.0 / p + precision[j];
-                out.var[j] = 1.0 / total;
-                out.mean[j] = (self.mean[j] / p + shift[j]) / total;
-            }
-        }
-        out
-    }
 }
 
 /// Each recording's prior of the angles' gains for the filterings of a batch after the first,
@@ -173,6 +151,31 @@ fn between(most: f64, messages: &[Option<GainMessage>], j: usize) -> f64 {
 mod tests {
     use super::*;
 
+    /// `prior` times the `messages`: the belief that holds them all. An angle whose
+    /// prior fixes its gain (variance 0) keeps it.
+    fn times<'a>(
+        prior: &AngleGains,
+        messages: impl IntoIterator<Item = &'a GainMessage>,
+    ) -> AngleGains {
+        let (mut precision, mut shift) = ([0.0; 2], [0.0; 2]);
+        for m in messages {
+            for j in 0..2 {
+                precision[j] += m.precision[j];
+                shift[j] += m.shift[j];
+            }
+        }
+        let mut out = *prior;
+        for j in 0..2 {
+            let p = prior.var[j];
+            if p > 0.0 && precision[j] > 0.0 {
+                let total = 1.0 / p + precision[j];
+                out.var[j] = 1.0 / total;
+                out.mean[j] = (prior.mean[j] / p + shift[j]) / total;
+            }
+        }
+        out
+    }
+
     fn normal(mean: f64, sd: f64) -> AngleGains {
         AngleGains {
             mean: [mean, 1.0],
@@ -184,7 +187,7 @@ mod tests {
     fn a_message_times_its_prior_gives_back_the_posterior() {
         let prior = normal(1.0, 0.5);
         let post = normal(0.42, 0.05);
-        let back = prior.times([&post.divided_by(&prior)]);
+        let back = times(&prior, [&post.divided_by(&prior)]);
         assert!((back.mean[0] - 0.42).abs() < 1e-12, "{back:?}");
         assert!((back.var[0] - 0.0025).abs() < 1e-15, "{back:?}");
         // The other angle's belief did not narrow: it says nothing there.
@@ -272,6 +275,6 @@ mod tests {
         assert_eq!(normal(0.7, 0.2).divided_by(&prior), GainMessage::default());
         let fixed = normal(1.0, 0.0);
         let msg = normal(0.5, 0.05).divided_by(&normal(1.0, 0.5));
-        assert_eq!(fixed.times([&msg]), fixed);
+        assert_eq!(times(&fixed, [&msg]), fixed);
     }
 }
