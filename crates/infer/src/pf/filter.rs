@@ -5,7 +5,7 @@
 use super::config::{Config, PARAMS};
 use super::draws::{draw_initial, redraw_waiting};
 use super::likelihood::per_time_factor;
-use super::posterior::{summarise, Observations, Posterior, TraceRow};
+use super::posterior::{summarise_in_order, Observations, Posterior, TraceRow};
 use super::sampling::{systematic, LiuWest};
 use super::sensors::SensorBelief;
 use super::transition::{
@@ -127,6 +127,9 @@ pub struct Filter {
     /// Each particle's box before the last move, until the next sample is predicted.
     unmoved: Vec<Option<ObjState>>,
     generation: u64,
+    /// Per free unknown, the particles in ascending order of its value at the last sample
+    /// (kept to sort the next sample's values quickly).
+    order: Vec<Vec<u32>>,
     /// The last sample's time and normalised weights (resampling and the redraw of waiting
     /// boxes follow it, and are done when the next sample arrives).
     last: Option<(f64, Vec<f64>)>,
@@ -186,6 +189,7 @@ impl Filter {
             .filter(|&k| config.priors[k].is_free())
             .collect();
         let sensors = vec![SensorBelief::prior(config); np];
+        let order = vec![Vec::new(); free.len()];
         let clearance = hyps.iter().map(|h| h.ringing.clearance).fold(0.0, f64::max);
         let reach_zone = clearance + 1e-4;
         Ok(Filter {
@@ -216,6 +220,7 @@ impl Filter {
             spare_arrived: vec![false; np],
             unmoved: vec![None; np],
             generation: 0,
+            order,
             last: None,
             samples: 0,
             ringing_samples: 0,
@@ -512,12 +517,14 @@ impl Filter {
         let ess = 1.0 / w.iter().map(|x| x * x).sum::<f64>();
 
         // Posterior summary.
+        let objs = &self.objs;
         let estimates = self
             .free
             .par_iter()
-            .map(|&p| {
-                let vals: Vec<f64> = self.objs.iter().map(|o| param(o, p, config.gap)).collect();
-                summarise(&vals, &w)
+            .zip(self.order.par_iter_mut())
+            .map(|(&p, order)| {
+                let vals: Vec<f64> = objs.iter().map(|o| param(o, p, config.gap)).collect();
+                summarise_in_order(&vals, &w, order)
             })
             .collect();
         post.trace.push(TraceRow { t, ess, estimates });

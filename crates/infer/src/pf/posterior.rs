@@ -158,26 +158,38 @@ impl Posterior {
 
 /// Weighted mean, std and central 90% interval.
 pub(super) fn summarise(vals: &[f64], w: &[f64]) -> Estimate {
+    summarise_in_order(vals, w, &mut Vec::new())
+}
+
+/// [`summarise`], with `order` the particles' order by value at the last call (the indices of
+/// `vals` in ascending order of their values then; empty, or of another length, at the first
+/// call), brought up to date here. A filter's static unknowns keep their values from sample to
+/// sample until the particles are resampled, so the order of the last sample is nearly or wholly
+/// the order of this one, and sorting it again takes a pass instead of a full sort.
+pub(super) fn summarise_in_order(vals: &[f64], w: &[f64], order: &mut Vec<u32>) -> Estimate {
     let mean: f64 = vals.iter().zip(w).map(|(x, w)| x * w).sum();
     let var: f64 = vals
         .iter()
         .zip(w)
         .map(|(x, w)| w * (x - mean) * (x - mean))
         .sum();
-    // Values with their weights in ascending order. Equal values may come in any order: the
-    // quantile is the value at which the cumulative weight crosses q, whichever of the equal ones
-    // it stops at (their order moves that sum only by rounding).
-    let mut sorted: Vec<(f64, f64)> = vals.iter().copied().zip(w.iter().copied()).collect();
-    sorted.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+    if order.len() != vals.len() {
+        order.clear();
+        order.extend(0..vals.len() as u32);
+    }
+    // A stable sort finds the runs that are already in order. Equal values may come in any
+    // order: the quantile is the value at which the cumulative weight crosses q, whichever of
+    // the equal ones it stops at (their order moves that sum only by rounding).
+    order.sort_by(|&a, &b| vals[a as usize].total_cmp(&vals[b as usize]));
     let quantile = |q: f64| {
         let mut cum = 0.0;
-        for &(x, wi) in &sorted {
-            cum += wi;
+        for &i in order.iter() {
+            cum += w[i as usize];
             if cum >= q {
-                return x;
+                return vals[i as usize];
             }
         }
-        sorted.last().expect("at least one particle").0
+        vals[*order.last().expect("at least one particle") as usize]
     };
     Estimate {
         mean,
@@ -226,6 +238,30 @@ mod tests {
         assert_eq!((last[0].std, last[0].ci90), (1.0, [0.0, 6.0]));
         // Unknowns past the factors given stay as they were.
         assert_eq!((last[1].std, last[1].ci90), (0.1, [0.9, 1.1]));
+    }
+
+    #[test]
+    fn a_kept_order_gives_the_summary_of_a_fresh_one() {
+        let vals: Vec<f64> = (0..200).map(|i| ((i * 37) % 101) as f64 * 0.1).collect();
+        let w: Vec<f64> = (0..200).map(|i| 1.0 + (i % 7) as f64).collect();
+        let total: f64 = w.iter().sum();
+        let w: Vec<f64> = w.iter().map(|x| x / total).collect();
+        let fresh = summarise(&vals, &w);
+        // An order kept from other values (reversed), then from the same ones.
+        let mut order: Vec<u32> = (0..200).rev().collect();
+        assert_eq!(summarise_in_order(&vals, &w, &mut order).ci90, fresh.ci90);
+        assert!(order
+            .windows(2)
+            .all(|p| vals[p[0] as usize] <= vals[p[1] as usize]));
+        let kept = summarise_in_order(&vals, &w, &mut order);
+        assert_eq!(
+            (kept.mean, kept.std, kept.ci90),
+            (fresh.mean, fresh.std, fresh.ci90)
+        );
+        // A stale order of another length is replaced.
+        let mut short = vec![0u32; 3];
+        assert_eq!(summarise_in_order(&vals, &w, &mut short).ci90, fresh.ci90);
+        assert_eq!(short.len(), 200);
     }
 
     #[test]
