@@ -3,6 +3,7 @@
 
     python3 examples/coverage.py --set NAME=DIR[:SCENARIO] [--set ...] [--method M ...]
         [--randomise] [--no-pool] [--out coverage] [--vibrissa target/release/vibrissa]
+        [--cache DIR]
 
 Each set is a folder of labelled recordings (truth.csv beside the CSVs, as `vibrissa calibrate`
 reads them) and the scenario the methods are given (default: DIR/../nominal.toml). For every
@@ -11,6 +12,11 @@ labelled unknown, the mean absolute error, the share of the method's own 90% int
 the truth, and the share of the intervals mean ± z·std that hold it at nominal levels 10%…95%.
 Writes OUT.json (everything), OUT.md (the table) and, when matplotlib is installed, OUT.png
 (observed against nominal coverage, one panel per set).
+
+A method may be given as LABEL=METHOD ARGS..., to score one method run in several ways under
+names of their own (e.g. `--method "pf alone=pf --no-pool"`). With --cache DIR every run's
+estimates (JSON Lines) are kept in DIR and read back instead of run again when present, so that
+the table and the figure can be remade without estimating anew.
 """
 import argparse
 import csv
@@ -37,21 +43,53 @@ def parse_set(text):
     return name, folder, scenario
 
 
-def run_method(vibrissa, folder, scenario, method, extra):
+def parse_method(text):
+    """`METHOD` or `LABEL=METHOD ARGS...`: (label, method, extra arguments)."""
+    label, sep, rest = text.partition("=")
+    if not sep:
+        return text, text, []
+    words = rest.split()
+    if not label or not words:
+        sys.exit(f"--method {text!r}: expected METHOD or LABEL=METHOD ARGS...")
+    return label, words[0], words[1:]
+
+
+def slug(text):
+    return "".join(c if c.isalnum() or c in "-_" else "_" for c in text)
+
+
+def run_method(vibrissa, folder, scenario, method, extra, cached=None):
     with open(os.path.join(folder, "truth.csv"), newline="") as f:
         rows = list(csv.DictReader(f))
     if not rows or "file" not in rows[0]:
         sys.exit(f"{folder}/truth.csv: needs a `file` column and one column per unknown")
     keys = [k for k in rows[0] if k != "file"]
-    cmd = [vibrissa, "estimate", "--scenario", scenario, "--method", method, "--json", *extra]
-    for r in rows:
-        cmd += ["--obs", os.path.join(folder, r["file"])]
-    out = subprocess.run(cmd, capture_output=True, text=True)
-    if out.returncode != 0:
-        lines = out.stderr.strip().splitlines() or ["(no message)"]
-        print(f"  {method} failed: {lines[-1]}", file=sys.stderr)
-        return None
-    ests = [json.loads(line) for line in out.stdout.splitlines() if line.strip()]
+    if cached and os.path.exists(cached):
+        with open(cached) as f:
+            text = f.read()
+        print(f"  read {cached}", file=sys.stderr)
+    else:
+        cmd = [vibrissa, "estimate", "--scenario", scenario, "--method", method, "--json", *extra]
+        for r in rows:
+            cmd += ["--obs", os.path.join(folder, r["file"])]
+        out = subprocess.run(cmd, capture_output=True, text=True)
+        if out.returncode != 0:
+            lines = out.stderr.strip().splitlines() or ["(no message)"]
+            print(f"  {method} failed: {lines[-1]}", file=sys.stderr)
+            return None
+        text = out.stdout
+        if cached:
+            with open(cached, "w") as f:
+                f.write(text)
+    ests = [json.loads(line) for line in text.splitlines() if line.strip()]
+    if len(ests) != len(rows):
+        sys.exit(f"{folder}: {len(ests)} estimates for {len(rows)} labelled recordings")
+    # Match by file name: the estimates come in the order of the files given.
+    by_name = {os.path.basename(e["file"]): e for e in ests}
+    missing = [r["file"] for r in rows if os.path.basename(r["file"]) not in by_name]
+    if missing:
+        sys.exit(f"{folder}: no estimate for {missing[0]}")
+    ests = [by_name[os.path.basename(r["file"])] for r in rows]
     result = {}
     for k in keys:
         truth = [float(r[k]) for r in rows]
@@ -74,29 +112,34 @@ def run_method(vibrissa, folder, scenario, method, extra):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--set", action="append", required=True, help="NAME=DIR[:SCENARIO]")
-    ap.add_argument("--method", action="append", help="method(s); default: all nine")
+    ap.add_argument("--method", action="append",
+                    help="METHOD or LABEL=METHOD ARGS... (repeatable); default: all ten")
     ap.add_argument("--randomise", action="store_true", help="estimate --randomise")
     ap.add_argument("--no-pool", action="store_true",
                     help="pf: filter each recording alone, not the folder as one whisker's strikes "
                     "(estimate --no-pool)")
     ap.add_argument("--out", default="coverage", help="output stem (OUT.json, OUT.md, OUT.png)")
     ap.add_argument("--vibrissa", default="target/release/vibrissa", help="the vibrissa binary")
+    ap.add_argument("--cache", help="keep each run's estimates in this folder, and reuse them")
     a = ap.parse_args()
     sets = [parse_set(s) for s in a.set]
-    methods = a.method or DEFAULT_METHODS
+    methods = [parse_method(m) for m in (a.method or DEFAULT_METHODS)]
     extra = ["--randomise"] if a.randomise else []
+    if a.cache:
+        os.makedirs(a.cache, exist_ok=True)
 
     results = {}
     for name, folder, scenario in sets:
         results[name] = {}
-        for m in methods:
+        for label, m, own in methods:
             if a.randomise and m.startswith("template") and m != "template-warp":
                 continue
-            print(f"{name}: {m}", file=sys.stderr, flush=True)
+            print(f"{name}: {label}", file=sys.stderr, flush=True)
             alone = ["--no-pool"] if a.no_pool and m == "pf" else []
-            r = run_method(a.vibrissa, folder, scenario, m, extra + alone)
+            cached = os.path.join(a.cache, f"{slug(name)}--{slug(label)}.jsonl") if a.cache else None
+            r = run_method(a.vibrissa, folder, scenario, m, extra + alone + own, cached)
             if r is not None:
-                results[name][m] = r
+                results[name][label] = r
     with open(a.out + ".json", "w") as f:
         json.dump({"levels": LEVELS, "randomise": a.randomise, "results": results}, f, indent=1)
 
