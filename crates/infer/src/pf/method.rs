@@ -6,6 +6,7 @@ use super::likelihood::{
     observation_sigma, temper_for, TransitionModel, FINE_TEMPER, MODEL_ERROR, UNKNOWN_START_TEMPER,
 };
 use super::posterior::{Observations, Posterior};
+use super::recording::MISFIT_LIMIT;
 use super::sensors::SensorSpread;
 use crate::error::{Error, Result};
 use crate::experiment::CHANNELS;
@@ -64,6 +65,10 @@ pub struct Pf {
     /// none): set by [`super::recording::fitted`] from held-out runs of a randomised family, so
     /// that they hold on whiskers it has not seen.
     pub interval_scale: Vec<(String, f64)>,
+    /// The largest misfit ([`Pf::misfit`]) of the held-out runs that set
+    /// [`Pf::interval_scale`], if any were run: how far from the noise model a recording that the
+    /// family's prior describes falls ([`Pf::misfit_limit`]).
+    pub held_out_misfit: Option<f64>,
     /// Whether the family it was fitted to is randomised.
     randomised: bool,
     /// Whether the family it was fitted to was written by calibration.
@@ -210,6 +215,7 @@ impl Pf {
             alternatives: ALTERNATIVES,
             whiskers: None,
             interval_scale: Vec::new(),
+            held_out_misfit: None,
             randomised: false,
             calibrated: false,
             fit_residual: None,
@@ -271,6 +277,15 @@ impl Pf {
     pub fn misfit(&self, post: &Posterior, channels: usize) -> f64 {
         let n = (post.trace.len() * channels).max(1) as f64;
         -2.0 * post.log_evidence / n * (self.effective_temper() * post.rate_widening).powi(2)
+    }
+
+    /// The misfit above which a recording is reported as unexplained: [`MISFIT_LIMIT`], or the
+    /// largest misfit of the held-out runs ([`Pf::held_out_misfit`]) where that is larger. Of a
+    /// randomised family's recordings a rank test: a recording that its prior describes exceeds
+    /// all of [`super::recording::INTERVAL_RUNS`] held-out runs with probability 1/25.
+    pub fn misfit_limit(&self) -> f64 {
+        self.held_out_misfit
+            .map_or(MISFIT_LIMIT, |m| m.max(MISFIT_LIMIT))
     }
 
     /// Per name of `unknowns`, the factor its intervals are widened by
@@ -452,6 +467,18 @@ impl crate::Method for Pf {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_misfit_limit_is_the_held_out_runs_largest_where_that_is_larger() {
+        let mut pf = Pf::new(100);
+        assert_eq!(pf.misfit_limit(), MISFIT_LIMIT);
+        pf.held_out_misfit = Some(1.4);
+        assert_eq!(pf.misfit_limit(), MISFIT_LIMIT);
+        pf.held_out_misfit = Some(2.7);
+        assert_eq!(pf.misfit_limit(), 2.7);
+        pf.held_out_misfit = Some(f64::NAN);
+        assert_eq!(pf.misfit_limit(), MISFIT_LIMIT);
+    }
 
     #[test]
     fn transition_models_set_their_chain_step_and_tempering() {
