@@ -1035,11 +1035,15 @@ fn estimate_check_tells_a_recording_of_the_scenario_from_one_of_another_whisker(
     );
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["check"]["explained"], false, "{v}");
-    // The filter says so by itself as well: no particle explains the other whisker's strike,
-    // while the scenario's own strike raises no warning.
-    assert!(
+    // The recording defies the scenario, so the filter entertained whiskers around it: it
+    // judges its misfit against its held-out runs' (at least 2), and warns exactly above that.
+    let misfit = v["filter"]["misfit"].as_f64().unwrap();
+    let limit = v["filter"]["misfit_limit"].as_f64().unwrap();
+    assert!(limit >= 2.0, "{v}");
+    assert_eq!(
         String::from_utf8_lossy(&out.stderr).contains("no particle explains"),
-        "{}",
+        misfit > limit,
+        "misfit {misfit}, limit {limit}: {}",
         String::from_utf8_lossy(&out.stderr)
     );
     let pf = |csv: &Path, extra: &[&str]| {
@@ -1059,6 +1063,18 @@ fn estimate_check_tells_a_recording_of_the_scenario_from_one_of_another_whisker(
             .output()
             .unwrap()
     };
+    // Told to trust the scenario's whisker, the filter says by itself that no particle
+    // explains the other whisker's strike (limit 2), while the scenario's own strike raises no
+    // warning.
+    let out = pf(&other, &["--no-randomise", "--json"]);
+    assert!(out.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["filter"]["misfit_limit"], 2.0, "{v}");
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("no particle explains"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let out = pf(&own, &[]);
     assert!(out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
