@@ -282,7 +282,8 @@ impl Pf {
     /// The misfit above which a recording is reported as unexplained: [`MISFIT_LIMIT`], or the
     /// largest misfit of the held-out runs ([`Pf::held_out_misfit`]) where that is larger. Of a
     /// randomised family's recordings a rank test: a recording that its prior describes exceeds
-    /// all of [`super::recording::INTERVAL_RUNS`] held-out runs with probability 1/25.
+    /// all of n held-out runs with probability 1/(n + 1) (1/25 for the default
+    /// [`super::recording::INTERVAL_RUNS`]).
     pub fn misfit_limit(&self) -> f64 {
         self.held_out_misfit
             .map_or(MISFIT_LIMIT, |m| m.max(MISFIT_LIMIT))

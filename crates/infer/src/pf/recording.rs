@@ -269,14 +269,14 @@ pub fn fitted(family: &Family, level: &[f64; 5], options: &Options) -> Result<Pf
     let training = training_for(family, &noise, &filter, options.seed)?;
     filter.fit(&training)?;
     if family.randomisation().is_some() && !family.is_calibrated() && options.interval_runs > 0 {
-        let held_out = interval_scale(&filter, family, &noise, options)?;
+        let held_out = held_out_runs(&filter, family, &noise, options)?;
         filter.interval_scale = held_out.scale;
         filter.held_out_misfit = held_out.misfits.into_iter().reduce(f64::max);
     }
     Ok(filter)
 }
 
-/// What the held-out runs of a randomised family tell of the filter ([`interval_scale`]).
+/// What the held-out runs of a randomised family tell of the filter ([`held_out_runs`]).
 struct HeldOut {
     /// Per unknown (by name), the factor (at least 1) that widens the 90% intervals to hold
     /// [`INTERVAL_QUANTILE`] of the runs' errors.
@@ -291,7 +291,7 @@ type RunErrors = (Vec<Option<(f64, f64)>>, f64);
 
 /// The filter on `options.interval_runs` held-out runs of `family` with `noise`: each unknown's
 /// widening factor and each run's misfit ([`HeldOut`]).
-fn interval_scale(
+fn held_out_runs(
     filter: &Pf,
     family: &Family,
     noise: &crate::experiment::Noise,
