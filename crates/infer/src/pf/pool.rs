@@ -274,35 +274,11 @@ pub fn disagreeing(shortfall: &[f64]) -> Vec<usize> {
 }
 
 /// A warning for the batch when the whiskers it settled on leave most of its recordings
-/// unexplained (the median misfit of the last round above [`MISFIT_LIMIT`]), and one for each
-/// recording of `pooled` that [`disagreeing`] flags, `names` naming the recordings in order.
-///
-/// The batch is judged by its median rather than recording by recording: the last round's
-/// misfit separates sets of recordings (1.5–2.0 on stand-ins of our own chain, 1.8–2.6 on those
-/// around another engine's tapered whisker) more than it separates the strikes of one set, and
-/// the pooled intervals held the truth in 88–100% of the strikes of sets that crossed 2 on
-/// some of their strikes (docs/filter.md).
+/// unexplained ([`unexplained_batch`]), and one for each recording of `pooled` that
+/// [`disagreeing`] flags, `names` naming the recordings in order.
 pub fn warnings(pooled: &Pooled, names: &[String]) -> Vec<String> {
-    let misfits: Vec<f64> = pooled.estimates.iter().map(|e| e.misfit).collect();
-    let mid = median(&misfits);
-    let mut out = Vec::new();
-    if mid > MISFIT_LIMIT {
-        let (lo, hi) = misfits
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &m| {
-                (a.min(m), b.max(m))
-            });
-        out.push(format!(
-            "the whiskers the batch settled on leave its recordings' residuals {mid:.1} times the \
-             variance the filter's noise model allows (the median of the batch; {lo:.1} to \
-             {hi:.1}), where recordings the scenario describes stay below {MISFIT_LIMIT}: none \
-             of the whiskers the filter simulates is the recordings' own, and the estimates rest \
-             on a model that misses part of them; calibrating the whisker from labelled strikes \
-             (`vibrissa calibrate`) describes it better"
-        ));
-    }
     let s = &pooled.shortfall;
-    out.extend(disagreeing(s).into_iter().map(|r| {
+    let each = disagreeing(s).into_iter().map(|r| {
         let how = if s[r].is_finite() {
             format!(
                 "explains it {:.1} nats worse than the best whisker it met",
@@ -313,14 +289,36 @@ pub fn warnings(pooled: &Pooled, names: &[String]) -> Vec<String> {
         };
         format!(
             "`{}`: the batch's favourite whisker {how}, where on half the batch it is within \
-                 {:.1} nats of the best: it may not be a recording of the batch's whisker (a \
-                 foreign recording pulls the others' estimates: pool it apart or leave it out); \
-                 on a batch of one whisker this happens to about one recording in twenty",
+             {:.1} nats of the best: it may not be a recording of the batch's whisker (a \
+             foreign recording pulls the others' estimates: pool it apart or leave it out); \
+             on a batch of one whisker this happens to about one recording in twenty",
             names.get(r).map_or("?", String::as_str),
             median(s)
         )
-    }));
-    out
+    });
+    unexplained_batch(pooled).into_iter().chain(each).collect()
+}
+
+/// The warning for a batch whose last round's median misfit exceeds [`MISFIT_LIMIT`], if it
+/// does. The batch is judged by its median rather than recording by recording: the last
+/// round's misfit separates sets of recordings (1.5–2.0 on stand-ins of our own chain, 1.8–2.6
+/// on those around another engine's tapered whisker) more than it separates the strikes of one
+/// set, and the pooled intervals held the truth in 88–100% of the strikes of sets that crossed 2
+/// on some of their strikes (docs/filter.md).
+fn unexplained_batch(pooled: &Pooled) -> Option<String> {
+    let misfits: Vec<f64> = pooled.estimates.iter().map(|e| e.misfit).collect();
+    // A batch of no recordings has a NaN median, and no warning.
+    let mid = Some(median(&misfits)).filter(|m| *m > MISFIT_LIMIT)?;
+    let lo = misfits.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = misfits.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    Some(format!(
+        "the whiskers the batch settled on leave its recordings' residuals {mid:.1} times the \
+         variance the filter's noise model allows (the median of the batch; {lo:.1} to \
+         {hi:.1}), where recordings the scenario describes stay below {MISFIT_LIMIT}: none of \
+         the whiskers the filter simulates is the recordings' own, and the estimates rest on a \
+         model that misses part of them; calibrating the whisker from labelled strikes \
+         (`vibrissa calibrate`) describes it better"
+    ))
 }
 
 /// The median of `v` (NaN when empty; infinite values count as the largest).
