@@ -92,6 +92,8 @@ struct Plan {
     batch_states: usize,
     /// Steps of every state per timed call of the batch.
     batch_steps: usize,
+    /// Rounds of the batch's interleaved repetitions ([`fastest_calls`]).
+    batch_rounds: usize,
 }
 
 impl Plan {
@@ -104,6 +106,7 @@ impl Plan {
                 steps: 100,
                 batch_states: 100,
                 batch_steps: 10,
+                batch_rounds: 3,
             }
         } else {
             Plan {
@@ -113,6 +116,7 @@ impl Plan {
                 steps: 1000,
                 batch_states: 1000,
                 batch_steps: 100,
+                batch_rounds: 6,
             }
         }
     }
@@ -359,56 +363,54 @@ fn batched(
 ) -> Result<Batched> {
     let threads = rayon::current_num_threads();
     let initial = vec![initial.clone(); plan.batch_states];
-    let mut states = initial.clone();
-    let mut batch_call = || -> Result<Duration> {
+    let step_batch = |states: &mut Vec<State>| -> Result<Duration> {
         states.clone_from(&initial);
         let start = Instant::now();
-        batch::step_all(model, stepper, &mut states, inputs, plan.batch_steps)?;
+        batch::step_all(model, stepper, states, inputs, plan.batch_steps)?;
         let elapsed = start.elapsed();
-        black_box(&mut states);
+        black_box(&mut *states);
         anyhow::ensure!(
             inputs.objects.is_empty() || states.iter().all(|s| s.contact.is_some()),
             "a state of the in-contact batch lost contact during the timed steps"
         );
         Ok(elapsed)
     };
-    eprintln!(
-        "bench: batch of {} states, N = {}, {motion}, {threads} threads",
-        plan.batch_states, model.n
-    );
-    let parallel =
-        best_seconds_per_call(plan, &mut batch_call).context("batched run on all threads")?;
-    eprintln!(
-        "bench: batch of {} states, N = {}, {motion}, 1 thread",
-        plan.batch_states, model.n
-    );
-    let one_thread = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .context("could not start a one-thread pool")?
-        .install(|| best_seconds_per_call(plan, &mut batch_call))
-        .context("batched run on one thread")?;
+    let (mut states, mut states_one) = (initial.clone(), initial.clone());
+    let mut batch_call = || step_batch(&mut states);
+    let mut batch_call_one = || step_batch(&mut states_one);
     // The same states stepped one at a time by the single-state step, on this thread.
     let mut ws = Workspace::new(model);
-    let mut states = initial.clone();
+    let mut single_states = initial.clone();
     let mut single_call = || -> Result<Duration> {
-        states.clone_from(&initial);
+        single_states.clone_from(&initial);
         let start = Instant::now();
-        for s in states.iter_mut() {
+        for s in single_states.iter_mut() {
             for _ in 0..plan.batch_steps {
                 dynamics::step(model, stepper, s, inputs, &mut ws)?;
             }
         }
         let elapsed = start.elapsed();
-        black_box(&mut states);
+        black_box(&mut single_states);
         Ok(elapsed)
     };
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .context("could not start a one-thread pool")?;
     eprintln!(
-        "bench: the same states one at a time, N = {}, {motion}, 1 thread",
-        model.n
+        "bench: batch of {} states, N = {}, {motion}: {threads} threads, 1 thread and one at a time, interleaved",
+        plan.batch_states, model.n
     );
-    let one_at_a_time =
-        best_seconds_per_call(plan, &mut single_call).context("states one at a time")?;
+    // Interleaved, so that a slow spell of the machine falls on all three alike.
+    let [parallel, one_thread, one_at_a_time] = fastest_calls(
+        plan,
+        [
+            &mut batch_call,
+            &mut || one.install(&mut batch_call_one),
+            &mut single_call,
+        ],
+    )
+    .context("batched runs")?;
     let state_steps = (plan.batch_states * plan.batch_steps) as f64;
     Ok(Batched {
         motion,
@@ -423,6 +425,37 @@ fn batched(
         one_at_a_time_state_steps_per_second: state_steps / one_at_a_time,
         over_one_at_a_time: one_at_a_time / one_thread,
     })
+}
+
+/// Seconds of the fastest call of each of `calls`, measured in turns: each is warmed up, then
+/// each of the plan's batch rounds runs a repetition of each in order (as many calls as last the plan's repetition
+/// time). Taking turns puts a slow spell of a shared machine on all of them alike, and the
+/// fastest call is what the code does when nothing else runs: ratios between the calls
+/// (a speedup) are then not the scatter between two spells.
+fn fastest_calls<const K: usize>(
+    plan: &Plan,
+    mut calls: [&mut dyn FnMut() -> Result<Duration>; K],
+) -> Result<[f64; K]> {
+    let mut per_repetition = [1u32; K];
+    for (call, per) in calls.iter_mut().zip(&mut per_repetition) {
+        let start = Instant::now();
+        let (mut n, mut spent) = (0u32, Duration::ZERO);
+        while n == 0 || start.elapsed() < plan.warmup {
+            spent += call()?;
+            n += 1;
+        }
+        let estimate = (spent.as_secs_f64() / f64::from(n)).max(1e-9);
+        *per = ((plan.repetition.as_secs_f64() / estimate).ceil() as u32).max(1);
+    }
+    let mut best = [f64::INFINITY; K];
+    for _ in 0..plan.batch_rounds {
+        for ((call, per), b) in calls.iter_mut().zip(&per_repetition).zip(&mut best) {
+            for _ in 0..*per {
+                *b = b.min(call()?.as_secs_f64());
+            }
+        }
+    }
+    Ok(best)
 }
 
 /// Best (shortest) seconds per call of `call` over the plan's repetitions. `call` does one unit
