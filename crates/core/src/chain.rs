@@ -18,6 +18,14 @@
 //!   base, `l/EI` elsewhere), second-order accurate.
 //! - [`Discretisation::Seed`]: the seed paper's rule, `k = EI/l` at every joint including the
 //!   base, which overstates the base compliance by half a segment (error falling as 1/N).
+//! - [`Discretisation::Nodal`]: the compliances that make the chain deflect exactly as the
+//!   Euler–Bernoulli beam does at every node under a force there, `Σ_j (x_i − s_j)² c_j =
+//!   ∫₀^{x_i} (x_i − s)²/EI(s) ds` for the nodes `x_i` (a lower-triangular system, solved node by
+//!   node from the base). Whatever the taper, a chain of few segments then has the whisker's
+//!   static response where contacts meet it: with 8 segments, a whisker tapered to half its base
+//!   radius is within 0.8% of the beam's deflection everywhere along its outer two thirds, against
+//!   4.9% with the hat weights. Meant for coarse chains (a filter's transition model); with many
+//!   segments the hat weights are as good.
 //!
 //! Masses, centres of mass and rotational inertias are integrated exactly over each segment's
 //! arc, so only the stiffness rule differs between the two.
@@ -43,18 +51,21 @@ pub enum Discretisation {
     Trapezoid,
     /// The seed paper's `k = EI/l` at every joint, the first at the base.
     Seed,
+    /// Compliances matched to the beam's deflection under a point force at every node.
+    Nodal,
 }
 
 /// Names accepted by [`Discretisation::from_name`].
-pub const DISCRETISATIONS: [&str; 3] = ["gregory", "trapezoid", "seed"];
+pub const DISCRETISATIONS: [&str; 4] = ["gregory", "trapezoid", "seed", "nodal"];
 
 impl Discretisation {
-    /// Parses `gregory`, `trapezoid` or `seed`.
+    /// Parses `gregory`, `trapezoid`, `seed` or `nodal`.
     pub fn from_name(name: &str) -> Result<Self> {
         match name {
             "gregory" => Ok(Discretisation::Gregory),
             "trapezoid" => Ok(Discretisation::Trapezoid),
             "seed" => Ok(Discretisation::Seed),
+            "nodal" => Ok(Discretisation::Nodal),
             _ => Err(Error::invalid(
                 "discretisation",
                 name,
@@ -69,6 +80,7 @@ impl Discretisation {
             Discretisation::Gregory => "gregory",
             Discretisation::Trapezoid => "trapezoid",
             Discretisation::Seed => "seed",
+            Discretisation::Nodal => "nodal",
         }
     }
 }
@@ -102,6 +114,38 @@ pub struct Model {
     pub rest: Vec<f64>,
     /// Whisker radius at node i, m: `[N+1]` (contact happens at the surface).
     pub radius: Vec<f64>,
+}
+
+/// The joint compliances of [`Discretisation::Nodal`] for `whisker` cut into `n` segments: node
+/// by node from the base, the one joint that the force at node `i` newly reaches (joint `i − 1`,
+/// a segment length away) takes what the beam's deflection there leaves after the joints below
+/// it. Refused when a compliance comes out non-positive or not finite (a profile that `n`
+/// segments cannot follow this way).
+fn nodal_compliances(whisker: &Whisker, n: usize) -> Result<Vec<f64>> {
+    let arc = whisker.length() / n as f64;
+    let mut c: Vec<f64> = Vec::with_capacity(n);
+    for i in 1..=n {
+        let x = i as f64 * arc;
+        let below: f64 = c
+            .iter()
+            .enumerate()
+            .map(|(j, cj)| (x - j as f64 * arc).powi(2) * cj)
+            .sum();
+        let ci = (crate::beam::point_compliance(whisker, x) - below) / (arc * arc);
+        if !(ci.is_finite() && ci > 0.0) {
+            return Err(Error::invalid(
+                "discretisation",
+                "nodal",
+                format!(
+                    "a rule that gives every joint a positive compliance; with {n} segments joint {} \
+                     gets {ci:e} rad/(N·m) for this whisker (use gregory)",
+                    i - 1
+                ),
+            ));
+        }
+        c.push(ci);
+    }
+    Ok(c)
 }
 
 /// Point of the rest curve at arc length `s` (constant curvature `kappa`), base at the origin along +x.
@@ -187,12 +231,15 @@ impl Model {
                 ((si + arc) - s) / arc / whisker.ei(s)
             })
         };
-        let mut compliance: Vec<f64> = (0..n)
-            .map(|i| match discretisation {
-                Discretisation::Seed => arc / whisker.ei(i as f64 * arc),
-                Discretisation::Gregory | Discretisation::Trapezoid => hat(i),
-            })
-            .collect();
+        let mut compliance: Vec<f64> = match discretisation {
+            Discretisation::Nodal => nodal_compliances(whisker, n)?,
+            _ => (0..n)
+                .map(|i| match discretisation {
+                    Discretisation::Seed => arc / whisker.ei(i as f64 * arc),
+                    _ => hat(i),
+                })
+                .collect(),
+        };
         if discretisation == Discretisation::Gregory {
             // Euler–Maclaurin end correction h/12·(g1 - g0) of the trapezoidal rule at the base.
             compliance[0] -= arc / 12.0 / whisker.ei(0.0);
