@@ -420,9 +420,10 @@ fn filter_all(
             let filter = pf::recording::fitted(family, level, &options)?;
             let sigma = filter.sigma().context("the filter was not fitted")?;
             if verbose {
-                let chain = filter.config(family, sigma)?.segments;
+                let config = filter.config(family, sigma)?;
+                let (chain, rule) = (config.segments, config.model_discretisation().name());
                 eprintln!(
-                    "pf ({} particles, a {chain}-segment transition chain): observation noise {}",
+                    "pf ({} particles, a {chain}-segment transition chain, {rule} rule): observation noise {}",
                     options.particles,
                     per_channel(&options.channels, &sigma)
                 );

@@ -630,7 +630,9 @@ fn bench_pf_randomise_times_the_filter_for_a_whisker_known_roughly() {
     let model = &report["model"];
     assert_eq!(model["alternatives"], 63, "{model}");
     assert_eq!(model["sensor_unknowns"], true, "{model}");
-    assert_eq!(model["segments"], 8, "{model}");
+    // The uniform e2 whisker's rough chain: 5 segments with the nodal rule.
+    assert_eq!(model["segments"], 5, "{model}");
+    assert_eq!(model["discretisation"], "nodal", "{model}");
     let row = &report["rows"][0];
     assert_eq!(row["particles"], 128, "{row}");
     assert!(row["real_time_factor"].as_f64().unwrap() > 0.0, "{row}");

@@ -116,6 +116,8 @@ pub struct Config {
     /// faster, and every particle reaches the bits it would reach alone); `false` steps each on
     /// its own, for checking that.
     pub lane_groups: bool,
+    /// Stiffness rule of the transition chain when it has fewer segments than the observed one.
+    pub coarse_rule: Discretisation,
 }
 
 /// Segments of the coarse transition model's chain for `whisker`: 5 for a uniform whisker in a
@@ -138,7 +140,13 @@ pub fn coarse_segments(whisker: &WhiskerParams) -> usize {
 
 /// Segment counts the coarse chain may take for a whisker known only roughly, fewest first
 /// ([`rough_segments`]).
-pub const ROUGH_SEGMENTS: [usize; 3] = [8, 12, 16];
+pub const ROUGH_SEGMENTS: [usize; 4] = [5, 8, 12, 16];
+
+/// Stiffness rule of the coarse chain for a whisker known only roughly: the joints' compliances
+/// matched to the beam's deflection at every node ([`Discretisation::Nodal`]), with which 5
+/// segments follow a whisker tapered to half its base radius within [`CHAIN_TOLERANCE`] (the hat
+/// weights need 16).
+pub const ROUGH_RULE: Discretisation = Discretisation::Nodal;
 
 /// Largest relative error of a chain's compliance where a contact meets it ([`chain_follows`]):
 /// a contact is then placed within about half a per cent of its distance from the base (the
@@ -159,18 +167,22 @@ fn beam_compliance(whisker: &vibrissa_core::whisker::Whisker, s: f64) -> f64 {
     vibrissa_core::beam::point_compliance(whisker, s) + follicle
 }
 
-/// Whether a chain of `segments` segments (the coarse model's default stiffness rule) follows
-/// `whisker` where contacts meet it: at every one of [`COMPLIANCE_POINTS`] points along its outer
-/// two thirds, the deflection under a force there is within [`CHAIN_TOLERANCE`] of the
-/// Euler–Bernoulli beam's ([`beam_compliance`]). A tapered whisker's bending stiffness falls as
-/// the fourth power of its radius, so a few segments lump its flexible outer part into joints
-/// that are too stiff between them and too soft at them.
-pub fn chain_follows(whisker: &WhiskerParams, segments: usize) -> Result<bool> {
+/// Whether a chain of `segments` segments with the stiffness rule `rule` follows `whisker` where
+/// contacts meet it: at every one of [`COMPLIANCE_POINTS`] points along its outer two thirds, the
+/// deflection under a force there is within [`CHAIN_TOLERANCE`] of the Euler–Bernoulli beam's
+/// ([`beam_compliance`]). A tapered whisker's bending stiffness falls as the fourth power of its
+/// radius, so the hat weights of a few segments lump its flexible outer part into joints that are
+/// too stiff between them and too soft at them; the nodal rule matches every node instead.
+pub fn chain_follows(
+    whisker: &WhiskerParams,
+    segments: usize,
+    rule: Discretisation,
+) -> Result<bool> {
     use vibrissa_core::chain::Model;
     let checked = whisker
         .check()
         .map_err(|e| Error::Setting(format!("the filter's chain: {e}")))?;
-    let model = Model::new(&checked, segments, Discretisation::default())
+    let model = Model::new(&checked, segments, rule)
         .map_err(|e| Error::Setting(format!("the filter's chain of {segments} segments: {e}")))?;
     let length = whisker.length;
     let step = length / segments as f64;
@@ -188,14 +200,15 @@ pub fn chain_follows(whisker: &WhiskerParams, segments: usize) -> Result<bool> {
     }))
 }
 
-/// Segments of the coarse chain for a family whose whisker is known only roughly, around `base`:
-/// the fewest of [`ROUGH_SEGMENTS`] whose chain follows `base` ([`chain_follows`]), else the
-/// most. 8 for the uniform `e2` whisker; 16 for one whose tip has half the base's radius. The
-/// whiskers the filter entertains around it taper further, where the chain follows them less
-/// closely (within 5% of the compliance with 8 segments at half the radius of a uniform one).
-pub fn rough_segments(base: &WhiskerParams) -> Result<usize> {
+/// Segments of the coarse chain with the stiffness rule `rule` for a family whose whisker is known
+/// only roughly, around `base`: the fewest of [`ROUGH_SEGMENTS`] whose chain follows `base`
+/// ([`chain_follows`]), else the most. With [`ROUGH_RULE`], 5 for the uniform `e2` whisker and for
+/// one whose tip has half the base's radius (with the hat weights 8 and 16). The whiskers the
+/// filter entertains around it taper further, where the chain follows them less closely (with 5
+/// nodal segments, within 2.6% of the compliance at a quarter of the base's radius).
+pub fn rough_segments(base: &WhiskerParams, rule: Discretisation) -> Result<usize> {
     for &n in &ROUGH_SEGMENTS {
-        if chain_follows(base, n)? {
+        if chain_follows(base, n, rule)? {
             return Ok(n);
         }
     }
@@ -239,6 +252,7 @@ impl Config {
             gap: 1e-3,
             injection: None,
             lane_groups: true,
+            coarse_rule: Discretisation::default(),
         }
     }
 
@@ -291,7 +305,7 @@ impl Config {
         if self.segments == self.observed_segments {
             self.discretisation
         } else {
-            Discretisation::default()
+            self.coarse_rule
         }
     }
 
@@ -437,28 +451,47 @@ mod tests {
     }
 
     #[test]
-    fn a_few_segments_follow_a_uniform_whisker_but_not_a_tapered_one() {
+    fn a_few_hat_weighted_segments_follow_a_uniform_whisker_but_not_a_tapered_one() {
+        let hat = Discretisation::Gregory;
         let mut w = WhiskerParams::w30();
         assert_eq!(w.tip_radius, w.base_radius);
-        assert!(chain_follows(&w, 8).unwrap());
+        assert!(chain_follows(&w, 8, hat).unwrap());
+        assert!(!chain_follows(&w, 5, hat).unwrap());
         // A tip of half the base's radius: the outer segments are up to 16 times more flexible.
         w.tip_radius = 0.5 * w.base_radius;
-        assert!(!chain_follows(&w, 8).unwrap());
-        assert!(chain_follows(&w, 16).unwrap());
-        assert!(chain_follows(&w, 64).unwrap());
+        assert!(!chain_follows(&w, 8, hat).unwrap());
+        assert!(chain_follows(&w, 16, hat).unwrap());
+        assert!(chain_follows(&w, 64, hat).unwrap());
+    }
+
+    #[test]
+    fn five_nodal_segments_follow_a_uniform_and_a_tapered_whisker() {
+        let mut w = WhiskerParams::w30();
+        assert!(chain_follows(&w, 5, ROUGH_RULE).unwrap());
+        w.tip_radius = 0.5 * w.base_radius;
+        assert!(chain_follows(&w, 5, ROUGH_RULE).unwrap());
+        // A quarter of the base's radius is beyond 5 segments, within 8.
+        w.tip_radius = 0.25 * w.base_radius;
+        assert!(!chain_follows(&w, 5, ROUGH_RULE).unwrap());
+        assert!(chain_follows(&w, 8, ROUGH_RULE).unwrap());
     }
 
     #[test]
     fn the_rough_chain_grows_with_the_taper() {
         let mut w = WhiskerParams::w30();
-        assert_eq!(rough_segments(&w).unwrap(), ROUGH_SEGMENTS[0]);
+        let hat = Discretisation::Gregory;
+        assert_eq!(rough_segments(&w, hat).unwrap(), 8);
+        assert_eq!(rough_segments(&w, ROUGH_RULE).unwrap(), ROUGH_SEGMENTS[0]);
         w.tip_radius = 0.5 * w.base_radius;
-        assert_eq!(rough_segments(&w).unwrap(), 16);
+        assert_eq!(rough_segments(&w, hat).unwrap(), 16);
+        assert_eq!(rough_segments(&w, ROUGH_RULE).unwrap(), 5);
+        w.tip_radius = 0.25 * w.base_radius;
+        assert_eq!(rough_segments(&w, ROUGH_RULE).unwrap(), 8);
         let bad = WhiskerParams {
             length: -1.0,
             ..w.clone()
         };
-        let e = rough_segments(&bad).unwrap_err().to_string();
+        let e = rough_segments(&bad, ROUGH_RULE).unwrap_err().to_string();
         assert!(e.contains("length"), "{e}");
     }
 }

@@ -337,7 +337,9 @@ impl Pf {
             if !family.is_calibrated() {
                 c.sensor_spread = self.sensor_spread.unwrap_or_else(SensorSpread::rough);
                 if self.model == TransitionModel::Coarse && self.segments.is_none() {
-                    c.segments = super::config::rough_segments(&family.base().whisker)?;
+                    c.coarse_rule = super::config::ROUGH_RULE;
+                    c.segments =
+                        super::config::rough_segments(&family.base().whisker, c.coarse_rule)?;
                 }
             }
         }
