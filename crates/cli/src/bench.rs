@@ -427,25 +427,31 @@ fn batched(
     })
 }
 
+/// Warms up `call` (caches, branch predictors, the CPU clock) for the plan's warm-up time and
+/// returns how many calls last at least the plan's repetition time.
+fn calls_per_repetition(plan: &Plan, call: &mut dyn FnMut() -> Result<Duration>) -> Result<u32> {
+    let start = Instant::now();
+    let (mut calls, mut spent) = (0u32, Duration::ZERO);
+    while calls == 0 || start.elapsed() < plan.warmup {
+        spent += call()?;
+        calls += 1;
+    }
+    let estimate = (spent.as_secs_f64() / f64::from(calls)).max(1e-9);
+    Ok(((plan.repetition.as_secs_f64() / estimate).ceil() as u32).max(1))
+}
+
 /// Seconds of the fastest call of each of `calls`, measured in turns: each is warmed up, then
-/// each of the plan's batch rounds runs a repetition of each in order (as many calls as last the plan's repetition
-/// time). Taking turns puts a slow spell of a shared machine on all of them alike, and the
-/// fastest call is what the code does when nothing else runs: ratios between the calls
-/// (a speedup) are then not the scatter between two spells.
+/// each of the plan's batch rounds runs a repetition of each in order. Taking turns puts a slow
+/// spell of a shared machine on all of them alike, and the fastest call is what the code does
+/// when nothing else runs: ratios between the calls (a speedup) are then not the scatter between
+/// two spells.
 fn fastest_calls<const K: usize>(
     plan: &Plan,
     mut calls: [&mut dyn FnMut() -> Result<Duration>; K],
 ) -> Result<[f64; K]> {
     let mut per_repetition = [1u32; K];
     for (call, per) in calls.iter_mut().zip(&mut per_repetition) {
-        let start = Instant::now();
-        let (mut n, mut spent) = (0u32, Duration::ZERO);
-        while n == 0 || start.elapsed() < plan.warmup {
-            spent += call()?;
-            n += 1;
-        }
-        let estimate = (spent.as_secs_f64() / f64::from(n)).max(1e-9);
-        *per = ((plan.repetition.as_secs_f64() / estimate).ceil() as u32).max(1);
+        *per = calls_per_repetition(plan, *call)?;
     }
     let mut best = [f64::INFINITY; K];
     for _ in 0..plan.batch_rounds {
@@ -461,18 +467,7 @@ fn fastest_calls<const K: usize>(
 /// Best (shortest) seconds per call of `call` over the plan's repetitions. `call` does one unit
 /// of work and returns the duration of its timed part (its untimed part resets the state).
 fn best_seconds_per_call(plan: &Plan, mut call: impl FnMut() -> Result<Duration>) -> Result<f64> {
-    // Warm up caches, branch predictors and the CPU clock, and estimate the cost of a call.
-    let start = Instant::now();
-    let (mut calls, mut spent) = (0u32, Duration::ZERO);
-    while calls == 0 || start.elapsed() < plan.warmup {
-        spent += call()?;
-        calls += 1;
-    }
-    let estimate = (spent.as_secs_f64() / f64::from(calls)).max(1e-9);
-
-    // Calls per repetition so that one repetition lasts at least `plan.repetition`.
-    let per_repetition = ((plan.repetition.as_secs_f64() / estimate).ceil() as u32).max(1);
-
+    let per_repetition = calls_per_repetition(plan, &mut call)?;
     // The fastest repetition.
     let mut best = f64::INFINITY;
     for _ in 0..plan.repetitions {

@@ -232,13 +232,9 @@ impl Model {
             })
         };
         let mut compliance: Vec<f64> = match discretisation {
+            Discretisation::Seed => (0..n).map(|i| arc / whisker.ei(i as f64 * arc)).collect(),
+            Discretisation::Gregory | Discretisation::Trapezoid => (0..n).map(hat).collect(),
             Discretisation::Nodal => nodal_compliances(whisker, n)?,
-            _ => (0..n)
-                .map(|i| match discretisation {
-                    Discretisation::Seed => arc / whisker.ei(i as f64 * arc),
-                    _ => hat(i),
-                })
-                .collect(),
         };
         if discretisation == Discretisation::Gregory {
             // Euler–Maclaurin end correction h/12·(g1 - g0) of the trapezoidal rule at the base.

@@ -597,6 +597,11 @@ fn chain_deflection_per_newton(m: &Model, x: f64) -> f64 {
 
 #[test]
 fn the_nodal_rule_deflects_as_the_beam_at_every_node_whatever_the_taper() {
+    // The rule by its name, as scenario files give it.
+    assert_eq!(
+        Discretisation::from_name("nodal").unwrap(),
+        Discretisation::Nodal
+    );
     let mut tapered = WhiskerParams::w30();
     tapered.tip_radius = 0.5 * tapered.base_radius;
     let mut quarter = WhiskerParams::w30();
@@ -620,11 +625,6 @@ fn the_nodal_rule_deflects_as_the_beam_at_every_node_whatever_the_taper() {
                 );
             }
         }
-        // The rule by its name, as scenario files give it.
-        assert_eq!(
-            Discretisation::from_name("nodal").unwrap(),
-            Discretisation::Nodal
-        );
         // A uniform whisker's nodes against the closed form x³/3EI.
         if params.tip_radius == params.base_radius {
             let m = Model::new(&w, 5, Discretisation::Nodal).unwrap();
