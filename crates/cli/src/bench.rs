@@ -54,7 +54,9 @@ pub struct Args {
         long,
         value_name = "LIST",
         value_delimiter = ',',
-        default_value = "100,1000,10000"
+        default_value = "100,1000,10000",
+        value_parser = crate::limits::particles,
+        requires = "pf"
     )]
     particles: Vec<usize>,
     /// With --pf: the filter for a whisker known only roughly (`estimate --method pf

@@ -45,10 +45,10 @@ pub struct Args {
     #[arg(long, value_name = "NAMES", requires = "shapes")]
     pub(crate) whiskers: Option<String>,
     /// Shape families: training runs per class (default 800).
-    #[arg(long, value_name = "N", requires = "shapes")]
+    #[arg(long, value_name = "N", requires = "shapes", value_parser = crate::limits::training)]
     pub(crate) training: Option<usize>,
     /// Shape families with shape-bank: noise-free runs per class in its bank (default 3200).
-    #[arg(long, value_name = "N", requires = "shapes")]
+    #[arg(long, value_name = "N", requires = "shapes", value_parser = crate::limits::bank)]
     pub(crate) bank: Option<usize>,
     /// Give the scenario (every whisker of a shape family) the whisker, chain and sensors of
     /// this scenario file of one whisker (one that `vibrissa calibrate` fitted to labelled
@@ -101,10 +101,11 @@ pub struct Args {
     #[arg(long)]
     list: bool,
     /// pf: number of particles [default: 1000, or 4000 with --randomise].
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", value_parser = crate::limits::particles)]
     pub(crate) particles: Option<usize>,
     /// pf with --randomise: whiskers entertained besides the scenario's.
-    #[arg(long, default_value_t = vibrissa_infer::pf::ALTERNATIVES, value_name = "N")]
+    #[arg(long, default_value_t = vibrissa_infer::pf::ALTERNATIVES, value_name = "N",
+          value_parser = crate::limits::alternatives)]
     pub(crate) alternatives: usize,
     /// pf: the recordings come from one whisker, which the filter learns from all of them
     /// together: it filters the batch, draws the whiskers it entertains around those the whole
@@ -415,6 +416,7 @@ pub fn run(args: &Args) -> Result<()> {
             filter: Vec::new(),
         });
     }
+    ensure_finite(&rows, probe.name())?;
     let report = Report {
         rows,
         method: probe.name().into(),
@@ -429,6 +431,35 @@ pub fn run(args: &Args) -> Result<()> {
     if let (Some(f), Some(png)) = (figure, &args.check_plot) {
         f.commit()?;
         eprintln!("wrote {}", png.display());
+    }
+    Ok(())
+}
+
+/// Refuses to print estimates that are not numbers (a method that could not read a recording,
+/// say with a stated noise level so large that every candidate is equally likely): the error
+/// names the file, the unknown and what to check, and nothing is printed.
+pub(crate) fn ensure_finite(rows: &[FileEstimate], method: &str) -> Result<()> {
+    for row in rows {
+        for (name, e) in &row.estimates {
+            let numbers = [e.mean, e.std, e.ci90[0], e.ci90[1]];
+            if numbers.iter().any(|x| !x.is_finite()) {
+                bail!(
+                    "{method} could not estimate `{name}` from `{}` (mean {}, std {}, 90% \
+                     interval {}…{}): check the recording and the noise levels it was read \
+                     with ({})",
+                    row.file.display(),
+                    e.mean,
+                    e.std,
+                    e.ci90[0],
+                    e.ci90[1],
+                    row.noise
+                        .iter()
+                        .map(|(c, s)| format!("{c} {s:.3e}"))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                );
+            }
+        }
     }
     Ok(())
 }

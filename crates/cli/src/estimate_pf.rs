@@ -62,6 +62,16 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
     let particles = args
         .particles
         .unwrap_or_else(|| pf::default_particles(family));
+    if family.randomisation().is_some() && particles <= args.alternatives {
+        bail!(
+            "--particles {particles} is too few for the {} whiskers the filter entertains on a \
+             whisker known only roughly (the scenario's and --alternatives {}): give more \
+             particles than alternatives (the default here is {}) or fewer --alternatives",
+            args.alternatives + 1,
+            args.alternatives,
+            pf::default_particles(family)
+        );
+    }
     let mut options = pf::recording::Options::new(particles);
     options.seed = args.seed;
     // A lead-in that the recordings show, unless one is stated: the start delay is then unknown.
@@ -214,6 +224,7 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
         posteriors.push(est.posterior);
     }
 
+    crate::estimate::ensure_finite(&rows, "pf")?;
     if let (Some(trace), Some(post)) = (&args.trace, posteriors.first()) {
         write_trace(trace, post)?;
     }

@@ -33,14 +33,14 @@ pub struct Args {
     #[arg(long, value_name = "FILE.toml", conflicts_with_all = ["experiment", "scenario"])]
     shapes: Option<String>,
     /// Shape experiments: training runs per class (default 800).
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", value_parser = crate::limits::training)]
     training: Option<usize>,
     /// Shape experiments: evaluated runs per class (default 50).
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", value_parser = crate::limits::runs)]
     runs: Option<usize>,
     /// Shape experiments with shape-bank: noise-free runs per class in its bank (default 3200,
     /// the training runs' twins included; at least the training runs).
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", value_parser = crate::limits::bank)]
     bank: Option<usize>,
     /// Shape experiments: the whisker sets to score, as counts of the array's middle whiskers
     /// (`1,3,5`, the default for a fan of five) or names joined by `+` (`c1+c5`).
@@ -80,7 +80,7 @@ pub struct Args {
     seed: u64,
     /// Particles of the particle filter `pf` in the table; 0 leaves it out. Default: 1000 for the
     /// noisy variant, 0 for the clean one (the filter takes about 8 s per 71 runs at 1000).
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", value_parser = crate::limits::particles_or_none)]
     particles: Option<usize>,
     /// Score the estimators on recordings that start up to S seconds before the approach (a
     /// whole number of milliseconds, drawn per run): the particle filter with the start `t0` as
@@ -191,6 +191,13 @@ pub fn run(args: &Args) -> Result<()> {
     if let Some(s) = args.max_delay {
         if !(s.is_finite() && s > 0.0 && s <= 1.0) {
             anyhow::bail!("--max-delay must be a delay in (0, 1] s (got {s})");
+        }
+        let ms = s * 1e3;
+        if (ms - ms.round()).abs() > 1e-6 * ms.max(1.0) {
+            anyhow::bail!(
+                "--max-delay must be a whole number of milliseconds (got {ms} ms): the runs are \
+                 delayed by whole samples"
+            );
         }
         if args.particles == Some(0) {
             anyhow::bail!("--particles must be at least 1 with --max-delay (got 0)");

@@ -124,6 +124,11 @@ pub fn run(args: ShapeArgs) -> Result<()> {
     if settings.eval_per_class == 0 {
         anyhow::bail!("--runs must be at least 1 run per class (got 0)");
     }
+    // The export folder is checked before the experiment runs: one that cannot be made would
+    // otherwise be found out only after the experiment had written its results.
+    if let Some(dir) = args.export {
+        check_export_folder(dir)?;
+    }
     let label = Path::new(family.name())
         .file_stem()
         .map_or("shapes".into(), |s| s.to_string_lossy().to_string());
@@ -162,6 +167,24 @@ pub fn run(args: ShapeArgs) -> Result<()> {
         seconds: start.elapsed().as_secs_f64(),
     })?;
     Ok(())
+}
+
+/// Whether `dir` can become the export folder: a folder, or a path whose nearest existing
+/// ancestor is a folder (an existing file, or a file on the way, cannot).
+fn check_export_folder(dir: &Path) -> Result<()> {
+    let existing = dir.ancestors().find(|a| a.exists());
+    match existing {
+        Some(a) if a == dir && !dir.is_dir() => anyhow::bail!(
+            "--export {}: is a file, not a folder; name a new or existing folder",
+            dir.display()
+        ),
+        Some(a) if !a.is_dir() => anyhow::bail!(
+            "--export {}: `{}` is a file, so no folder can be made below it",
+            dir.display(),
+            a.display()
+        ),
+        _ => Ok(()),
+    }
 }
 
 /// Writes every evaluated run of the experiment as a scenario file (its class's file with the

@@ -15,6 +15,7 @@ mod experiment_shapes;
 mod files;
 mod frames;
 mod inverse;
+mod limits;
 mod output;
 mod plot;
 mod plot_matrix;

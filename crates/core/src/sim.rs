@@ -409,11 +409,37 @@ impl Scenario {
             o.check(&format!("objects[{k}]"))?;
         }
         self.base.check()?;
-        if self.duration * self.sample_rate > 1e8 {
+        let samples = self.duration * self.sample_rate;
+        if samples > MAX_SAMPLES {
             return Err(Error::invalid(
-                "sample_rate",
-                self.sample_rate,
-                "at most 1e8 samples in all (duration × sample_rate)",
+                "duration",
+                self.duration,
+                format!(
+                    "at most {MAX_SAMPLES:e} samples in all (duration × sample_rate = {samples:e})"
+                ),
+            ));
+        }
+        if samples < 1.0 {
+            return Err(Error::invalid(
+                "duration",
+                self.duration,
+                format!(
+                    "at least two samples: duration × sample_rate ≥ 1 (here {samples}; \
+                     sample_rate = {} Hz)",
+                    self.sample_rate
+                ),
+            ));
+        }
+        // Every sample period takes at least one step, and steps no longer than `dt`.
+        let steps = self.duration / self.integrator.dt.min(1.0 / self.sample_rate);
+        if steps > MAX_STEPS {
+            return Err(Error::invalid(
+                "dt",
+                self.integrator.dt,
+                format!(
+                    "at most {MAX_STEPS:e} steps in all (duration / dt = {steps:.3e}; a run that \
+                     long would take many minutes): shorten the duration or lengthen the step"
+                ),
             ));
         }
         Ok(())
@@ -435,6 +461,12 @@ pub struct Output {
     /// contact, m.
     pub max_penetration: f64,
 }
+
+/// Most samples of one run (a CSV of about 3 GB).
+pub const MAX_SAMPLES: f64 = 2e7;
+
+/// Most time steps of one run (a few minutes of computing at a million steps per second).
+pub const MAX_STEPS: f64 = 2e8;
 
 /// Highest output sample rate, Hz: every sample period takes at least one step, and whisker
 /// recordings are sampled at kilohertz, not megahertz.

@@ -337,6 +337,17 @@ pub fn batch_noise(
     } else {
         format!("estimated from {shared} of the recordings, pooled")
     };
+    // Channels whose noise was given are said to be so, beside those estimated.
+    let given: Vec<&str> = needs
+        .iter()
+        .filter(|&&c| stated[c].is_some())
+        .map(|&c| CHANNELS[c])
+        .collect();
+    let what = if given.is_empty() || estimated.is_empty() {
+        what
+    } else {
+        format!("{what} ({} as stated)", given.join(", "))
+    };
     let summary = match batch.sources.iter().position(|s| *s == Source::Batch) {
         Some(k) => format!(
             "sensor noise {what}: {}",

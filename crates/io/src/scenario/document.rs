@@ -48,6 +48,17 @@ impl Document {
         let path = Path::new(spec);
         let text = read_scenario_text(spec, path)?;
         let dir = path.parent().unwrap_or(Path::new(""));
+        let doc = Document::parse(&text, &path.display().to_string(), dir, &[])?;
+        // A file with nothing in it (or only comments) is more likely a mistake than a wish for
+        // every default: a whisker at rest with nothing to touch.
+        if doc.table.is_empty() {
+            return Err(Error::Toml {
+                origin: doc.origin,
+                message: "the scenario file is empty: give at least `experiment = \"e2\"` (or \
+                          another built-in), or a [whisker] and the [[objects]] it meets"
+                    .to_string(),
+            });
+        }
         Document::parse(&text, &path.display().to_string(), dir, sets)
     }
 

@@ -1,0 +1,88 @@
+//! The largest counts the command line accepts, checked as the options are read, so that a count
+//! beyond what any machine can hold is refused with its limit before anything is allocated.
+
+/// Most particles of the particle filter (about 3 kB of state each).
+pub(crate) const MAX_PARTICLES: usize = 1_000_000;
+/// Most alternative whiskers the filter entertains (it numbers its whiskers with 16 bits).
+pub(crate) const MAX_ALTERNATIVES: usize = 65_534;
+/// Most training runs per class of a shape experiment (each holds every whisker's series).
+pub(crate) const MAX_TRAINING: usize = 20_000;
+/// Most evaluated runs per class of a shape experiment.
+pub(crate) const MAX_RUNS: usize = 10_000;
+/// Most noise-free runs per class in `shape-bank`'s bank.
+pub(crate) const MAX_BANK: usize = 100_000;
+
+/// A count from 1 to `MAX`.
+fn count<const MAX: usize>(text: &str) -> Result<usize, String> {
+    let n: usize = text
+        .trim()
+        .parse()
+        .map_err(|_| format!("expected a whole number from 1 to {MAX}"))?;
+    if n == 0 || n > MAX {
+        return Err(format!("expected a whole number from 1 to {MAX} (got {n})"));
+    }
+    Ok(n)
+}
+
+/// A count from 0 to `MAX`.
+fn count_or_none<const MAX: usize>(text: &str) -> Result<usize, String> {
+    let n: usize = text
+        .trim()
+        .parse()
+        .map_err(|_| format!("expected a whole number from 0 to {MAX}"))?;
+    if n > MAX {
+        return Err(format!("expected a whole number from 0 to {MAX} (got {n})"));
+    }
+    Ok(n)
+}
+
+/// Particles: 1 to [`MAX_PARTICLES`].
+pub(crate) fn particles(text: &str) -> Result<usize, String> {
+    count::<MAX_PARTICLES>(text)
+}
+
+/// Particles where 0 leaves the filter out: 0 to [`MAX_PARTICLES`].
+pub(crate) fn particles_or_none(text: &str) -> Result<usize, String> {
+    count_or_none::<MAX_PARTICLES>(text)
+}
+
+/// Alternative whiskers: 0 to [`MAX_ALTERNATIVES`].
+pub(crate) fn alternatives(text: &str) -> Result<usize, String> {
+    count_or_none::<MAX_ALTERNATIVES>(text)
+}
+
+/// Training runs per class: 1 to [`MAX_TRAINING`].
+pub(crate) fn training(text: &str) -> Result<usize, String> {
+    count::<MAX_TRAINING>(text)
+}
+
+/// Evaluated runs per class: 1 to [`MAX_RUNS`].
+pub(crate) fn runs(text: &str) -> Result<usize, String> {
+    count::<MAX_RUNS>(text)
+}
+
+/// Bank runs per class: 1 to [`MAX_BANK`].
+pub(crate) fn bank(text: &str) -> Result<usize, String> {
+    count::<MAX_BANK>(text)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counts_are_refused_beyond_their_limits_with_the_limit_named() {
+        assert_eq!(particles("4000"), Ok(4000));
+        assert_eq!(particles(&MAX_PARTICLES.to_string()), Ok(MAX_PARTICLES));
+        for bad in ["0", "1000001", "10000000000", "1e11", "-3", "many", ""] {
+            let e = particles(bad).unwrap_err();
+            assert!(e.contains("1 to 1000000"), "{bad}: {e}");
+        }
+        assert_eq!(particles_or_none("0"), Ok(0));
+        assert!(alternatives("65535").unwrap_err().contains("0 to 65534"));
+        assert_eq!(training("800"), Ok(800));
+        assert!(training("100000000000").unwrap_err().contains("20000"));
+        assert!(runs("0").is_err());
+        assert!(bank("100001").unwrap_err().contains("100000"));
+    }
+}

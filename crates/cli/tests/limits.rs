@@ -1,0 +1,259 @@
+//! Requests no machine can meet, and settings that cannot work, are refused before anything runs:
+//! counts beyond their limits, runs with too many steps or too few samples, an empty scenario
+//! file, an export folder that cannot be made, too few particles for the whiskers entertained,
+//! and estimates that are not numbers. Each refusal names the option or key and what is allowed,
+//! exits non-zero and leaves nothing behind.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn vibrissa_in(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_vibrissa"))
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .expect("the vibrissa binary should start")
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// A folder of its own for one test, removed when dropped.
+struct Scratch(PathBuf);
+
+impl Scratch {
+    fn new(test: &str) -> Scratch {
+        let dir = std::env::temp_dir().join(format!("vibrissa-lim-{}-{test}", std::process::id()));
+        let _ = fs::remove_dir_all(&dir);
+        fs::create_dir_all(&dir).expect("a scratch folder");
+        Scratch(dir)
+    }
+
+    fn run(&self, args: &[&str]) -> Output {
+        vibrissa_in(&self.0, args)
+    }
+
+    /// The names of the folder's entries.
+    fn entries(&self) -> Vec<String> {
+        let mut names: Vec<String> = fs::read_dir(&self.0)
+            .expect("the scratch folder")
+            .map(|e| {
+                e.expect("an entry")
+                    .file_name()
+                    .to_string_lossy()
+                    .into_owned()
+            })
+            .collect();
+        names.sort();
+        names
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = fs::remove_dir_all(&self.0);
+    }
+}
+
+/// Asserts that `out` failed and that its standard error holds every one of `words`.
+fn refused(out: &Output, words: &[&str]) {
+    let err = stderr(out);
+    assert!(!out.status.success(), "should fail; stderr: {err}");
+    assert!(!err.contains("panicked"), "a panic: {err}");
+    for w in words {
+        assert!(err.contains(w), "`{w}` missing from: {err}");
+    }
+}
+
+#[test]
+fn counts_beyond_their_limits_are_refused_before_anything_is_made() {
+    let s = Scratch::new("counts");
+    let cases: [(&[&str], &[&str]); 6] = [
+        (
+            &[
+                "experiment",
+                "e3",
+                "--training",
+                "100000000000",
+                "--runs",
+                "1",
+            ],
+            &["--training", "1 to 20000"],
+        ),
+        (
+            &[
+                "experiment",
+                "e3",
+                "--training",
+                "20",
+                "--runs",
+                "100000000000",
+            ],
+            &["--runs", "1 to 10000"],
+        ),
+        (
+            &["experiment", "e1", "--particles", "10000000000"],
+            &["--particles", "0 to 1000000"],
+        ),
+        (
+            &[
+                "estimate",
+                "--experiment",
+                "e2",
+                "--obs",
+                "x.csv",
+                "--method",
+                "pf",
+                "--particles",
+                "4294967296",
+            ],
+            &["--particles", "1 to 1000000"],
+        ),
+        (
+            &[
+                "estimate",
+                "--experiment",
+                "e2",
+                "--obs",
+                "x.csv",
+                "--method",
+                "pf",
+                "--alternatives",
+                "100000",
+            ],
+            &["--alternatives", "0 to 65534"],
+        ),
+        (
+            &["bench", "--pf", "--quick", "--particles", "100,10000000000"],
+            &["--particles", "1 to 1000000"],
+        ),
+    ];
+    for (args, words) in cases {
+        refused(&s.run(args), words);
+    }
+    // Particle counts are measured by the filter's benchmark only.
+    refused(&s.run(&["bench", "--particles", "100"]), &["--pf"]);
+    assert!(s.entries().is_empty(), "left behind: {:?}", s.entries());
+}
+
+#[test]
+fn runs_with_too_many_steps_or_too_few_samples_are_refused() {
+    let s = Scratch::new("steps");
+    let cases: [(&str, &[&str]); 3] = [
+        ("dt=1e-12", &["dt", "2e8 steps"]),
+        ("duration=100000", &["duration", "2e7 samples"]),
+        ("sample_rate=1.5", &["duration", "at least two samples"]),
+    ];
+    for (set, words) in cases {
+        let out = s.run(&["simulate", "e2", "--set", set, "--out", "r.csv"]);
+        refused(&out, words);
+    }
+    assert!(s.entries().is_empty(), "left behind: {:?}", s.entries());
+}
+
+#[test]
+fn an_empty_scenario_file_is_refused() {
+    let s = Scratch::new("empty");
+    for (name, text) in [("empty.toml", ""), ("comments.toml", "# nothing yet\n\n")] {
+        fs::write(s.0.join(name), text).expect("a scenario file");
+        let out = s.run(&["simulate", name, "--out", "r.csv"]);
+        refused(&out, &[name, "empty", "experiment = \"e2\""]);
+    }
+    assert!(!s.0.join("r.csv").exists());
+}
+
+#[test]
+fn an_export_folder_that_cannot_be_made_is_refused_before_the_experiment_runs() {
+    let s = Scratch::new("export");
+    fs::write(s.0.join("taken"), "a file").expect("a file");
+    for export in ["taken", "taken/below"] {
+        let out = s.run(&[
+            "experiment",
+            "e3",
+            "--training",
+            "20",
+            "--runs",
+            "1",
+            "--out",
+            "exp",
+            "--export",
+            export,
+        ]);
+        refused(&out, &["--export", "is a file"]);
+    }
+    assert_eq!(s.entries(), vec!["taken".to_string()]);
+}
+
+#[test]
+fn settings_that_cannot_work_are_named() {
+    let s = Scratch::new("settings");
+    let out = s.run(&["simulate", "e2", "--out", "ok.csv"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    // Fewer particles than the whiskers a randomised filter entertains.
+    let out = s.run(&[
+        "estimate",
+        "--experiment",
+        "e2",
+        "--obs",
+        "ok.csv",
+        "--method",
+        "pf",
+        "--randomise",
+        "--particles",
+        "50",
+    ]);
+    refused(
+        &out,
+        &["--particles 50", "--alternatives 63", "64 whiskers"],
+    );
+    // A lead-in that is not a whole number of samples.
+    let out = s.run(&["experiment", "e1", "--max-delay", "0.0005", "--out", "exp"]);
+    refused(&out, &["--max-delay", "whole number of milliseconds"]);
+    assert!(!s.0.join("exp").exists());
+}
+
+#[test]
+fn an_estimate_that_is_not_a_number_is_refused_not_printed() {
+    let s = Scratch::new("nan");
+    let out = s.run(&["simulate", "e2", "--out", "ok.csv"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    // A stated noise so large that every template is equally (im)probable.
+    let out = s.run(&[
+        "estimate",
+        "--experiment",
+        "e2",
+        "--method",
+        "template",
+        "--obs",
+        "ok.csv",
+        "--noise",
+        "theta12=1e300",
+        "--json",
+    ]);
+    refused(&out, &["template could not estimate", "ok.csv", "theta12"]);
+    assert!(
+        out.stdout.is_empty(),
+        "printed: {}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    // The line on where the noise came from says which levels were stated.
+    let out = s.run(&[
+        "estimate",
+        "--experiment",
+        "e2",
+        "--method",
+        "knn",
+        "--obs",
+        "ok.csv",
+        "--noise",
+        "theta12=1e-5",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("theta12 as stated"),
+        "{}",
+        stderr(&out)
+    );
+}
