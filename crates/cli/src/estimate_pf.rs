@@ -59,6 +59,19 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
         &mut |m| eprintln!("{m}"),
     )?;
     let family = &family;
+    // A box whose near edge lies beyond the tip never touches the whisker: the filter could not
+    // tell such distances apart.
+    let length = family.base().whisker.length;
+    for (k, p) in &priors {
+        if pf::PARAMS[*k] == "d" && p.hi > length {
+            bail!(
+                "--prior d={}:{}: the distance's upper end must be within the whisker's length \
+                 ({length} m): a box whose near edge lies beyond the tip never touches it",
+                p.lo,
+                p.hi
+            );
+        }
+    }
     let particles = args
         .particles
         .unwrap_or_else(|| pf::default_particles(family));
@@ -292,6 +305,18 @@ fn parse_priors(specs: &[String]) -> Result<Vec<(usize, pf::Prior)>> {
             );
             if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
                 return Err(bad());
+            }
+            let (least, most) = pf::PRIOR_BOUNDS[k];
+            if lo < least || hi > most {
+                let upper = if most.is_finite() {
+                    format!("{most}]")
+                } else {
+                    "∞)".to_string()
+                };
+                bail!(
+                    "--prior `{spec}`: {} must lie within [{least}, {upper} (SI units)",
+                    name.trim()
+                );
             }
             Ok((k, pf::Prior::uniform(lo, hi)))
         })

@@ -257,3 +257,33 @@ fn an_estimate_that_is_not_a_number_is_refused_not_printed() {
         stderr(&out)
     );
 }
+
+#[test]
+fn priors_outside_what_the_filter_can_tell_apart_are_refused_by_name() {
+    let s = Scratch::new("priors");
+    let out = s.run(&["simulate", "e2", "--out", "ok.csv"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let filter = |prior: &str| {
+        s.run(&[
+            "estimate",
+            "--experiment",
+            "e2",
+            "--obs",
+            "ok.csv",
+            "--method",
+            "pf",
+            "--particles",
+            "50",
+            "--prior",
+            prior,
+        ])
+    };
+    refused(&filter("d=-0.1:0.03"), &["--prior `d=-0.1:0.03`", "[0, ∞)"]);
+    refused(&filter("v=0.1:1e6"), &["--prior `v=0.1:1e6`", "50]"]);
+    refused(&filter("mu=0:11"), &["mu", "[0, 10]"]);
+    // Beyond the tip no box touches the whisker.
+    refused(
+        &filter("d=0:1e9"),
+        &["--prior d=0:1000000000", "whisker's length (0.03 m)"],
+    );
+}

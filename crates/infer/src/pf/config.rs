@@ -215,6 +215,17 @@ pub fn rough_segments(base: &WhiskerParams, rule: Discretisation) -> Result<usiz
     Ok(ROUGH_SEGMENTS[ROUGH_SEGMENTS.len() - 1])
 }
 
+/// Where each unknown's prior range may lie, `(lowest, highest)` per [`PARAMS`] entry: distances,
+/// start delays and sizes not negative (sizes and speeds above zero), speeds up to 50 m/s
+/// (whiskers meet objects at centimetres to metres per second), friction coefficients up to 10.
+pub const PRIOR_BOUNDS: [(f64, f64); 5] = [
+    (0.0, f64::INFINITY),
+    (1e-6, 50.0),
+    (0.0, f64::INFINITY),
+    (1e-6, f64::INFINITY),
+    (0.0, 10.0),
+];
+
 impl Config {
     /// The `e2` family: d ∈ [14, 31] mm, v ∈ [0.2, 1.6] m/s (the experiment's ranges, widened by
     /// 1 mm and 0.1 m/s), known start, 10 mm frictionless box,
@@ -387,19 +398,20 @@ impl Config {
         if !(0.0..=1.0).contains(&self.ess_fraction) {
             return bad("ess_fraction", "a fraction in [0, 1]");
         }
-        let ranges = [
-            (0.0, f64::INFINITY),
-            (1e-6, f64::INFINITY),
-            (0.0, f64::INFINITY),
-            (1e-6, f64::INFINITY),
-            (0.0, 10.0),
-        ];
         for (k, p) in self.priors.iter().enumerate() {
-            let (lo, hi) = ranges[k];
+            let (lo, hi) = PRIOR_BOUNDS[k];
             if !(p.lo.is_finite() && p.hi.is_finite() && p.lo <= p.hi && p.lo >= lo && p.hi <= hi) {
+                let within = if hi.is_finite() {
+                    format!("[{lo}, {hi}]")
+                } else {
+                    format!("[{lo}, ∞)")
+                };
                 return bad(
                     PARAMS[k],
-                    "a prior range lo <= hi, finite, within the parameter's physical range",
+                    &format!(
+                        "a prior range lo <= hi, finite, within {within} (got [{}, {}])",
+                        p.lo, p.hi
+                    ),
                 );
             }
         }

@@ -46,7 +46,7 @@ mod whiskers;
 
 pub use config::{
     chain_follows, coarse_segments, rough_segments, Config, Injection, Prior, CHAIN_TOLERANCE,
-    PARAMS, ROUGH_SEGMENTS,
+    PARAMS, PRIOR_BOUNDS, ROUGH_SEGMENTS,
 };
 pub use filter::{run, Filter, Particles};
 pub use likelihood::{
