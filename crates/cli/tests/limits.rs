@@ -1,8 +1,8 @@
 //! Requests no machine can meet, and settings that cannot work, are refused before anything runs:
 //! counts beyond their limits, runs with too many steps or too few samples, an empty scenario
 //! file, an export folder that cannot be made, too few particles for the whiskers entertained,
-//! and estimates that are not numbers. Each refusal names the option or key and what is allowed,
-//! exits non-zero and leaves nothing behind.
+//! estimates that are not numbers, and names that mean nothing. Each refusal names the option or
+//! key and what is allowed, exits non-zero and leaves nothing behind.
 
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -286,4 +286,24 @@ fn priors_outside_what_the_filter_can_tell_apart_are_refused_by_name() {
         &filter("d=0:1e9"),
         &["--prior d=0:1000000000", "whisker's length (0.03 m)"],
     );
+}
+
+#[test]
+fn a_wrong_name_is_answered_with_what_exists() {
+    let s = Scratch::new("names");
+    let out = s.run(&["simulate", "e2", "--out", "ok.csv"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let out = s.run(&[
+        "estimate",
+        "--shapes",
+        "e9",
+        "--method",
+        "shape-krr",
+        "--obs",
+        "ok.csv",
+    ]);
+    refused(&out, &["no shape family `e9`", "e3, e3-active"]);
+    // A file where the output folder of an experiment is expected.
+    let out = s.run(&["report", "ok.csv"]);
+    refused(&out, &["`ok.csv` is a file", "--out DIR"]);
 }

@@ -131,6 +131,12 @@ pub const RESULTS: &str = "results.json";
 impl Results {
     /// Reads `dir/results.json`, refusing a folder that is not an experiment's output.
     pub fn read(dir: &Path) -> Result<Results> {
+        if dir.is_file() {
+            bail!(
+                "DIR `{}` is a file: give the output folder of `vibrissa experiment ... --out DIR`",
+                dir.display()
+            );
+        }
         if !dir.is_dir() {
             bail!(
                 "DIR `{}`: no such folder (give the output folder of `vibrissa experiment ... --out DIR`)",

@@ -55,6 +55,9 @@ impl ShapeSample {
 /// Names of the built-in shape families.
 pub const SHAPE_BUILTINS: [&str; 2] = ["e3", "e3-active"];
 
+/// The built-in shape families' names.
+pub const BUILTIN_SHAPES: [&str; 2] = ["e3", "e3-active"];
+
 impl ShapeFamily {
     /// A shape family from its classes, checked: at least two, distinct names, the same whiskers
     /// and timing in every class.
@@ -148,6 +151,14 @@ impl ShapeFamily {
     ) -> Result<ShapeFamily> {
         if let Some(f) = ShapeFamily::builtin_with(spec, sets, whisker) {
             return f;
+        }
+        // A bare word that is no file was probably meant as a built-in name.
+        if !Path::new(spec).exists() && !spec.contains(['/', '\\', '.']) {
+            return Err(Error::Setting(format!(
+                "no shape family `{spec}`: give a built-in one ({}) or a TOML file whose \
+                 [classes] table names each class's scenario file",
+                BUILTIN_SHAPES.join(", ")
+            )));
         }
         let classes = vibrissa_io::scenario::read_classes(Path::new(spec))?
             .into_iter()
