@@ -307,3 +307,30 @@ fn a_wrong_name_is_answered_with_what_exists() {
     let out = s.run(&["report", "ok.csv"]);
     refused(&out, &["`ok.csv` is a file", "--out DIR"]);
 }
+
+#[test]
+fn a_table_or_a_number_given_in_the_wrong_form_is_answered_with_its_form() {
+    let s = Scratch::new("forms");
+    let cases: [(&str, &[&str]); 4] = [
+        (
+            "whisker.damping.ratio=-0.5",
+            &["whisker.damping", "kind = \"modal_ratio\""],
+        ),
+        (
+            "whisker.damping=-1",
+            &["whisker.damping", "give the whole table"],
+        ),
+        (
+            "whisker.follicle.stiffness=-2",
+            &["kind = \"spring\", stiffness"],
+        ),
+        ("duration=NaN", &["duration", "a number is expected here"]),
+    ];
+    for (set, words) in cases {
+        refused(
+            &s.run(&["simulate", "e2", "--set", set, "--out", "r.csv"]),
+            words,
+        );
+    }
+    assert!(s.entries().is_empty(), "left behind: {:?}", s.entries());
+}

@@ -247,8 +247,50 @@ impl Document {
 
 /// A TOML error of `origin`, as the library reports it.
 fn toml_error(origin: &str, e: toml::de::Error) -> Error {
+    let message = e.to_string().trim_end().to_string();
+    let hint = hint_for(&message);
     Error::Toml {
         origin: origin.to_string(),
-        message: e.to_string().trim_end().to_string(),
+        message: match hint {
+            Some(h) => format!("{message}\n{h}"),
+            None => message,
+        },
     }
+}
+
+/// A line for the parser's messages that leave out what is wanted: a table of a few forms named
+/// by `kind`, or a number given as text.
+fn hint_for(message: &str) -> Option<String> {
+    const TABLES: [(&str, &str); 3] = [
+        (
+            "`whisker.damping`",
+            "`whisker.damping` is a table: { kind = \"none\" }, { kind = \"modal_ratio\", ratio = 0.05 }, \
+             { kind = \"segment_q\", q = 10 } or { kind = \"stiffness_proportional\", beta = 1e-4 } \
+             (with --set, give the whole table: --set 'whisker.damping={ kind = \"modal_ratio\", ratio = 0.04 }')",
+        ),
+        (
+            "`whisker.follicle`",
+            "`whisker.follicle` is a table: { kind = \"clamped\" } or { kind = \"spring\", stiffness = \
+             1.4e-4, damping = 4.5e-8 } (N·m/rad and N·m·s/rad; with --set, give the whole table)",
+        ),
+        (
+            "`base`",
+            "`base` is a table whose `kind` is fixed, sinusoid, ramp or trajectory, with that kind's \
+             keys (with --set, give the whole table)",
+        ),
+    ];
+    for (at, hint) in TABLES {
+        let about_it = message.contains(&format!("in {at}"));
+        let shape = message.contains("missing field `kind`") || message.contains("expected struct");
+        if about_it && shape {
+            return Some(format!("hint: {hint}"));
+        }
+    }
+    if message.contains("invalid type: string") && message.contains("expected f64") {
+        return Some(
+            "hint: a number is expected here, written as a number (0.01, 1e-3), not as text"
+                .to_string(),
+        );
+    }
+    None
 }
