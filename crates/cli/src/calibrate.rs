@@ -30,7 +30,8 @@ pub struct Args {
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub sets: Vec<String>,
     /// Folder of labelled recordings: CSV files and `truth.csv` (a `file` column, then one
-    /// column per label named by its scenario key, e.g. `file,d,v`).
+    /// column per label named by its scenario key, e.g. `file,d,v`; every unknown of the
+    /// scenario needs a column).
     #[arg(long, value_name = "DIR")]
     pub labelled: PathBuf,
     /// Where the fitted scenario goes (TOML): the nominal with the fitted values and a

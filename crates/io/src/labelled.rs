@@ -8,13 +8,15 @@
 //! - a folder without `truth.csv`, a `truth.csv` without a `file` column or without rows, a
 //!   recording named twice, an empty or non-finite label;
 //! - a label column that the nominal scenario does not accept as a `--set` key (each row's labels
-//!   are applied to the scenario as overrides and the result must load);
+//!   are applied to the scenario as overrides and the result must load); a label whose value the
+//!   scenario refuses is named with its line, its recording and what is allowed;
 //! - a named recording that does not exist; a `.csv` file in the folder that `truth.csv` does not
 //!   name (unless [`Options::ignore_unlisted`]);
 //! - a recording without the columns `t`, `theta01` and `theta12`, with fewer than two rows, with
 //!   a `t` that is not finite or not strictly increasing, or whose step varies by more than 1%
 //!   ([`STEP_TOLERANCE`]) from its median (a gap);
-//! - a recording whose sample rate differs by more than 1% from the set's median rate.
+//! - a recording whose sample rate differs by more than 1% from the rate most recordings share
+//!   (on a tie, the rate of the earliest in `truth.csv`), named with its rate and theirs.
 //!
 //! Lines starting with `#` are comments; any other file in the folder (a sidecar `.json`, a
 //! README) is ignored.
@@ -132,12 +134,17 @@ pub fn read_labelled(dir: &Path, nominal: &Document, options: &Options) -> Resul
     }
     let truth = read_truth(&truth_path)?;
 
-    // Each label column must be a key the scenario accepts, and each row's labels must load.
+    // Each label column must be a key the scenario accepts, and each row's labels must load. A
+    // key whose first value the scenario refuses as out of range is a key it accepts: that value
+    // is reported with its row below.
     let origin = truth_path.display().to_string();
     if let Some(first) = truth.rows.first() {
         for (c, key) in truth.keys.iter().enumerate() {
             let set = overrides(&[(key.clone(), first.labels[c])]);
             if let Err(e) = nominal.loaded_with(&set) {
+                if out_of_range(&e).is_some() {
+                    continue;
+                }
                 return Err(Error::Field {
                     origin: origin.clone(),
                     field: key.clone(),
@@ -152,14 +159,7 @@ pub fn read_labelled(dir: &Path, nominal: &Document, options: &Options) -> Resul
     for row in &truth.rows {
         let labels = labels_of(&truth.keys, &row.labels);
         if let Err(e) = nominal.loaded_with(&overrides(&labels)) {
-            return Err(Error::data(
-                &origin,
-                row.line,
-                format!(
-                    "the labels of `{}` do not give a valid scenario: {e}",
-                    row.file
-                ),
-            ));
+            return Err(row_error(nominal, &origin, row, &labels, &e));
         }
     }
 
@@ -218,25 +218,7 @@ pub fn read_labelled(dir: &Path, nominal: &Document, options: &Options) -> Resul
         });
     }
 
-    // One sample rate for the whole set.
-    let mut steps: Vec<f64> = recordings.iter().map(|r| r.step).collect();
-    let median = median(&mut steps);
-    for r in &recordings {
-        if (r.step / median - 1.0).abs() > STEP_TOLERANCE {
-            return Err(Error::data(
-                &r.path.display().to_string(),
-                0,
-                format!(
-                    "sampled at {:.6} Hz, while the other recordings of {} are at {:.6} Hz \
-                     (rates must agree within {}%)",
-                    1.0 / r.step,
-                    dir.display(),
-                    1.0 / median,
-                    STEP_TOLERANCE * 100.0
-                ),
-            ));
-        }
-    }
+    check_rates(dir, &recordings)?;
 
     Ok(Labelled {
         dir: dir.to_path_buf(),
@@ -244,6 +226,122 @@ pub fn read_labelled(dir: &Path, nominal: &Document, options: &Options) -> Resul
         recordings,
         ignored,
     })
+}
+
+/// The parameter, its value and what is allowed, when `e` is the scenario's verdict that a
+/// value is out of range (the key itself was accepted).
+fn out_of_range(e: &Error) -> Option<(&str, &str, &str)> {
+    match e.core() {
+        Some(vibrissa_core::Error::InvalidParameter {
+            name,
+            value,
+            allowed,
+        }) => Some((name, value, allowed)),
+        _ => None,
+    }
+}
+
+/// Why the labels of `row` (as `labels`) do not give a valid scenario, `e` the scenario's
+/// verdict on them together: the first label whose value the scenario refuses on its own, named
+/// with its value and what is allowed; else the label the verdict names; else the verdict.
+fn row_error(
+    nominal: &Document,
+    origin: &str,
+    row: &TruthRow,
+    labels: &[(String, f64)],
+    e: &Error,
+) -> Error {
+    let message = |key: &str, value: f64, (name, got, allowed): (&str, &str, &str)| {
+        let what = if name == key {
+            format!("allowed is {allowed}")
+        } else {
+            format!("it makes {name} = {got}, where allowed is {allowed}")
+        };
+        format!(
+            "`{key}` = {value} for `{}` is out of range; {what}",
+            row.file
+        )
+    };
+    for (key, value) in labels {
+        if let Err(alone) = nominal.loaded_with(&overrides(&[(key.clone(), *value)])) {
+            if let Some(verdict) = out_of_range(&alone) {
+                return Error::data(origin, row.line, message(key, *value, verdict));
+            }
+        }
+    }
+    if let Some(verdict) = out_of_range(e) {
+        if let Some((key, value)) = labels.iter().find(|(k, _)| k == verdict.0) {
+            return Error::data(
+                origin,
+                row.line,
+                format!(
+                    "{} (with the other labels of the row)",
+                    message(key, *value, verdict)
+                ),
+            );
+        }
+    }
+    Error::data(
+        origin,
+        row.line,
+        format!(
+            "the labels of `{}` do not give a valid scenario: {e}",
+            row.file
+        ),
+    )
+}
+
+/// Checks that `recordings` share one sample rate. The reference is the rate that most of them
+/// share (within [`STEP_TOLERANCE`]; on a tie, the group of the earliest in `truth.csv`); the
+/// first recording that differs from it by more is refused, with its own rate and the rate of
+/// the recordings that agree (computed without it).
+fn check_rates(dir: &Path, recordings: &[Recording]) -> Result<()> {
+    let n = recordings.len();
+    let steps: Vec<f64> = recordings.iter().map(|r| r.step).collect();
+    let close = |a: f64, b: f64| (a / b - 1.0).abs() <= STEP_TOLERANCE;
+    let agreeing = |i: usize| steps.iter().filter(|&&s| close(s, steps[i])).count();
+    let Some(anchor) = (0..n).max_by_key(|&i| (agreeing(i), std::cmp::Reverse(i))) else {
+        return Ok(());
+    };
+    let mut group: Vec<f64> = steps
+        .iter()
+        .copied()
+        .filter(|&s| close(s, steps[anchor]))
+        .collect();
+    let reference = median(&mut group);
+    let Some(odd) = recordings.iter().find(|r| !close(r.step, reference)) else {
+        return Ok(());
+    };
+    // The recordings that agree with the reference (the odd one is not among them), or all the
+    // others should none agree exactly.
+    let mut others: Vec<&Recording> = recordings
+        .iter()
+        .filter(|r| close(r.step, reference))
+        .collect();
+    if others.is_empty() {
+        others = recordings
+            .iter()
+            .filter(|r| !std::ptr::eq(*r, odd))
+            .collect();
+    }
+    let mut other_steps: Vec<f64> = others.iter().map(|r| r.step).collect();
+    let rate = 1.0 / median(&mut other_steps);
+    let folder = dir.display();
+    let who = match (others.len(), n - 1) {
+        (1, 1) => format!("the other recording of {folder}, {}, is", others[0].file),
+        (k, m) if k == m => format!("the other {k} recordings of {folder} are"),
+        (1, _) => format!("{} in {folder} is", others[0].file),
+        (k, m) => format!("{k} of the other {m} recordings of {folder} are"),
+    };
+    Err(Error::data(
+        &odd.path.display().to_string(),
+        0,
+        format!(
+            "sampled at {:.6} Hz, while {who} at {rate:.6} Hz (rates must agree within {}%)",
+            1.0 / odd.step,
+            STEP_TOLERANCE * 100.0
+        ),
+    ))
 }
 
 /// `truth.csv` as read: label keys, and one row per recording.
@@ -486,5 +584,133 @@ fn median(x: &mut [f64]) -> f64 {
         x[n / 2]
     } else {
         0.5 * (x[n / 2 - 1] + x[n / 2])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A fresh folder for one test.
+    fn folder(name: &str) -> PathBuf {
+        let dir =
+            std::env::temp_dir().join(format!("vibrissa-labelled-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    /// A recording of `n` rows at `rate` Hz with the required columns.
+    fn recording(n: usize, rate: f64) -> String {
+        let mut text = String::from("t,theta01,theta12\n");
+        for k in 0..n {
+            text.push_str(&format!("{},0,0\n", k as f64 / rate));
+        }
+        text
+    }
+
+    /// Writes recordings at `rates` (named r0.csv, r1.csv, …) and a truth.csv labelling them.
+    fn recordings(dir: &Path, rates: &[f64]) {
+        let mut truth = String::from("file,d,v\n");
+        for (k, rate) in rates.iter().enumerate() {
+            std::fs::write(dir.join(format!("r{k}.csv")), recording(30, *rate)).unwrap();
+            truth.push_str(&format!("r{k}.csv,0.02,0.6\n"));
+        }
+        std::fs::write(dir.join(TRUTH), truth).unwrap();
+    }
+
+    fn refused(dir: &Path) -> String {
+        let nominal = Document::load("e2", &[]).unwrap();
+        match read_labelled(dir, &nominal, &Options::default()) {
+            Ok(set) => panic!("expected a refusal, read {}", set.recordings.len()),
+            Err(e) => e.to_string(),
+        }
+    }
+
+    #[test]
+    fn a_label_out_of_range_is_named_with_its_line_recording_and_allowed_values() {
+        let dir = folder("range");
+        recordings(&dir, &[1000.0, 1000.0]);
+        // In the first row (whose values also decide whether the columns are keys) and in a
+        // later one.
+        for (truth, line, file) in [
+            ("file,d,v\nr0.csv,-0.02,0.6\nr1.csv,0.02,0.6\n", 2, "r0.csv"),
+            ("file,d,v\nr0.csv,0.02,0.6\nr1.csv,-0.02,0.6\n", 3, "r1.csv"),
+        ] {
+            std::fs::write(dir.join(TRUTH), truth).unwrap();
+            let e = refused(&dir);
+            assert!(
+                e.contains(&format!("truth.csv, line {line}: `d` = -0.02 for `{file}`"))
+                    && e.contains("out of range; allowed is a distance from the base > 0 m")
+                    && !e.contains("names no key"),
+                "{e}"
+            );
+        }
+        // A value that makes another parameter invalid names both.
+        std::fs::write(
+            dir.join(TRUTH),
+            "file,d,v,whisker.base_radius\nr0.csv,0.02,0.6,1e-6\nr1.csv,0.02,0.6,1e-6\n",
+        )
+        .unwrap();
+        let e = refused(&dir);
+        assert!(
+            e.contains("line 2: `whisker.base_radius` = 0.000001 for `r0.csv` is out of range")
+                && e.contains("whisker.tip_radius"),
+            "{e}"
+        );
+        // A column that is no key is still reported as such.
+        std::fs::write(
+            dir.join(TRUTH),
+            "file,d,speed\nr0.csv,0.02,0.6\nr1.csv,0.02,0.6\n",
+        )
+        .unwrap();
+        let e = refused(&dir);
+        assert!(e.contains("`speed` names no key"), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn a_recording_at_another_rate_is_compared_with_the_others_alone() {
+        let dir = folder("rates");
+        // Two recordings: the first one's rate is the reference.
+        recordings(&dir, &[1000.0, 500.0]);
+        let e = refused(&dir);
+        assert!(
+            e.contains("r1.csv: sampled at 500.000000 Hz")
+                && e.contains("the other recording of")
+                && e.contains("r0.csv, is at 1000.000000 Hz"),
+            "{e}"
+        );
+        // The majority's rate is the reference, whichever comes first.
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        recordings(&dir, &[500.0, 1000.0, 1000.0]);
+        let e = refused(&dir);
+        assert!(
+            e.contains("r0.csv: sampled at 500.000000 Hz")
+                && e.contains("the other 2 recordings of")
+                && e.contains("are at 1000.000000 Hz"),
+            "{e}"
+        );
+        // Several rates: the most common one is the reference (on a tie, the first one's), and
+        // the message says which recordings share it.
+        for (rates, who) in [
+            (
+                &[1000.0, 1000.0, 500.0, 250.0][..],
+                "2 of the other 3 recordings of",
+            ),
+            (&[1000.0, 500.0, 250.0][..], "while r0.csv in"),
+        ] {
+            let _ = std::fs::remove_dir_all(&dir);
+            std::fs::create_dir_all(&dir).unwrap();
+            recordings(&dir, rates);
+            let e = refused(&dir);
+            let odd = format!("r{}.csv: sampled at 500.000000 Hz", rates.len() - 2);
+            assert!(
+                e.contains(&odd) && e.contains(who) && e.contains("at 1000.000000 Hz"),
+                "{e}"
+            );
+        }
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -4,7 +4,8 @@
 //! # Model
 //!
 //! Every labelled recording is simulated from the nominal scenario with its labels applied as
-//! overrides (`d`, `v`, …), sampled like the recording (its own step and length; its first
+//! overrides (`d`, `v`, …; a folder that leaves an unknown of the scenario's family unlabelled
+//! is refused), sampled like the recording (its own step and length; its first
 //! sample is simulation time 0, up to the fitted time offset), without noise. Recorded channel
 //! `c` of recording `r` at sample `k` is modelled as
 //!
@@ -105,9 +106,9 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use vibrissa_core::sensors::CHANNELS as NAMES;
 use vibrissa_core::sim::{Response, SensorNoise, SensorResponse};
 use vibrissa_core::whisker::Damping;
-use vibrissa_io::labelled::Labelled;
+use vibrissa_io::labelled::{Labelled, TRUTH};
 use vibrissa_io::scenario::{
-    CalibratedParameter, Calibration, ChannelValues, Correlation, Document,
+    CalibratedParameter, Calibration, ChannelValues, Correlation, Document, Loaded, UnknownSpec,
 };
 
 /// Units of the observed channels, in [`NAMES`] order.
@@ -300,7 +301,9 @@ pub fn calibrate(
     progress: &mut dyn FnMut(&Progress),
 ) -> Result<Fit> {
     check_settings(settings)?;
-    let base = nominal.loaded()?.scenario;
+    let loaded = nominal.loaded()?;
+    check_labels(&loaded, set)?;
+    let base = loaded.scenario;
     let reference = Reference::of(&base)?;
     let runs = prepare(nominal, set)?;
     // The time offset is stepped by a quarter of the longest sample period.
@@ -480,6 +483,40 @@ fn check_settings(s: &Settings) -> Result<()> {
         )));
     }
     Ok(())
+}
+
+/// Every unknown of the nominal scenario's family must have a label column: a recording
+/// simulated at the scenario's own value of an unknown, rather than at the value it was made
+/// at, would bend the whisker's fit to make up the difference.
+fn check_labels(loaded: &Loaded, set: &Labelled) -> Result<()> {
+    let Some(family) = &loaded.family else {
+        return Ok(());
+    };
+    let named = |u: &UnknownSpec| {
+        if u.name == u.key {
+            format!("`{}`", u.key)
+        } else {
+            format!("`{}` (named {})", u.key, u.name)
+        }
+    };
+    let missing: Vec<String> = family
+        .unknowns
+        .iter()
+        .filter(|u| !set.keys.contains(&u.key))
+        .map(named)
+        .collect();
+    if missing.is_empty() {
+        return Ok(());
+    }
+    let all: Vec<&str> = family.keys();
+    Err(Error::Calibration(format!(
+        "{}: no column for the unknown{} {} (the scenario's unknowns are {}; label every one, \
+         one column per key, with the same value on every row where it did not vary)",
+        set.dir.join(TRUTH).display(),
+        if missing.len() == 1 { "" } else { "s" },
+        missing.join(", "),
+        all.join(", ")
+    )))
 }
 
 /// The recordings as runs: the nominal scenario with each one's labels, timed like it.
@@ -757,5 +794,49 @@ mod tests {
         };
         let err = check_settings(&settings).unwrap_err().to_string();
         assert!(err.contains("finalists"), "{err}");
+    }
+
+    /// A folder of two flat recordings labelled by `truth` (its header and rows).
+    fn labelled(name: &str, truth: &str, nominal: &Document) -> Labelled {
+        let dir = std::env::temp_dir().join(format!(
+            "vibrissa-calibrate-labels-{name}-{}",
+            std::process::id()
+        ));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let rows: String = (0..20)
+            .map(|k| format!("{},0,0\n", k as f64 / 1000.0))
+            .collect();
+        for file in ["a.csv", "b.csv"] {
+            std::fs::write(dir.join(file), format!("t,theta01,theta12\n{rows}")).unwrap();
+        }
+        std::fs::write(dir.join(TRUTH), truth).unwrap();
+        let set = vibrissa_io::labelled::read_labelled(&dir, nominal, &Default::default());
+        let _ = std::fs::remove_dir_all(&dir);
+        set.unwrap()
+    }
+
+    #[test]
+    fn every_unknown_of_the_family_must_be_labelled() {
+        let e2 = Document::load("e2", &[]).unwrap();
+        let set = labelled("missing", "file,d\na.csv,0.02\nb.csv,0.025\n", &e2);
+        let err = calibrate(&e2, &set, &Settings::default(), &mut |_| {})
+            .expect_err("a folder without `v` is refused")
+            .to_string();
+        assert!(
+            err.contains("truth.csv: no column for the unknown `v` (the scenario's unknowns are d, v; label every one"),
+            "{err}"
+        );
+        let set = labelled("none", "file,whisker.length\na.csv,0.03\nb.csv,0.03\n", &e2);
+        let err = check_labels(&e2.loaded().unwrap(), &set)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("no column for the unknowns `d`, `v`"), "{err}");
+        // Every unknown labelled; and e1, whose only unknown is d.
+        let set = labelled("both", "file,d,v\na.csv,0.02,0.5\nb.csv,0.025,0.8\n", &e2);
+        check_labels(&e2.loaded().unwrap(), &set).unwrap();
+        let e1 = Document::load("e1", &[]).unwrap();
+        let set = labelled("e1", "file,d\na.csv,0.02\nb.csv,0.025\n", &e1);
+        check_labels(&e1.loaded().unwrap(), &set).unwrap();
     }
 }
