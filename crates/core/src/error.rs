@@ -50,9 +50,18 @@ impl Error {
     ) -> Self {
         Error::InvalidParameter {
             name: name.into(),
-            value: value.to_string(),
+            value: in_exponent_form_if_long(value.to_string()),
             allowed: allowed.into(),
         }
+    }
+}
+
+/// A number written long in decimals (`0.000000000001`) in exponent form (`1e-12`); any other
+/// text as it is.
+fn in_exponent_form_if_long(text: String) -> String {
+    match text.parse::<f64>() {
+        Ok(x) if x != 0.0 && x.is_finite() && text.len() > 10 => format!("{x:e}"),
+        _ => text,
     }
 }
 
@@ -92,5 +101,25 @@ pub(crate) fn readable(x: f64) -> String {
         format!("{x:.4}")
     } else {
         format!("{x:.3e}")
+    }
+}
+
+#[cfg(test)]
+mod value_tests {
+    use super::*;
+
+    #[test]
+    fn long_numbers_are_written_in_exponent_form() {
+        let e = Error::invalid("dt", 1e-12, "positive");
+        assert!(e.to_string().contains("1e-12"), "{e}");
+        let e = Error::invalid("whisker.length", 1e-9 * 0.1000000000000000_2, "positive");
+        assert!(!e.to_string().contains("0.0000000001"), "{e}");
+        assert!(Error::invalid("segments", 1, "2 to 200")
+            .to_string()
+            .contains("= 1"));
+        assert!(Error::invalid("x", 0.023, "").to_string().contains("0.023"));
+        assert!(Error::invalid("kind", "blob", "")
+            .to_string()
+            .contains("blob"));
     }
 }
