@@ -1,16 +1,10 @@
-//! The largest counts the command line accepts, checked as the options are read, so that a count
-//! beyond what any machine can hold is refused with its limit before anything is allocated.
+//! The largest counts the command line accepts ([`vibrissa_infer::limits`]), checked as the
+//! options are read, so that a count beyond what any machine can hold is refused with its limit
+//! before anything is allocated.
 
-/// Most particles of the particle filter (about 3 kB of state each).
-pub(crate) const MAX_PARTICLES: usize = 1_000_000;
-/// Most alternative whiskers the filter entertains (it numbers its whiskers with 16 bits).
-pub(crate) const MAX_ALTERNATIVES: usize = 65_534;
-/// Most training runs per class of a shape experiment (each holds every whisker's series).
-pub(crate) const MAX_TRAINING: usize = 20_000;
-/// Most evaluated runs per class of a shape experiment.
-pub(crate) const MAX_RUNS: usize = 10_000;
-/// Most noise-free runs per class in `shape-bank`'s bank.
-pub(crate) const MAX_BANK: usize = 100_000;
+pub(crate) use vibrissa_infer::limits::{
+    MAX_ALTERNATIVES, MAX_BANK, MAX_PARTICLES, MAX_RUNS, MAX_TRAINING,
+};
 
 /// A count from 1 to `MAX`.
 fn count<const MAX: usize>(text: &str) -> Result<usize, String> {

@@ -22,6 +22,7 @@ pub mod experiment;
 pub mod family;
 pub mod features;
 pub mod lead_in;
+pub mod limits;
 mod linalg;
 pub mod method;
 pub mod methods;

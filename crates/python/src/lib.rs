@@ -4,6 +4,7 @@
 //! and offers a pandas frame; this module loads the scenario and does the work with the
 //! interpreter released.
 
+use vibrissa_infer::limits::{check_count, MAX_BANK, MAX_PARTICLES, MAX_TRAINING};
 use numpy::{IntoPyArray, PyReadonlyArray1};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -109,8 +110,8 @@ impl Filter {
         rate: Option<f64>,
         randomise: bool,
     ) -> PyResult<Self> {
-        if particles == Some(0) {
-            return Err(PyValueError::new_err("particles: at least 1"));
+        if let Some(n) = particles {
+            check_count("particles", n, 1, MAX_PARTICLES).map_err(value_error)?;
         }
         let family = family(scenario, scenario_json, &sets)?
             .randomised_if(randomise)
@@ -444,8 +445,8 @@ fn estimate(
         .for_whisker(whisker, pf)
         .map_err(value_error)?;
     let probe = vibrissa_infer::methods::by_name(method).map_err(value_error)?;
-    if pf && particles == Some(0) {
-        return Err(value_error("particles: at least 1"));
+    if let (true, Some(n)) = (pf, particles) {
+        check_count("particles", n, 1, MAX_PARTICLES).map_err(value_error)?;
     }
     let given = vibrissa_infer::noise::parse_statement(noise)
         .map_err(|e| value_error(format!("noise: {e}")))?;
@@ -741,6 +742,8 @@ fn estimate_shapes(
     whisker_from: Option<&str>,
 ) -> PyResult<(Vec<String>, Vec<String>, Vec<Vec<Vec<f64>>>, Vec<String>)> {
     use vibrissa_infer::shapes::{estimate_batch, BatchOptions, ShapeKrr};
+    check_count("training", training, 1, MAX_TRAINING).map_err(value_error)?;
+    check_count("bank", bank, 1, MAX_BANK).map_err(value_error)?;
     let family = shape_family(shapes, whiskers, whisker_from)?;
     let stated = vibrissa_infer::noise::parse_statement(noise)
         .map_err(|e| value_error(format!("noise: {e}")))?;

@@ -70,6 +70,11 @@ def test_samples_as_sequences_and_missing_channels():
     [
         (lambda: vibrissa.Filter("e2", particles=10), ValueError, ["noise", "theta01"]),
         (lambda: vibrissa.Filter("e2", particles=0, noise=NOISE), ValueError, ["particles"]),
+        (
+            lambda: vibrissa.Filter("e2", particles=10**7, noise=NOISE),
+            ValueError,
+            ["particles", "1 to 1000000"],
+        ),
         (lambda: vibrissa.Filter("e2", particles="10", noise=NOISE), TypeError, ["particles"]),
         (lambda: vibrissa.Filter("e2", noise={**NOISE, "fz": 1.0}), ValueError, ["fz"]),
         (lambda: vibrissa.Filter("e2", noise={**NOISE, "fx": -1.0}), ValueError, ["fx"]),

@@ -327,8 +327,11 @@ impl Config {
                 "filter setting `{field}`: expected {allowed}"
             )))
         };
-        if self.particles == 0 {
-            return bad("particles", "at least 1 particle");
+        if !(1..=crate::limits::MAX_PARTICLES).contains(&self.particles) {
+            return bad(
+                "particles",
+                &format!("1 to {} particles", crate::limits::MAX_PARTICLES),
+            );
         }
         if self.alternatives.len() >= self.particles.min(u16::MAX as usize) {
             return bad(
