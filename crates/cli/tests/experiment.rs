@@ -424,7 +424,7 @@ fn pf_estimates_writes_a_trace_and_refuses_bad_settings() {
     assert!(dir.join("trace.png").exists());
 
     for (args, says) in [
-        (vec!["--particles", "0"], "--particles must be at least 1"),
+        (vec!["--particles", "0"], "from 1 to 1000000"),
         (
             vec!["--channels", "theta01,contact"],
             "cannot produce `contact`",
