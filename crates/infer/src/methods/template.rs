@@ -8,7 +8,9 @@ use crate::method::{Budget, Estimate, Method, Training};
 /// Gaussian responsibilities of the templates on `theta12` alone,
 /// `λ_i ∝ exp(−Σ_t (m_i(t) − o(t))² / (2σ²))`, and the responsibility-weighted mean of the
 /// templates' parameters. Its std is the responsibility-weighted spread of the templates'
-/// parameters around that mean.
+/// parameters around that mean, but never less than the method's own leave-one-out error says
+/// (its mean absolute error over the templates, as a normal's std): where one template takes all
+/// the responsibility, the spread alone would be zero.
 #[derive(Debug, Clone, Default)]
 pub struct Template {
     /// Template `theta12` series, rad: `[templates][samples]`.
@@ -19,6 +21,8 @@ pub struct Template {
     sigma2: f64,
     /// Leave-one-out mean absolute error at σ², in fractions of each unknown's range.
     loo_error: f64,
+    /// Leave-one-out mean absolute error at σ² of each unknown, SI.
+    loo_mae: Vec<f64>,
 }
 
 impl Template {
@@ -146,12 +150,34 @@ impl Method for Template {
         }
         self.loo_error = best.0;
         self.sigma2 = best.1;
+        // Each unknown's leave-one-out error at that width, for the intervals' floor.
+        let mut mae = vec![0.0; ranges.len()];
+        for &j in &held {
+            let w = weights(&self.series, &self.series[j], self.sigma2, Some(j));
+            for (u, e) in weighted(&self.params, &w).iter().enumerate() {
+                mae[u] += (e.mean - self.params[j][u]).abs() / held.len() as f64;
+            }
+        }
+        self.loo_mae = mae;
         Ok(())
     }
 
     fn predict(&self, obs: &[Vec<f64>]) -> Result<Vec<Estimate>> {
         let w = self.responsibilities(obs)?;
-        Ok(weighted(&self.params, &w))
+        // A mean absolute error is √(2/π) of a normal's std.
+        let scale = (std::f64::consts::PI / 2.0).sqrt();
+        Ok(weighted(&self.params, &w)
+            .into_iter()
+            .zip(&self.loo_mae)
+            .map(|(e, mae)| {
+                let floor = mae * scale;
+                if e.std < floor {
+                    Estimate::normal(e.mean, floor)
+                } else {
+                    e
+                }
+            })
+            .collect())
     }
 
     fn settings(&self) -> Vec<(String, f64)> {
@@ -159,5 +185,36 @@ impl Method for Template {
             ("sigma2".into(), self.sigma2),
             ("loo_error_fraction_of_range".into(), self.loo_error),
         ]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_interval_is_never_narrower_than_the_leave_one_out_error() {
+        // Three templates far apart for the width: a recording equal to one of them gives it all
+        // the responsibility, and the templates' spread alone would be zero.
+        let series: Vec<Vec<f64>> = (0..3).map(|k| vec![0.1 * k as f64; 20]).collect();
+        let t = Template {
+            series: series.clone(),
+            params: vec![vec![0.015, 0.3], vec![0.023, 0.9], vec![0.030, 1.5]],
+            sigma2: 1e-8,
+            loo_error: 0.2,
+            loo_mae: vec![0.002, 0.1],
+        };
+        let mut obs = vec![Vec::new(); crate::experiment::CHANNELS.len()];
+        obs[THETA12] = series[1].clone();
+        let est = t.predict(&obs).unwrap();
+        let scale = (std::f64::consts::PI / 2.0).sqrt();
+        assert_eq!(est[0].mean, 0.023);
+        assert!((est[0].std - 0.002 * scale).abs() < 1e-15, "{:?}", est[0]);
+        assert!((est[1].std - 0.1 * scale).abs() < 1e-15, "{:?}", est[1]);
+        assert!(est[0].ci90[0] < 0.023 && 0.023 < est[0].ci90[1]);
+        // A wide spread is kept as it is.
+        let wide = Template { sigma2: 1e3, ..t };
+        let est = wide.predict(&obs).unwrap();
+        assert!(est[0].std > 0.002 * scale * 2.0, "{:?}", est[0]);
     }
 }
