@@ -4,13 +4,13 @@
 //! and offers a pandas frame; this module loads the scenario and does the work with the
 //! interpreter released.
 
-use vibrissa_infer::limits::{check_count, MAX_BANK, MAX_PARTICLES, MAX_TRAINING};
 use numpy::{IntoPyArray, PyReadonlyArray1};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use vibrissa_infer::contract::EstimateRow;
 use vibrissa_infer::experiment::CHANNELS;
+use vibrissa_infer::limits::{check_count, MAX_BANK, MAX_PARTICLES, MAX_TRAINING};
 use vibrissa_infer::pf::{self, recording, Pf, TraceRow};
 use vibrissa_infer::recording::batch_noise;
 use vibrissa_infer::{Family, Reader, Recording, Trained};
