@@ -2,62 +2,46 @@
 //! options are read, so that a count beyond what any machine can hold is refused with its limit
 //! before anything is allocated.
 
-pub(crate) use vibrissa_infer::limits::{
-    MAX_ALTERNATIVES, MAX_BANK, MAX_PARTICLES, MAX_RUNS, MAX_TRAINING,
-};
+use vibrissa_infer::limits::{MAX_ALTERNATIVES, MAX_BANK, MAX_PARTICLES, MAX_RUNS, MAX_TRAINING};
 
-/// A count from 1 to `MAX`.
-fn count<const MAX: usize>(text: &str) -> Result<usize, String> {
-    let n: usize = text
-        .trim()
-        .parse()
-        .map_err(|_| format!("expected a whole number from 1 to {MAX}"))?;
-    if n == 0 || n > MAX {
-        return Err(format!("expected a whole number from 1 to {MAX} (got {n})"));
-    }
-    Ok(n)
-}
-
-/// A count from 0 to `MAX`.
-fn count_or_none<const MAX: usize>(text: &str) -> Result<usize, String> {
-    let n: usize = text
-        .trim()
-        .parse()
-        .map_err(|_| format!("expected a whole number from 0 to {MAX}"))?;
-    if n > MAX {
-        return Err(format!("expected a whole number from 0 to {MAX} (got {n})"));
+/// A count from `LEAST` to `MOST`.
+fn count<const LEAST: usize, const MOST: usize>(text: &str) -> Result<usize, String> {
+    let expected = format!("expected a whole number from {LEAST} to {MOST}");
+    let n: usize = text.trim().parse().map_err(|_| expected.clone())?;
+    if !(LEAST..=MOST).contains(&n) {
+        return Err(format!("{expected} (got {n})"));
     }
     Ok(n)
 }
 
 /// Particles: 1 to [`MAX_PARTICLES`].
 pub(crate) fn particles(text: &str) -> Result<usize, String> {
-    count::<MAX_PARTICLES>(text)
+    count::<1, MAX_PARTICLES>(text)
 }
 
 /// Particles where 0 leaves the filter out: 0 to [`MAX_PARTICLES`].
 pub(crate) fn particles_or_none(text: &str) -> Result<usize, String> {
-    count_or_none::<MAX_PARTICLES>(text)
+    count::<0, MAX_PARTICLES>(text)
 }
 
 /// Alternative whiskers: 0 to [`MAX_ALTERNATIVES`].
 pub(crate) fn alternatives(text: &str) -> Result<usize, String> {
-    count_or_none::<MAX_ALTERNATIVES>(text)
+    count::<0, MAX_ALTERNATIVES>(text)
 }
 
 /// Training runs per class: 1 to [`MAX_TRAINING`].
 pub(crate) fn training(text: &str) -> Result<usize, String> {
-    count::<MAX_TRAINING>(text)
+    count::<1, MAX_TRAINING>(text)
 }
 
 /// Evaluated runs per class: 1 to [`MAX_RUNS`].
 pub(crate) fn runs(text: &str) -> Result<usize, String> {
-    count::<MAX_RUNS>(text)
+    count::<1, MAX_RUNS>(text)
 }
 
 /// Bank runs per class: 1 to [`MAX_BANK`].
 pub(crate) fn bank(text: &str) -> Result<usize, String> {
-    count::<MAX_BANK>(text)
+    count::<1, MAX_BANK>(text)
 }
 
 #[cfg(test)]

@@ -520,39 +520,19 @@ struct Listed {
 fn first_listed(path: &Path) -> Option<Listed> {
     let text = fs::read_to_string(path).ok()?;
     let mut lines = text.lines();
-    let header = split_record(lines.next()?);
+    let header = vibrissa_io::sweep::split_record(lines.next()?);
     let end = header.iter().position(|h| h == "samples")?;
     if header.first().map(String::as_str) != Some("file") || end < 1 {
         return None;
     }
-    let row = lines.map(split_record).find(|r| r.len() == header.len())?;
+    let row = lines
+        .map(vibrissa_io::sweep::split_record)
+        .find(|r| r.len() == header.len())?;
     Some(Listed {
         keys: header[1..end].to_vec(),
         file: row[0].clone(),
         values: row[1..end].to_vec(),
     })
-}
-
-/// Splits one record of the manifest (CSV: a field with a comma, quote or line break is quoted,
-/// a quote inside doubled).
-fn split_record(line: &str) -> Vec<String> {
-    let mut fields = Vec::new();
-    let mut field = String::new();
-    let mut quoted = false;
-    let mut chars = line.chars().peekable();
-    while let Some(c) = chars.next() {
-        match (c, quoted) {
-            ('"', true) if chars.peek() == Some(&'"') => {
-                chars.next();
-                field.push('"');
-            }
-            ('"', _) => quoted = !quoted,
-            (',', false) => fields.push(std::mem::take(&mut field)),
-            _ => field.push(c),
-        }
-    }
-    fields.push(field);
-    fields
 }
 
 /// What the workers share.

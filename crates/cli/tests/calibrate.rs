@@ -336,3 +336,86 @@ fn bad_arguments_and_nominal_scenarios_are_refused() {
         stderr(&out)
     );
 }
+
+/// [`assert_refused`], and a message that says none of `not`.
+fn assert_refused_saying(scratch: &Scratch, out: &Output, words: &[&str], not: &[&str]) {
+    assert_refused(scratch, out, words);
+    let err = stderr(out);
+    for w in not {
+        assert!(!err.contains(w), "the message should not say `{w}`:\n{err}");
+    }
+}
+
+#[test]
+fn a_truth_csv_without_a_column_for_an_unknown_is_refused() {
+    let scratch = Scratch::new("unknown");
+    let dir = scratch.join("calib");
+    fs::create_dir_all(&dir).unwrap();
+    strike(&dir, "a.csv", 0.02, 0.5, &[]);
+    strike(&dir, "b.csv", 0.025, 0.8, &[]);
+    // e2's unknowns are d and v; v is left out.
+    fs::write(dir.join("truth.csv"), "file,d\na.csv,0.02\nb.csv,0.025\n").unwrap();
+    let out = calibrate(&scratch, &dir, &[]);
+    assert_refused_saying(
+        &scratch,
+        &out,
+        &[
+            "truth.csv: no column for the unknown `v`",
+            "the scenario's unknowns are d, v",
+            "label every one",
+        ],
+        &["start 1"],
+    );
+}
+
+#[test]
+fn a_recording_at_another_rate_is_named_with_its_rate_and_the_others() {
+    let scratch = Scratch::new("rate-named");
+    let dir = scratch.join("calib");
+    fs::create_dir_all(&dir).unwrap();
+    strike(&dir, "a.csv", 0.02, 0.5, &[]);
+    strike(&dir, "b.csv", 0.025, 0.8, &["sample_rate=500"]);
+    fs::write(
+        dir.join("truth.csv"),
+        "file,d,v\na.csv,0.02,0.5\nb.csv,0.025,0.8\n",
+    )
+    .unwrap();
+    let out = calibrate(&scratch, &dir, &[]);
+    assert_refused_saying(
+        &scratch,
+        &out,
+        &[
+            "b.csv: sampled at 500.000000 Hz",
+            "a.csv, is at 1000.000000 Hz",
+        ],
+        &["666"],
+    );
+}
+
+#[test]
+fn a_label_out_of_range_is_named_with_its_row_and_what_is_allowed() {
+    let scratch = Scratch::new("range");
+    let dir = scratch.join("calib");
+    fs::create_dir_all(&dir).unwrap();
+    strike(&dir, "a.csv", 0.02, 0.5, &[]);
+    strike(&dir, "b.csv", 0.025, 0.8, &[]);
+    for (truth, at) in [
+        (
+            "file,d,v\na.csv,-0.02,0.5\nb.csv,0.025,0.8\n",
+            "truth.csv, line 2: `d` = -0.02 for `a.csv` is out of range",
+        ),
+        (
+            "file,d,v\na.csv,0.02,0.5\nb.csv,-0.02,0.8\n",
+            "truth.csv, line 3: `d` = -0.02 for `b.csv` is out of range",
+        ),
+    ] {
+        fs::write(dir.join("truth.csv"), truth).unwrap();
+        let out = calibrate(&scratch, &dir, &[]);
+        assert_refused_saying(
+            &scratch,
+            &out,
+            &[at, "allowed is a distance from the base > 0 m"],
+            &["names no key"],
+        );
+    }
+}

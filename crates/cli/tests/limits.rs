@@ -35,6 +35,12 @@ impl Scratch {
         vibrissa_in(&self.0, args)
     }
 
+    /// Simulates the default `e2` strike into `ok.csv` in the folder.
+    fn strike(&self) {
+        let out = self.run(&["simulate", "e2", "--out", "ok.csv"]);
+        assert!(out.status.success(), "{}", stderr(&out));
+    }
+
     /// The names of the folder's entries.
     fn entries(&self) -> Vec<String> {
         let mut names: Vec<String> = fs::read_dir(&self.0)
@@ -189,8 +195,7 @@ fn an_export_folder_that_cannot_be_made_is_refused_before_the_experiment_runs() 
 #[test]
 fn settings_that_cannot_work_are_named() {
     let s = Scratch::new("settings");
-    let out = s.run(&["simulate", "e2", "--out", "ok.csv"]);
-    assert!(out.status.success(), "{}", stderr(&out));
+    s.strike();
     // Fewer particles than the whiskers a randomised filter entertains.
     let out = s.run(&[
         "estimate",
@@ -217,8 +222,7 @@ fn settings_that_cannot_work_are_named() {
 #[test]
 fn an_estimate_that_is_not_a_number_is_refused_not_printed() {
     let s = Scratch::new("nan");
-    let out = s.run(&["simulate", "e2", "--out", "ok.csv"]);
-    assert!(out.status.success(), "{}", stderr(&out));
+    s.strike();
     // A stated noise so large that every template is equally (im)probable.
     let out = s.run(&[
         "estimate",
@@ -261,8 +265,7 @@ fn an_estimate_that_is_not_a_number_is_refused_not_printed() {
 #[test]
 fn priors_outside_what_the_filter_can_tell_apart_are_refused_by_name() {
     let s = Scratch::new("priors");
-    let out = s.run(&["simulate", "e2", "--out", "ok.csv"]);
-    assert!(out.status.success(), "{}", stderr(&out));
+    s.strike();
     let filter = |prior: &str| {
         s.run(&[
             "estimate",
@@ -291,8 +294,7 @@ fn priors_outside_what_the_filter_can_tell_apart_are_refused_by_name() {
 #[test]
 fn a_wrong_name_is_answered_with_what_exists() {
     let s = Scratch::new("names");
-    let out = s.run(&["simulate", "e2", "--out", "ok.csv"]);
-    assert!(out.status.success(), "{}", stderr(&out));
+    s.strike();
     let out = s.run(&[
         "estimate",
         "--shapes",

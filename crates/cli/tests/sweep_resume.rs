@@ -56,6 +56,19 @@ impl Scratch {
         &self.0
     }
 
+    /// The scenario (see [`Scratch::scenario`]) and the folder `runs` holding its sweep of one
+    /// run, `--grid objects.0.radius=0.002`.
+    fn one_run(&self) -> (String, PathBuf) {
+        let scenario = self.scenario();
+        let dir = self.0.join("runs");
+        assert_ok(&sweep(
+            &scenario,
+            &dir,
+            &["--grid", "objects.0.radius=0.002"],
+        ));
+        (scenario, dir)
+    }
+
     /// A copy of the example scenario `peg_past.toml` in the folder; its path.
     fn scenario(&self) -> String {
         let example =
@@ -206,13 +219,7 @@ fn the_same_sweep_resumes_and_grows() {
 #[test]
 fn other_set_values_are_refused() {
     let scratch = Scratch::new("set");
-    let scenario = scratch.scenario();
-    let dir = scratch.path().join("runs");
-    assert_ok(&sweep(
-        &scenario,
-        &dir,
-        &["--grid", "objects.0.radius=0.002"],
-    ));
+    let (scenario, dir) = scratch.one_run();
     let before = contents(&dir);
 
     let out = sweep(
@@ -233,13 +240,7 @@ fn other_set_values_are_refused() {
 #[test]
 fn another_scenario_or_other_keys_are_refused() {
     let scratch = Scratch::new("scenario");
-    let scenario = scratch.scenario();
-    let dir = scratch.path().join("runs");
-    assert_ok(&sweep(
-        &scenario,
-        &dir,
-        &["--grid", "objects.0.radius=0.002"],
-    ));
+    let (scenario, dir) = scratch.one_run();
     let before = contents(&dir);
 
     // A built-in experiment, its own key: the manifest would have lost the earlier run.
@@ -261,13 +262,7 @@ fn another_scenario_or_other_keys_are_refused() {
 #[test]
 fn an_edited_scenario_file_is_refused() {
     let scratch = Scratch::new("edited");
-    let scenario = scratch.scenario();
-    let dir = scratch.path().join("runs");
-    assert_ok(&sweep(
-        &scenario,
-        &dir,
-        &["--grid", "objects.0.radius=0.002"],
-    ));
+    let (scenario, dir) = scratch.one_run();
     let before = contents(&dir);
 
     // A comment does not change the scenario; a value does.
@@ -289,13 +284,7 @@ fn an_edited_scenario_file_is_refused() {
 #[test]
 fn a_folder_without_the_settings_file_is_checked_by_its_sidecars() {
     let scratch = Scratch::new("unrecorded");
-    let scenario = scratch.scenario();
-    let dir = scratch.path().join("runs");
-    assert_ok(&sweep(
-        &scenario,
-        &dir,
-        &["--grid", "objects.0.radius=0.002"],
-    ));
+    let (scenario, dir) = scratch.one_run();
     // As an earlier version, or the Python package, leaves it.
     let _ = fs::remove_file(dir.join(".sweep.json"));
     let before = contents(&dir);

@@ -460,8 +460,9 @@ fn push_record(text: &mut String, fields: &[&str]) {
     text.push('\n');
 }
 
-/// Splits one CSV record written by [`push_record`].
-fn split_record(line: &str) -> Vec<String> {
+/// Splits one CSV record written by [`push_record`] (a field with a comma, quote or line break
+/// is quoted, a quote inside doubled).
+pub fn split_record(line: &str) -> Vec<String> {
     let mut fields = Vec::new();
     let mut field = String::new();
     let mut quoted = false;
