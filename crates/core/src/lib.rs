@@ -39,6 +39,7 @@ pub mod scenes;
 pub mod sensors;
 mod signal;
 pub mod sim;
+mod sim_many;
 pub mod statics;
 pub mod validate;
 pub mod whisker;

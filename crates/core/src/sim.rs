@@ -3,7 +3,9 @@
 
 use crate::chain::{Discretisation, Model};
 use crate::contact::ContactReport;
-use crate::dynamics::{initialize, step, BaseMotion, Inputs, Integrator, State, Workspace};
+use crate::dynamics::{
+    initialize, step, BaseMotion, Inputs, Integrator, State, Stepper, Workspace,
+};
 use crate::error::{check_finite, check_non_negative, check_positive, Error, Result};
 use crate::objects::closest;
 use crate::objects::{Motion, Object};
@@ -563,6 +565,8 @@ fn step_that_runs(scenario: &Scenario, t: f64, dt: f64) -> Option<f64> {
         })
 }
 
+pub use crate::sim_many::{run_many, run_together};
+
 /// Runs `scenario`, calling `progress` with the fraction done now and then.
 pub fn run(scenario: &Scenario, progress: &mut dyn FnMut(f64)) -> Result<Output> {
     run_observed(scenario, progress, None)
@@ -601,17 +605,8 @@ fn run_steps(
     scenario.check()?;
     let whisker = scenario.whisker.check()?;
     let model = Model::new(&whisker, scenario.segments, scenario.discretisation)?;
-    // A step that divides the sample period.
     let period = 1.0 / scenario.sample_rate;
-    let per_sample = (period / scenario.integrator.dt * (1.0 - 1e-12))
-        .ceil()
-        .max(1.0) as usize;
-    let stepper = Integrator {
-        dt: period / per_sample as f64,
-        ..scenario.integrator
-    }
-    .check()?;
-    let samples = (scenario.duration * scenario.sample_rate + 1e-9).floor() as usize + 1;
+    let (stepper, per_sample, samples) = timing(scenario)?;
 
     // The whisker at rest, clear of every object.
     let mut state = State::at_rest(&model, scenario.seed);
@@ -691,9 +686,25 @@ fn run_steps(
     })
 }
 
+/// A run's stepping: the time step (the scenario's, shortened to divide the sample period), the
+/// steps per sample period, and the number of output samples.
+pub(crate) fn timing(scenario: &Scenario) -> Result<(Stepper, usize, usize)> {
+    let period = 1.0 / scenario.sample_rate;
+    let per_sample = (period / scenario.integrator.dt * (1.0 - 1e-12))
+        .ceil()
+        .max(1.0) as usize;
+    let stepper = Integrator {
+        dt: period / per_sample as f64,
+        ..scenario.integrator
+    }
+    .check()?;
+    let samples = (scenario.duration * scenario.sample_rate + 1e-9).floor() as usize + 1;
+    Ok((stepper, per_sample, samples))
+}
+
 /// The contract's row for `state` at sample time `t`, through the sensors' gains and offsets,
 /// with sensor noise; `contact` is the last contact since the previous sample.
-fn sample(
+pub(crate) fn sample(
     state: &State,
     contact: Option<ContactReport>,
     t: f64,
@@ -733,13 +744,13 @@ fn sample(
 }
 
 /// Whether an object enters the whisker's plane within the step from `t0` to `t1`.
-fn entering(objects: &[Object], t0: f64, t1: f64) -> bool {
+pub(crate) fn entering(objects: &[Object], t0: f64, t1: f64) -> bool {
     objects.iter().any(|o| !o.in_plane(t0) && o.in_plane(t1))
 }
 
 /// Refuses objects in the whisker's plane that overlap the whisker at time `t` (the start, or
 /// when an object enters the plane: a planar whisker cannot be struck from out of its plane).
-fn check_clear(model: &Model, ws: &Workspace, objects: &[Object], t: f64) -> Result<()> {
+pub(crate) fn check_clear(model: &Model, ws: &Workspace, objects: &[Object], t: f64) -> Result<()> {
     for (k, o) in objects.iter().enumerate() {
         if !o.in_plane(t) {
             continue;

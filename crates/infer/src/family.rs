@@ -15,9 +15,10 @@ use rayon::prelude::*;
 use std::collections::HashMap;
 use std::sync::{Mutex, OnceLock};
 use vibrissa_core::array::Mount;
+use vibrissa_core::dynamics::LANES;
 use vibrissa_core::objects::Motion;
 use vibrissa_core::rng::Rng;
-use vibrissa_core::sim::{self, Scenario, SensorNoise};
+use vibrissa_core::sim::{self, Output, Scenario, SensorNoise};
 use vibrissa_core::whisker::WhiskerParams;
 use vibrissa_io::scenario::{self, Document, ExperimentRun, FamilySpec};
 
@@ -557,14 +558,33 @@ impl Family {
         noise: &Noise,
         seed: u64,
     ) -> Result<Sample> {
+        let (s, lead) = self.delayed_scenario(p, delay, noise, seed)?;
+        let out = sim::run(&s, &mut |_| {}).map_err(|source| self.run_error(p, source))?;
+        Ok(self.delayed_sample(p, delay, lead, seed, out))
+    }
+
+    /// The scenario that [`Family::simulate_delayed`] runs, and how far before the run's t = 0
+    /// it starts (`delay` and the family's random start jitter).
+    fn delayed_scenario(
+        &self,
+        p: &[f64],
+        delay: f64,
+        noise: &Noise,
+        seed: u64,
+    ) -> Result<(Scenario, f64)> {
         let jitter = if self.start_jitter > 0.0 {
             self.start_jitter * Rng::stream(seed, STREAM_JITTER).uniform()
         } else {
             0.0
         };
         let s = self.recording_scenario(p, delay + jitter, noise, seed)?;
-        let out = sim::run(&s, &mut |_| {}).map_err(|source| self.run_error(p, source))?;
-        // As long as the run without the jitter.
+        Ok((s, delay + jitter))
+    }
+
+    /// The sample that [`Family::simulate_delayed`] makes of the run `out` of its scenario
+    /// (which started `lead` seconds early): the observed channels, as long as the run without
+    /// the jitter, with the family's model error.
+    fn delayed_sample(&self, p: &[f64], delay: f64, lead: f64, seed: u64, out: Output) -> Sample {
         let kept =
             ((self.base.duration + delay) * self.base.sample_rate + 1e-9).floor() as usize + 1;
         // Columns 1..=5 of the contract's rows are the observed channels.
@@ -572,12 +592,17 @@ impl Family {
             .map(|c| out.rows.iter().take(kept).map(|r| r[c + 1]).collect())
             .collect();
         if let Some(me) = &self.model_error {
-            me.add(&mut series, self.base.sample_rate, delay + jitter, seed);
+            me.add(&mut series, self.base.sample_rate, lead, seed);
         }
-        Ok(Sample {
+        Sample {
             series,
             params: p.to_vec(),
-        })
+        }
+    }
+
+    /// How many whiskers a run of the family records (1 for a scenario of one whisker).
+    pub fn whisker_count(&self) -> usize {
+        self.mounts.len().max(1)
     }
 
     /// The names of the array's whiskers kept, in order (empty for a single whisker).
@@ -650,22 +675,57 @@ impl Family {
     /// `seed` and `k` as `vibrissa simulate` draws them. Each whisker of a randomised family
     /// gets its own draw of whisker and sensors.
     pub fn simulate_array(&self, p: &[f64], noise: &Noise, seed: u64) -> Result<Vec<Sample>> {
+        let runs = self.array_runs(p, noise, seed)?;
+        let scenarios: Vec<Scenario> = runs.iter().map(|r| r.scenario.clone()).collect();
+        self.array_samples(p, &runs, sim::run_together(&scenarios))
+    }
+
+    /// The runs that [`Family::simulate_array`] makes at `p`: one scenario per whisker, in the
+    /// array's order (to be run, for instance with other runs' in lanes, by
+    /// [`sim::run_together`], and made samples by [`Family::array_samples`]).
+    pub fn array_runs(&self, p: &[f64], noise: &Noise, seed: u64) -> Result<Vec<ArrayRun>> {
         if self.mounts.is_empty() {
-            return Ok(vec![self.simulate(p, noise, seed)?]);
+            let (scenario, lead) = self.delayed_scenario(p, 0.0, noise, seed)?;
+            return Ok(vec![ArrayRun {
+                scenario,
+                lead: Some(lead),
+                seed,
+            }]);
         }
         let s = self.plain_recording(p, 0.0, noise, seed)?;
         // Whisker k's streams (and draws) follow its place in the file's array, whichever are
         // kept.
-        self.mounts
+        Ok(self
+            .mounts
             .iter()
-            .map(|(k, m)| {
-                let out = sim::run(&self.mounted(&s, *k, m, seed), &mut |_| {})
-                    .map_err(|source| self.run_error(p, source))?;
-                Ok(Sample {
-                    series: (0..CHANNELS.len())
-                        .map(|c| out.rows.iter().map(|r| r[c + 1]).collect())
-                        .collect(),
-                    params: p.to_vec(),
+            .map(|(k, m)| ArrayRun {
+                scenario: self.mounted(&s, *k, m, seed),
+                lead: None,
+                seed,
+            })
+            .collect())
+    }
+
+    /// The samples of [`Family::simulate_array`] at `p` from the outputs `outs` of its `runs`
+    /// ([`Family::array_runs`]), or the error of the first that failed.
+    pub fn array_samples(
+        &self,
+        p: &[f64],
+        runs: &[ArrayRun],
+        outs: Vec<vibrissa_core::Result<Output>>,
+    ) -> Result<Vec<Sample>> {
+        runs.iter()
+            .zip(outs)
+            .map(|(run, out)| {
+                let out = out.map_err(|source| self.run_error(p, source))?;
+                Ok(match run.lead {
+                    Some(lead) => self.delayed_sample(p, 0.0, lead, run.seed, out),
+                    None => Sample {
+                        series: (0..CHANNELS.len())
+                            .map(|c| out.rows.iter().map(|r| r[c + 1]).collect())
+                            .collect(),
+                        params: p.to_vec(),
+                    },
                 })
             })
             .collect()
@@ -762,15 +822,37 @@ impl Family {
         seed: u64,
         tick: &(dyn Fn() + Sync),
     ) -> Result<Vec<Sample>> {
-        params
-            .par_iter()
+        // Runs that share a whisker step together in lanes (each to the bits it reaches alone):
+        // full lane groups, unless there are too few runs to give every core one.
+        let threads = rayon::current_num_threads().max(1);
+        let chunk = params.len().div_ceil(threads).clamp(1, LANES);
+        let chunks: Vec<Vec<Sample>> = params
+            .par_chunks(chunk)
             .enumerate()
-            .map(|(k, p)| {
-                let s = self.simulate(p, noise, Family::run_seed(seed, k));
-                tick();
-                s
+            .map(|(c, ps)| {
+                let prepared = ps
+                    .iter()
+                    .enumerate()
+                    .map(|(j, p)| {
+                        let run_seed = Family::run_seed(seed, c * chunk + j);
+                        self.delayed_scenario(p, 0.0, noise, run_seed)
+                            .map(|(s, lead)| (s, lead, run_seed))
+                    })
+                    .collect::<Result<Vec<_>>>()?;
+                let scenarios: Vec<Scenario> = prepared.iter().map(|(s, _, _)| s.clone()).collect();
+                let outs = sim::run_together(&scenarios);
+                ps.iter()
+                    .zip(prepared)
+                    .zip(outs)
+                    .map(|((p, (_, lead, run_seed)), out)| {
+                        let out = out.map_err(|source| self.run_error(p, source))?;
+                        tick();
+                        Ok(self.delayed_sample(p, 0.0, lead, run_seed, out))
+                    })
+                    .collect::<Result<Vec<_>>>()
             })
-            .collect()
+            .collect::<Result<Vec<_>>>()?;
+        Ok(chunks.into_iter().flatten().collect())
     }
 
     /// `key = value, …` of a parameter vector, for messages.
@@ -901,6 +983,18 @@ fn fit_residual(record: &vibrissa_io::scenario::Calibration) -> Option<[f64; 5]>
         }
     }
     named.then_some(out)
+}
+
+/// One whisker's run of [`Family::simulate_array`] (see [`Family::array_runs`]).
+#[derive(Debug, Clone)]
+pub struct ArrayRun {
+    /// Its scenario.
+    pub scenario: Scenario,
+    /// For a family of one whisker, how far before the run's t = 0 it starts (its series is then
+    /// cut to the family's length and given its model error); `None` for a whisker of an array.
+    lead: Option<f64>,
+    /// The run's seed.
+    seed: u64,
 }
 
 #[cfg(test)]

@@ -4,10 +4,12 @@
 use super::e3;
 use crate::error::{Error, Result};
 use crate::experiment::Noise;
-use crate::family::Family;
+use crate::family::{ArrayRun, Family};
 use rayon::prelude::*;
 use std::path::Path;
+use vibrissa_core::dynamics::LANES;
 use vibrissa_core::rng::Rng;
+use vibrissa_core::sim::{self, Scenario};
 use vibrissa_io::scenario::WhiskerSource;
 
 /// One object class: its name and the scenario family of its runs (its pose unknowns).
@@ -318,13 +320,57 @@ impl ShapeFamily {
         seed: u64,
         tick: &(dyn Fn() + Sync),
     ) -> Result<(Vec<ShapeSample>, Vec<String>)> {
+        // A few draws at a time, so that their whiskers' runs step together in lanes (each to
+        // the bits it reaches alone).
+        let threads = rayon::current_num_threads().max(1);
+        let whiskers = self
+            .classes
+            .iter()
+            .map(|c| c.family.whisker_count())
+            .max()
+            .unwrap_or(1);
+        let per_chunk = (LANES / whiskers).max(1);
+        let chunk = draws.len().div_ceil(threads).clamp(1, per_chunk);
         let results: Vec<Result<ShapeSample>> = draws
-            .par_iter()
+            .par_chunks(chunk)
             .enumerate()
-            .map(|(k, d)| {
-                let r = self.simulate_one(d, noise, Family::run_seed(seed, k));
-                tick();
-                r
+            .flat_map_iter(|(c, part)| {
+                let prepared: Vec<Result<Vec<ArrayRun>>> = part
+                    .iter()
+                    .enumerate()
+                    .map(|(j, (class, p))| {
+                        let seed = Family::run_seed(seed, c * chunk + j);
+                        self.classes[*class].family.array_runs(p, noise, seed)
+                    })
+                    .collect();
+                let scenarios: Vec<Scenario> = prepared
+                    .iter()
+                    .flatten()
+                    .flatten()
+                    .map(|r| r.scenario.clone())
+                    .collect();
+                let mut outs = sim::run_together(&scenarios).into_iter();
+                part.iter()
+                    .zip(prepared)
+                    .map(|((class, p), runs)| {
+                        let r = runs.and_then(|runs| {
+                            let mine: Vec<_> = outs.by_ref().take(runs.len()).collect();
+                            let whiskers = self.classes[*class]
+                                .family
+                                .array_samples(p, &runs, mine)?
+                                .into_iter()
+                                .map(|s| s.series)
+                                .collect();
+                            Ok(ShapeSample {
+                                class: *class,
+                                params: p.clone(),
+                                whiskers,
+                            })
+                        });
+                        tick();
+                        r
+                    })
+                    .collect::<Vec<_>>()
             })
             .collect();
         let mut done = Vec::with_capacity(results.len());
