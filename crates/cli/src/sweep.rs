@@ -34,10 +34,11 @@ use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::Instant;
+use vibrissa_core::dynamics::LANES;
 use vibrissa_io::scenario::{self, Document, Loaded};
 use vibrissa_io::series::{sidecar_path, EXTENSIONS};
 use vibrissa_io::sweep::{
-    grids_for, plan, read_manifest, run_one, Grid, Job, Manifest, Row, MANIFEST,
+    grids_for, plan, read_manifest, run_batch, Grid, Job, Manifest, Row, MANIFEST,
 };
 
 /// Arguments of `vibrissa sweep`.
@@ -174,17 +175,21 @@ pub fn run(args: &Args) -> Result<()> {
         .num_threads(threads)
         .build()
         .context("cannot start the worker threads")?;
+    // A few runs per task, so that runs of one whisker step together in lanes (each to the bits
+    // it reaches alone): full lane groups, unless there are too few runs for every thread.
+    let chunk = todo.len().div_ceil(threads.max(1)).clamp(1, LANES);
     pool.install(|| {
-        todo.par_iter().for_each(|&k| {
-            let job = &jobs[k];
-            let result = match &loaded[k] {
-                Ok(l) => {
-                    run_one(l, &args.scenario, &args.sets, job, dir).map_err(anyhow::Error::from)
-                }
-                Err(e) => Err(anyhow!("{e:#}")),
-            };
-            let mut s = state.lock().unwrap_or_else(|p| p.into_inner());
-            s.record(k, job, &jobs, result);
+        todo.par_chunks(chunk).for_each(|part| {
+            // Every run in `todo` was loaded.
+            let batch: Vec<(&Loaded, &Job)> = part
+                .iter()
+                .filter_map(|&k| loaded[k].as_ref().ok().map(|l| (l, &jobs[k])))
+                .collect();
+            let results = run_batch(&batch, &args.scenario, &args.sets, dir);
+            for (&k, result) in part.iter().zip(results) {
+                let mut s = state.lock().unwrap_or_else(|p| p.into_inner());
+                s.record(k, &jobs[k], &jobs, result.map_err(anyhow::Error::from));
+            }
         })
     });
     let mut state = state.into_inner().unwrap_or_else(|p| p.into_inner());

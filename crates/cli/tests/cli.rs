@@ -483,6 +483,23 @@ fn sweep_writes_one_file_per_run_and_resumes() {
     assert_eq!((header.as_str(), rows.len()), (CONTRACT_COLUMNS, 151));
     let sidecar = fs::read_to_string(dir.join("d0.015_v0.3.json")).unwrap();
     assert!(sidecar.contains("\"set\": \"d=0.015 v=0.3\""), "{sidecar}");
+    // Runs stepped together are the runs simulated alone, to the last digit.
+    let alone = scratch.path().join("alone.csv");
+    let out = vibrissa(&[
+        "simulate",
+        "e2",
+        "--set",
+        "d=0.03",
+        "--set",
+        "v=1.5",
+        "--out",
+        alone.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "stderr:\n{}", stderr(&out));
+    assert_eq!(
+        fs::read_to_string(&alone).unwrap(),
+        fs::read_to_string(dir.join("d0.03_v1.5.csv")).unwrap()
+    );
 
     // Again: everything is skipped, and the manifest keeps its rows.
     let out = small_sweep(&dir);

@@ -157,7 +157,60 @@ pub fn run_one(loaded: &Loaded, spec: &str, sets: &[String], job: &Job, dir: &Pa
     let start = Instant::now();
     let all_sets: Vec<String> = sets.iter().cloned().chain(job.sets()).collect();
     let (series, outputs) = run_series(loaded, spec, &all_sets)?;
-    series::write(&series, dir.join(&job.file))?;
+    write_run(&series, &outputs, job, dir, start.elapsed().as_secs_f64())
+}
+
+/// Runs several jobs of a sweep on this thread, each written and reported as [`run_one`] writes
+/// and reports it: the runs of one whisker (not arrays) step together in lanes
+/// ([`sim::run_together`]; each to the bits it reaches alone), and each is reported with an
+/// equal share of their time plus its own writing.
+pub fn run_batch(
+    batch: &[(&Loaded, &Job)],
+    spec: &str,
+    sets: &[String],
+    dir: &Path,
+) -> Vec<Result<Row>> {
+    let start = Instant::now();
+    let singles: Vec<&Loaded> = batch
+        .iter()
+        .map(|(l, _)| *l)
+        .filter(|l| l.whiskers.is_empty())
+        .collect();
+    let scenarios: Vec<sim::Scenario> = singles.iter().map(|l| l.scenario.clone()).collect();
+    let mut outputs = sim::run_together(&scenarios).into_iter();
+    let share = start.elapsed().as_secs_f64() / singles.len().max(1) as f64;
+    batch
+        .iter()
+        .map(|&(loaded, job)| {
+            if !loaded.whiskers.is_empty() {
+                return run_one(loaded, spec, sets, job, dir);
+            }
+            let start = Instant::now();
+            let output = outputs.next().expect("one output per run of one whisker")?;
+            let all_sets: Vec<String> = sets.iter().cloned().chain(job.sets()).collect();
+            let series = series_of(loaded, &output, spec, &all_sets);
+            write_run(
+                &series,
+                &[output],
+                job,
+                dir,
+                share + start.elapsed().as_secs_f64(),
+            )
+        })
+        .collect()
+}
+
+/// Writes a run's `series` (of its `outputs`, one per whisker) as `job`'s file, and its row of
+/// the manifest (`seconds`: the time it took).
+fn write_run(
+    series: &Series,
+    outputs: &[Output],
+    job: &Job,
+    dir: &Path,
+    seconds: f64,
+) -> Result<Row> {
+    let start = Instant::now();
+    series::write(series, dir.join(&job.file))?;
     let penetration = outputs
         .iter()
         .map(|o| o.max_penetration)
@@ -165,7 +218,7 @@ pub fn run_one(loaded: &Loaded, spec: &str, sets: &[String], job: &Job, dir: &Pa
     Ok(Row {
         samples: series.rows().to_string(),
         steps: outputs.iter().map(|o| o.steps).sum::<usize>().to_string(),
-        seconds: format!("{:.6}", start.elapsed().as_secs_f64()),
+        seconds: format!("{:.6}", seconds + start.elapsed().as_secs_f64()),
         max_penetration: if penetration == 0.0 {
             "0".to_string()
         } else {
