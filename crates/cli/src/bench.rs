@@ -9,7 +9,9 @@
 //!   the parallel speedup, and the same states stepped one at a time without lanes on one thread:
 //!   once in free motion, once with every state held in contact by a peg pressed into the
 //!   whisker;
-//! - the ratio of the per-segment cost at the largest N to that at the smallest.
+//! - the ratio of the per-segment cost at the largest N to that at the smallest;
+//! - whole runs: the `e2` grid's 80 box strikes with random forces (the chosen whisker and rule
+//!   at N = 20), each run alone on every core against the same runs stepped together in lanes.
 //!
 //! Every measurement warms up, sizes its repetitions to a minimum duration, and keeps the best of
 //! several repetitions (the least disturbed by other work on the machine). States restart from
@@ -184,6 +186,26 @@ struct Scaling {
     ratio: f64,
 }
 
+/// Whole scenario runs: a family's runs alone (each `sim::run` on its own, in parallel) and
+/// stepped together in lanes (`sim::run_many`), on every thread.
+#[derive(Debug, Clone, Serialize)]
+struct Runs {
+    /// What was run.
+    what: &'static str,
+    /// Runs.
+    runs: usize,
+    /// Simulated seconds of each run.
+    duration: f64,
+    /// Threads.
+    threads: usize,
+    /// Seconds for all the runs, each alone.
+    alone_seconds: f64,
+    /// Seconds for all the runs, stepped together.
+    together_seconds: f64,
+    /// Alone over together.
+    speedup: f64,
+}
+
 /// Everything `vibrissa bench` measured, in SI units.
 #[derive(Debug, Clone, Serialize)]
 struct BenchReport {
@@ -209,6 +231,8 @@ struct BenchReport {
     batch_contact: Batched,
     /// Growth of the per-segment cost with N.
     scaling: Scaling,
+    /// Whole runs, alone and together.
+    runs: Runs,
 }
 
 /// Measures, then prints the figures.
@@ -335,6 +359,13 @@ pub fn run(args: &Args) -> Result<()> {
         ratio: last.seconds_per_step_per_segment / first.seconds_per_step_per_segment,
     };
 
+    // (d) Whole runs: the e2 grid with random forces, alone and together.
+    let runs = whole_runs(
+        &plan,
+        &WhiskerParams::preset(&args.whisker)?,
+        discretisation,
+    )?;
+
     let report = BenchReport {
         whisker: args.whisker.clone(),
         discretisation: discretisation.name(),
@@ -347,6 +378,7 @@ pub fn run(args: &Args) -> Result<()> {
         batch,
         batch_contact,
         scaling,
+        runs,
     };
     args.format.format().print(&report)?;
     Ok(())
@@ -426,6 +458,72 @@ fn batched(
         speedup: one_thread / parallel,
         one_at_a_time_state_steps_per_second: state_steps / one_at_a_time,
         over_one_at_a_time: one_at_a_time / one_thread,
+    })
+}
+
+/// The `e2` grid's runs (d = 15…30 mm, v = 0.3…1.5 m/s, 150 ms each; in the quick plan every
+/// fifth) with the experiments' random forces, on `whisker` at N = 20: each alone in parallel
+/// against all stepped together in lanes, taking turns. Checks that both give the same rows.
+fn whole_runs(plan: &Plan, whisker: &WhiskerParams, rule: Discretisation) -> Result<Runs> {
+    use vibrissa_core::sim::{self, Scenario};
+    let mut scenarios = Vec::new();
+    for (k, d) in (0..16).map(|i| 0.015 + 0.001 * i as f64).enumerate() {
+        for (j, v) in (0..5).map(|i| 0.3 + 0.3 * i as f64).enumerate() {
+            scenarios.push(Scenario {
+                whisker: whisker.clone(),
+                segments: BATCH_SEGMENTS,
+                discretisation: rule,
+                objects: vec![vibrissa_core::scenes::e2_box(d, v)],
+                process_noise: 2e-5,
+                seed: (5 * k + j) as u64,
+                ..Scenario::default()
+            });
+        }
+    }
+    if plan.batch_rounds < 6 {
+        scenarios = scenarios.into_iter().step_by(5).collect();
+    }
+    let bits =
+        |o: &sim::Output| -> Vec<u64> { o.rows.iter().flatten().map(|x| x.to_bits()).collect() };
+    let alone_rows = std::cell::RefCell::new(Vec::new());
+    let together_rows = std::cell::RefCell::new(Vec::new());
+    let mut alone = || -> Result<Duration> {
+        use rayon::prelude::*;
+        let start = Instant::now();
+        let out = scenarios
+            .par_iter()
+            .map(|s| sim::run(s, &mut |_| {}))
+            .collect::<vibrissa_core::Result<Vec<_>>>()?;
+        let elapsed = start.elapsed();
+        *alone_rows.borrow_mut() = out.iter().map(bits).collect::<Vec<_>>();
+        Ok(elapsed)
+    };
+    let mut together = || -> Result<Duration> {
+        let start = Instant::now();
+        let out = sim::run_many(&scenarios)
+            .into_iter()
+            .collect::<vibrissa_core::Result<Vec<_>>>()?;
+        let elapsed = start.elapsed();
+        *together_rows.borrow_mut() = out.iter().map(bits).collect::<Vec<_>>();
+        Ok(elapsed)
+    };
+    eprintln!(
+        "bench: {} e2 runs with random forces, N = {BATCH_SEGMENTS}: alone and together, interleaved",
+        scenarios.len()
+    );
+    let [alone_s, together_s] = fastest_calls(plan, [&mut alone, &mut together])?;
+    anyhow::ensure!(
+        alone_rows.into_inner() == together_rows.into_inner(),
+        "runs stepped together differ from the same runs alone"
+    );
+    Ok(Runs {
+        what: "e2 grid with random forces",
+        runs: scenarios.len(),
+        duration: Scenario::default().duration,
+        threads: rayon::current_num_threads(),
+        alone_seconds: alone_s,
+        together_seconds: together_s,
+        speedup: alone_s / together_s,
     })
 }
 
@@ -566,6 +664,21 @@ impl Render for BenchReport {
             out,
             "cost per segment at N = {} over N = {}: {:.2} (1 for a step that is O(N))",
             s.to_segments, s.from_segments, s.ratio
+        )?;
+        writeln!(out)?;
+
+        // Whole runs.
+        let r = &self.runs;
+        writeln!(
+            out,
+            "{} runs of the {} ({} s each), {} threads: each alone {} s, together in lanes {} s ({:.2}x)",
+            r.runs,
+            r.what,
+            r.duration,
+            r.threads,
+            sig(r.alone_seconds, 3),
+            sig(r.together_seconds, 3),
+            r.speedup
         )
     }
 }

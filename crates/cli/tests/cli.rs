@@ -138,6 +138,11 @@ fn bench_quick_json_reports_positive_speeds() {
         .as_f64()
         .expect("batch.state_steps_per_second");
     assert!(batch.is_finite() && batch > 0.0, "{}", report["batch"]);
+    // Whole runs, alone and together (the bench checks that both give the same rows).
+    let runs = &report["runs"];
+    assert_eq!(runs["runs"].as_u64(), Some(16), "{runs}");
+    let together = runs["together_seconds"].as_f64().expect("runs.together_seconds");
+    assert!(together.is_finite() && together > 0.0, "{runs}");
     assert_eq!(report["batch"]["motion"], "free");
     // The batch held in contact by a peg, the same way.
     let contact = &report["batch_contact"];
