@@ -141,7 +141,9 @@ fn bench_quick_json_reports_positive_speeds() {
     // Whole runs, alone and together (the bench checks that both give the same rows).
     let runs = &report["runs"];
     assert_eq!(runs["runs"].as_u64(), Some(16), "{runs}");
-    let together = runs["together_seconds"].as_f64().expect("runs.together_seconds");
+    let together = runs["together_seconds"]
+        .as_f64()
+        .expect("runs.together_seconds");
     assert!(together.is_finite() && together > 0.0, "{runs}");
     assert_eq!(report["batch"]["motion"], "free");
     // The batch held in contact by a peg, the same way.

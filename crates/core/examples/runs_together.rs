@@ -35,16 +35,21 @@ fn main() {
     for r in 0..repeats {
         let t0 = Instant::now();
         use rayon::prelude::*;
-        let alone: Vec<_> = scenarios
+        // `TOGETHER_ONLY=1` skips the runs alone, `ALONE_ONLY=1` the runs together (to profile
+        // either).
+        let skip = std::env::var_os("TOGETHER_ONLY").is_some();
+        let only_alone = std::env::var_os("ALONE_ONLY").is_some();
+        let alone: Vec<_> = scenarios[..if skip { 0 } else { scenarios.len() }]
             .par_iter()
             .map(|s| sim::run(s, &mut |_| {}).expect("runs"))
             .collect();
         let t_alone = t0.elapsed().as_secs_f64();
         let t0 = Instant::now();
-        let together: Vec<_> = sim::run_many(&scenarios)
-            .into_iter()
-            .map(|r| r.expect("runs"))
-            .collect();
+        let together: Vec<_> =
+            sim::run_many(&scenarios[..if only_alone { 0 } else { scenarios.len() }])
+                .into_iter()
+                .map(|r| r.expect("runs"))
+                .collect();
         let t_together = t0.elapsed().as_secs_f64();
         // Rows compared by their bits (a row without contact holds NaN).
         let bits = |o: &sim::Output| -> Vec<u64> {

@@ -7,7 +7,7 @@ use crate::dynamics::{
     initialize, step, BaseMotion, Inputs, Integrator, State, Stepper, Workspace,
 };
 use crate::error::{check_finite, check_non_negative, check_positive, Error, Result};
-use crate::objects::closest;
+use crate::objects::{bounds, closest};
 use crate::objects::{Motion, Object};
 use crate::rng::Rng;
 use crate::sensors::Sensors;
@@ -796,7 +796,19 @@ pub fn penetration(model: &Model, state: &State, ws: &mut Workspace, objects: &[
     let mut worst = 0.0f64;
     for o in objects.iter().filter(|o| o.in_plane(state.t)) {
         let pose = o.pose(state.t);
+        let ob = bounds(&o.shape, &pose);
         for i in 0..model.n {
+            // A segment whose bounding box is farther than its radius from the object's cannot
+            // reach into it (it would only lower the maximum below zero).
+            let (a, b) = (nodes[i], nodes[i + 1]);
+            let r = model.radius[i].max(model.radius[i + 1]);
+            if a[0].min(b[0]) > ob[2] + r
+                || a[0].max(b[0]) < ob[0] - r
+                || a[1].min(b[1]) > ob[3] + r
+                || a[1].max(b[1]) < ob[1] - r
+            {
+                continue;
+            }
             let c = closest(&o.shape, &pose, nodes[i], nodes[i + 1]);
             let r = model.radius[i] + c.u * (model.radius[i + 1] - model.radius[i]);
             worst = worst.max(r - c.distance);

@@ -37,6 +37,7 @@ pub use super::workspace::{Scratch, MAX_CONTACTS};
 
 use super::inputs::Inputs;
 use super::integrator::Stepper;
+use super::reach;
 use super::workspace::{Candidate, Workspace};
 use crate::chain::Model;
 use crate::error::Result;
@@ -253,21 +254,8 @@ pub(crate) fn solve(
     }
 
     // Broad phase: the whisker's bounding box at the evaluation point.
-    let mut wb = [
-        f64::INFINITY,
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-        f64::NEG_INFINITY,
-    ];
-    for p in &ws.node[..=n] {
-        wb = [
-            wb[0].min(p[0]),
-            wb[1].min(p[1]),
-            wb[2].max(p[0]),
-            wb[3].max(p[1]),
-        ];
-    }
-    let rmax = model.radius.iter().cloned().fold(0.0, f64::max);
+    let wb = reach::whisker_bounds(n, |i| ws.node[i]);
+    let rmax = reach::largest_radius(model);
 
     // Narrow phase: candidates.
     let mut count = 0usize;
@@ -282,22 +270,10 @@ pub(crate) fn solve(
         let pose = obj.pose(t0);
         let pose_end = obj.pose(t_end);
         // Reach: how far the object and the whisker can close in a step, plus the radius.
-        let speed = (pose.velocity[0] * pose.velocity[0] + pose.velocity[1] * pose.velocity[1])
-            .sqrt()
-            + pose.angular_velocity.abs() * 0.1;
-        let wmax = ws.seg[..n].iter().fold(0.0f64, |m, s| {
-            m.max(
-                (s.vel[1] * s.vel[1] + s.vel[2] * s.vel[2]).sqrt()
-                    + s.vel[0].abs() * model.whisker_length(),
-            )
-        });
-        let reach = rmax + 2.0 * h * (speed + wmax) + 1e-6;
+        let wmax = reach::whisker_speed(model, |i| ws.seg[i].vel);
+        let reach = reach::reach(rmax, h, pose.velocity, pose.angular_velocity, wmax);
         let ob = bounds(&obj.shape, &pose);
-        if ob[0] > wb[2] + reach
-            || ob[2] < wb[0] - reach
-            || ob[1] > wb[3] + reach
-            || ob[3] < wb[1] - reach
-        {
+        if reach::beyond(ob, wb, reach) {
             continue;
         }
         let mut prev_tip: Option<[f64; 2]> = None;

@@ -52,6 +52,7 @@ mod inputs;
 mod integrator;
 mod kinematics;
 mod lanes;
+mod reach;
 mod single;
 mod state;
 mod step;

@@ -170,6 +170,21 @@ impl LaneContacts {
         }
     }
 
+    /// No contact in lane `l`.
+    fn clear_lane(&mut self, l: usize) {
+        self.any[l] = false;
+        for x in self
+            .acc
+            .iter_mut()
+            .chain(&mut self.lasting)
+            .chain(&mut self.fix)
+        {
+            x.0[l] = 0.0;
+        }
+        self.touching[l] = 0;
+        self.report[l] = None;
+    }
+
     /// No contact in any lane.
     fn clear(&mut self) {
         self.any = [false; LANES];
@@ -524,12 +539,41 @@ fn step_lanes(
                 ws.noise_forces(model);
             }
             ws.solve(model, &base);
+            // The broad phase's whisker terms, every lane at once: the bounding box of the
+            // nodes and the fastest point's speed, as `reach` computes them for one state.
+            let mut wb = [
+                Wide::splat(f64::INFINITY),
+                Wide::splat(f64::INFINITY),
+                Wide::splat(f64::NEG_INFINITY),
+                Wide::splat(f64::NEG_INFINITY),
+            ];
+            for p in &ws.node[..=n] {
+                wb = [
+                    wb[0].min(p[0]),
+                    wb[1].min(p[1]),
+                    wb[2].max(p[0]),
+                    wb[3].max(p[1]),
+                ];
+            }
+            let length = Wide::splat(model.whisker_length());
+            let mut wmax = Wide::splat(0.0);
+            for sg in &ws.seg[..n] {
+                let v = &sg.vel;
+                wmax = wmax.max((v[1] * v[1] + v[2] * v[2]).sqrt() + v[0].abs() * length);
+            }
             // Contact, lane by lane, on the single-state stage.
             for l in 0..LANES {
                 if !(active[l] && with_objects[l]) || retake[l] {
                     continue;
                 }
                 let stl = &co.steppers[l];
+                // No object in reach: the contact stage would find no candidate.
+                let lane_wb = [wb[0].0[l], wb[1].0[l], wb[2].0[l], wb[3].0[l]];
+                let (t0, h) = (s.t.0[l], stl.dt);
+                if super::reach::none_in_reach(model, objects[l], t0, h, lane_wb, wmax.0[l]) {
+                    cs.clear_lane(l);
+                    continue;
+                }
                 let lane_inputs = Inputs {
                     objects: objects[l],
                     ..*inputs

@@ -48,6 +48,18 @@ impl Wide {
         self.zip(o, f64::max)
     }
 
+    /// Lane-wise minimum (as `f64::min`).
+    #[inline(always)]
+    pub(crate) fn min(self, o: Wide) -> Wide {
+        self.zip(o, f64::min)
+    }
+
+    /// Lane-wise square root.
+    #[inline(always)]
+    pub(crate) fn sqrt(self) -> Wide {
+        Wide(self.0.map(f64::sqrt))
+    }
+
     /// Lane-wise absolute value.
     #[inline(always)]
     pub(crate) fn abs(self) -> Wide {
