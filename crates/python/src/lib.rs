@@ -915,6 +915,57 @@ fn sweep_run(
     Ok((row.samples, row.steps, row.seconds, row.max_penetration))
 }
 
+/// Runs several jobs of a sweep of `scenario` (each `(file, params)`), as [`sweep_run`] runs each,
+/// those of one whisker stepped together in lanes (each to the bits it reaches alone); returns,
+/// per job in order, its manifest figures or the message of its failure.
+#[pyfunction]
+#[pyo3(signature = (scenario, sets, jobs, out))]
+fn sweep_run_batch(
+    py: Python<'_>,
+    scenario: &str,
+    sets: Vec<String>,
+    jobs: Vec<(String, Vec<(String, String)>)>,
+    out: &str,
+) -> Vec<(Option<RowFields>, Option<String>)> {
+    let jobs: Vec<sweep::Job> = jobs
+        .into_iter()
+        .map(|(file, params)| sweep::Job { params, file })
+        .collect();
+    let dir = std::path::Path::new(out);
+    py.detach(|| {
+        // Each job's scenario; one that cannot be loaded fails alone.
+        let loaded: Vec<vibrissa_io::Result<vibrissa_io::scenario::Loaded>> = jobs
+            .iter()
+            .map(|job| {
+                let all: Vec<String> = sets.iter().cloned().chain(job.sets()).collect();
+                vibrissa_io::scenario::load_full(scenario, &all)
+            })
+            .collect();
+        let batch: Vec<(&vibrissa_io::scenario::Loaded, &sweep::Job)> = loaded
+            .iter()
+            .zip(&jobs)
+            .filter_map(|(l, j)| l.as_ref().ok().map(|l| (l, j)))
+            .collect();
+        let mut rows = sweep::run_batch(&batch, scenario, &sets, dir).into_iter();
+        loaded
+            .iter()
+            .map(|l| {
+                let row = match l {
+                    Ok(_) => rows.next().expect("one row per loaded job"),
+                    Err(e) => return (None, Some(e.to_string())),
+                };
+                match row {
+                    Ok(r) => (
+                        Some((r.samples, r.steps, r.seconds, r.max_penetration)),
+                        None,
+                    ),
+                    Err(e) => (None, Some(e.to_string())),
+                }
+            })
+            .collect()
+    })
+}
+
 /// The figures of an earlier manifest in `out`, by file name (none when there is none).
 #[pyfunction]
 fn sweep_previous(out: &str) -> std::collections::HashMap<String, RowFields> {
@@ -1090,6 +1141,7 @@ fn _vibrissa(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(sweep_plan, m)?)?;
     m.add_function(wrap_pyfunction!(sweep_run, m)?)?;
+    m.add_function(wrap_pyfunction!(sweep_run_batch, m)?)?;
     m.add_function(wrap_pyfunction!(sweep_previous, m)?)?;
     m.add_function(wrap_pyfunction!(sweep_manifest, m)?)?;
     m.add_class::<Filter>()?;

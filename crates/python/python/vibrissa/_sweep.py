@@ -109,6 +109,10 @@ class Plan:
         )
 
 
+# Runs stepped together at most (the simulator's lane width).
+LANE_GROUP = 16
+
+
 class SweepError(RuntimeError):
     """Runs of a sweep failed; ``failures`` lists ``(parameters, message)`` of each, and the
     other runs' files and the manifest are written."""
@@ -213,28 +217,33 @@ def sweep(
         print(f"skipping {skipped} of {len(plan)} runs: already in `{plan.out}`", file=sys.stderr)
     failures = []
     ran = 0
+    # A few runs per task, so that runs of one whisker step together in lanes (each to the bits
+    # it reaches alone): full lane groups, unless there are too few runs for every worker.
+    size = max(1, min(LANE_GROUP, -(-len(todo) // workers)))
+    parts = [todo[i : i + size] for i in range(0, len(todo), size)]
+    done = 0
     with ThreadPoolExecutor(max_workers=workers) as pool:
         futures = {
             pool.submit(
-                _vibrissa.sweep_run,
+                _vibrissa.sweep_run_batch,
                 plan.scenario,
                 plan.sets,
-                plan.files[k],
-                plan.params[k],
+                [(plan.files[k], plan.params[k]) for k in part],
                 plan.out,
-            ): k
-            for k in todo
+            ): part
+            for part in parts
         }
-        for n, future in enumerate(as_completed(futures), 1):
-            k = futures[future]
-            try:
-                rows[k] = future.result()
-                ran += 1
-                plan.write_manifest(rows)
-            except ValueError as e:
-                failures.append((k, str(e)))
-            if progress:
-                print(f"{n}/{len(todo)} runs", file=sys.stderr)
+        for future in as_completed(futures):
+            for k, (figures, error) in zip(futures[future], future.result()):
+                done += 1
+                if error is None:
+                    rows[k] = figures
+                    ran += 1
+                else:
+                    failures.append((k, error))
+                if progress:
+                    print(f"{done}/{len(todo)} runs", file=sys.stderr)
+            plan.write_manifest(rows)
     return finish(plan, rows, failures, ran, skipped)
 
 
