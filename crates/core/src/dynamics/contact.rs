@@ -235,23 +235,6 @@ pub(crate) fn solve(
     let (beta, gamma, am) = (st.beta_coef(), st.gamma_coef(), st.alpha_m_coef());
     let t_end = t0 + h;
 
-    // End-of-step angles and rates as affine functions of b.
-    let cq = h * h * beta / (1.0 - am);
-    let cv = h * gamma / (1.0 - am);
-    {
-        let c = &mut ws.contacts;
-        let kq = h * h * (0.5 - beta - beta * am / (1.0 - am));
-        let kv = h * (1.0 - gamma - gamma * am / (1.0 - am));
-        // Slices of one length, so that the loop indexes without checks.
-        let (sq, sv, sa) = (&start.q[..n], &start.v[..n], &start.a[..n]);
-        let (q0, v0) = (&mut c.q0[..n], &mut c.v0[..n]);
-        for i in 0..n {
-            let (q, v, a) = (sq[i], sv[i], sa[i]);
-            q0[i] = q + h * v + kq * a;
-            v0[i] = v + kv * a;
-        }
-    }
-
     // Broad phase: the whisker's bounding box at the evaluation point.
     let mut wb = [
         f64::INFINITY,
@@ -401,6 +384,23 @@ pub(crate) fn solve(
         return Ok(());
     }
 
+    // End-of-step angles and rates as affine functions of b.
+    let cq = h * h * beta / (1.0 - am);
+    let cv = h * gamma / (1.0 - am);
+    {
+        let c = &mut ws.contacts;
+        let kq = h * h * (0.5 - beta - beta * am / (1.0 - am));
+        let kv = h * (1.0 - gamma - gamma * am / (1.0 - am));
+        // Slices of one length, so that the loop indexes without checks.
+        let (sq, sv, sa) = (&start.q[..n], &start.v[..n], &start.a[..n]);
+        let (q0, v0) = (&mut c.q0[..n], &mut c.v0[..n]);
+        for i in 0..n {
+            let (q, v, a) = (sq[i], sv[i], sa[i]);
+            q0[i] = q + h * v + kq * a;
+            v0[i] = v + kv * a;
+        }
+    }
+
     // Generalised forces of unit normal/tangential forces, J.
     let mut jac = std::mem::take(&mut ws.contacts.jac);
     let mut resp = std::mem::take(&mut ws.contacts.resp);
@@ -470,6 +470,20 @@ pub(crate) fn solve(
         }
     }
     let act = &act[..na];
+    if na == 0 {
+        // No candidate takes force: every force stays zero, no gap is left negative (an inactive
+        // candidate's predicted gap is positive), and the step is the unconstrained one. The
+        // superposition below would add zeros to the base reaction and the first joint's
+        // acceleration (which turns a negative zero there into a positive one); so does this.
+        ws.contacts.jac = jac;
+        ws.contacts.resp = resp;
+        ws.contacts.u = u;
+        for p in ws.pa0.iter_mut() {
+            *p += 0.0;
+        }
+        ws.seg[0].acc[0] += 0.0;
+        return Ok(());
+    }
     let mut base_resp = [[0.0f64; 3]; 2 * MAX_CONTACTS];
     for &k in act {
         let mu = ws.contacts.cand[k].mu;
