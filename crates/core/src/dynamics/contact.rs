@@ -415,9 +415,11 @@ pub(crate) fn solve(
             &mut jac[2 * k * n..(2 * k + 1) * n],
         );
         let jt = &mut jac[(2 * k + 1) * n..(2 * k + 2) * n];
+        // A frictionless candidate's tangential row is never read (its Delassus entries are zero
+        // by its friction coefficient, and it takes no tangential force), so it is not written.
         if c.mu > 0.0 {
             generalised(ws, c.seg, c.point, c.t, jt);
-        } else {
+        } else if c.mu != 0.0 {
             jt.fill(0.0);
         }
     }
@@ -430,7 +432,9 @@ pub(crate) fn solve(
             &jac[2 * k * n..(2 * k + 1) * n],
             &jac[(2 * k + 1) * n..(2 * k + 2) * n],
         );
-        // Whisker point displacement from the evaluation point: J (q_end - q_eval).
+        // Whisker point displacement from the evaluation point: J (q_end - q_eval). A
+        // frictionless candidate's slip velocity is not needed (nor its tangential row written).
+        let frictionless = sc.cand[k].mu == 0.0;
         let mut dn = 0.0;
         let mut vt = 0.0;
         let mut vn = 0.0;
@@ -441,7 +445,9 @@ pub(crate) fn solve(
             let v_end = v0[i] + cv * qdd[i];
             dn += jn[i] * (q_end - q[i]);
             vn += jn[i] * v_end;
-            vt += jt[i] * v_end;
+            if !frictionless {
+                vt += jt[i] * v_end;
+            }
         }
         // The base's own rotation: its turn over the rest of the step moves the point, and its
         // rate at the end adds to the point's velocity (the joint angles are relative to it).
@@ -451,7 +457,9 @@ pub(crate) fn solve(
         let along = |d: [f64; 2]| d[0] * arm[0] + d[1] * arm[1];
         let (an, at) = (along(c.n), along(c.t));
         c.c_n += dn + start.base_turn * an;
-        c.c_t += vt + start.base_rate * at;
+        if !frictionless {
+            c.c_t += vt + start.base_rate * at;
+        }
         c.c_v += vn + start.base_rate * an;
         // Active when the step would end in penetration without a contact force; the normal row is
         // then the end-of-step normal velocity (an inelastic contact: v ≥ 0).
@@ -640,8 +648,54 @@ pub(crate) fn solve(
 /// carry force: solve for that set with the others free, drop the most negative force or add the
 /// most penetrating free contact, repeat. Exact for the few contacts a whisker has at once; returns
 /// false (leaving λ = 0) if it does not settle within its pivot budget or meets a singular set.
-#[allow(clippy::needless_range_loop)]
 fn pivot_normal(sc: &mut Scratch, act: &[usize], m: usize) -> bool {
+    match *act {
+        [k] => pivot_one(sc, k, m),
+        _ => pivot_many(sc, act, m),
+    }
+}
+
+/// [`pivot_normal`] for a single active candidate `k`, to the same bits as [`pivot_many`]: the
+/// same steps with the one-by-one matrix `W_kk` and the scalars in place of the arrays.
+fn pivot_one(sc: &mut Scratch, k: usize, m: usize) -> bool {
+    let w = sc.w[2 * k * m + 2 * k];
+    let c = sc.cand[k].c_n;
+    let tol = 1e-12 * 1e-300f64.max(c.abs());
+    let mut set = c < 0.0;
+    for _ in 0..4 * MAX_CONTACTS {
+        let mut lambda = 0.0;
+        if set {
+            // The elimination of `[w | −c]`: singular when its pivot is zero against its scale.
+            let scale = f64::MIN_POSITIVE.max(w.abs());
+            let p = w.abs();
+            if p.is_nan() || p <= 1e-12 * scale {
+                return false;
+            }
+            lambda = -c / w;
+            // The contact pulling: dropped.
+            if lambda < 0.0 {
+                set = false;
+                continue;
+            }
+        } else {
+            // The free contact penetrating: added.
+            let gap = c + std::iter::once(w * lambda).sum::<f64>();
+            if gap < -tol {
+                set = true;
+                continue;
+            }
+        }
+        let cand = &mut sc.cand[k];
+        cand.lambda_n = lambda.max(0.0);
+        cand.lambda_t = 0.0;
+        return true;
+    }
+    false
+}
+
+/// [`pivot_normal`] for any number of active candidates.
+#[allow(clippy::needless_range_loop)]
+fn pivot_many(sc: &mut Scratch, act: &[usize], m: usize) -> bool {
     let na = act.len();
     let wn = |sc: &Scratch, a: usize, b: usize| sc.w[2 * act[a] * m + 2 * act[b]];
     let tol = 1e-12
@@ -811,6 +865,54 @@ fn post_stabilise(
                     *f += muk * sc.jac[2 * k * n + i] * k_inv(i);
                 }
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A value for the one-contact problem: mostly ordinary numbers of either sign, sometimes
+    /// zeros, tiny, huge or non-finite ones.
+    fn value(rng: &mut crate::rng::Rng) -> f64 {
+        let special = [
+            0.0,
+            -0.0,
+            f64::MIN_POSITIVE,
+            -f64::MIN_POSITIVE,
+            1e-310,
+            1e300,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+        ];
+        if rng.uniform() < 0.1 {
+            special[(rng.uniform() * special.len() as f64) as usize]
+        } else {
+            (2.0 * rng.uniform() - 1.0) * 10f64.powf(12.0 * rng.uniform() - 6.0)
+        }
+    }
+
+    #[test]
+    fn one_contact_pivots_to_the_bits_of_the_general_pivot() {
+        let mut rng = crate::rng::Rng::stream(7, 0);
+        for _ in 0..100_000 {
+            let count = 1 + (rng.uniform() * 4.0) as usize;
+            let k = (rng.uniform() * count as f64) as usize;
+            let m = 2 * count;
+            let mut sc = Scratch::new(5);
+            sc.count = count;
+            sc.w[2 * k * m + 2 * k] = value(&mut rng);
+            sc.cand[k].c_n = value(&mut rng);
+            // Forces left from elsewhere, which a settled pivot replaces.
+            sc.cand[k].lambda_n = value(&mut rng);
+            sc.cand[k].lambda_t = value(&mut rng);
+            let mut general = sc.clone();
+            let (one, many) = (pivot_one(&mut sc, k, m), pivot_many(&mut general, &[k], m));
+            let bits = |s: &Scratch| (s.cand[k].lambda_n.to_bits(), s.cand[k].lambda_t.to_bits());
+            assert_eq!(one, many);
+            assert_eq!(bits(&sc), bits(&general));
         }
     }
 }
