@@ -51,6 +51,7 @@ impl Scratch {
             self.acc.fill(0.0);
             self.acc_lasting.fill(0.0);
             self.position_fix.fill(0.0);
+            self.forced = false;
         }
     }
 
@@ -377,9 +378,14 @@ pub(crate) fn solve(
         }
     }
     ws.contacts.count = count;
-    ws.contacts.acc.fill(0.0);
-    ws.contacts.acc_lasting.fill(0.0);
-    ws.contacts.position_fix.fill(0.0);
+    // The contact accelerations and the penetration fix start at zero; they are written only
+    // where a force or a fix is added, so they need zeroing only after one was.
+    if ws.contacts.forced {
+        ws.contacts.acc.fill(0.0);
+        ws.contacts.acc_lasting.fill(0.0);
+        ws.contacts.position_fix.fill(0.0);
+        ws.contacts.forced = false;
+    }
     if count == 0 {
         return Ok(());
     }
@@ -492,7 +498,9 @@ pub(crate) fn solve(
         ws.seg[0].acc[0] += 0.0;
         return Ok(());
     }
-    let mut base_resp = [[0.0f64; 3]; 2 * MAX_CONTACTS];
+    // The changes of the base's bias force, per row; only the rows of active candidates are
+    // written and read (no other row takes force).
+    let mut base_resp = std::mem::take(&mut ws.contacts.base_resp);
     for &k in act {
         let mu = ws.contacts.cand[k].mu;
         let rows: &[usize] = if mu > 0.0 {
@@ -594,6 +602,7 @@ pub(crate) fn solve(
         for (r, lambda) in [(2 * k, c.lambda_n), (2 * k + 1, c.lambda_t)] {
             if lambda != 0.0 {
                 let sc = &mut ws.contacts;
+                sc.forced = true;
                 let acc = if c.impact {
                     &mut sc.acc
                 } else {
@@ -640,6 +649,7 @@ pub(crate) fn solve(
         *p += d;
     }
     ws.seg[0].acc[0] += dx0;
+    ws.contacts.base_resp = base_resp;
     Ok(())
 }
 
@@ -861,6 +871,7 @@ fn post_stabilise(
         sc.stat = stat;
         for (k, &muk) in mu.iter().enumerate().take(count) {
             if muk > 0.0 {
+                sc.forced = true;
                 for (i, f) in sc.position_fix.iter_mut().enumerate() {
                     *f += muk * sc.jac[2 * k * n + i] * k_inv(i);
                 }
