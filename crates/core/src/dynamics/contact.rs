@@ -52,6 +52,7 @@ impl Scratch {
             self.acc.fill(0.0);
             self.acc_lasting.fill(0.0);
             self.position_fix.fill(0.0);
+            self.forced = false;
         }
     }
 
@@ -236,23 +237,6 @@ pub(crate) fn solve(
     let (beta, gamma, am) = (st.beta_coef(), st.gamma_coef(), st.alpha_m_coef());
     let t_end = t0 + h;
 
-    // End-of-step angles and rates as affine functions of b.
-    let cq = h * h * beta / (1.0 - am);
-    let cv = h * gamma / (1.0 - am);
-    {
-        let c = &mut ws.contacts;
-        let kq = h * h * (0.5 - beta - beta * am / (1.0 - am));
-        let kv = h * (1.0 - gamma - gamma * am / (1.0 - am));
-        // Slices of one length, so that the loop indexes without checks.
-        let (sq, sv, sa) = (&start.q[..n], &start.v[..n], &start.a[..n]);
-        let (q0, v0) = (&mut c.q0[..n], &mut c.v0[..n]);
-        for i in 0..n {
-            let (q, v, a) = (sq[i], sv[i], sa[i]);
-            q0[i] = q + h * v + kq * a;
-            v0[i] = v + kv * a;
-        }
-    }
-
     // Broad phase: the whisker's bounding box at the evaluation point.
     let wb = reach::whisker_bounds(n, |i| ws.node[i]);
     let rmax = reach::largest_radius(model);
@@ -370,11 +354,33 @@ pub(crate) fn solve(
         }
     }
     ws.contacts.count = count;
-    ws.contacts.acc.fill(0.0);
-    ws.contacts.acc_lasting.fill(0.0);
-    ws.contacts.position_fix.fill(0.0);
+    // The contact accelerations and the penetration fix start at zero; they are written only
+    // where a force or a fix is added, so they need zeroing only after one was.
+    if ws.contacts.forced {
+        ws.contacts.acc.fill(0.0);
+        ws.contacts.acc_lasting.fill(0.0);
+        ws.contacts.position_fix.fill(0.0);
+        ws.contacts.forced = false;
+    }
     if count == 0 {
         return Ok(());
+    }
+
+    // End-of-step angles and rates as affine functions of b.
+    let cq = h * h * beta / (1.0 - am);
+    let cv = h * gamma / (1.0 - am);
+    {
+        let c = &mut ws.contacts;
+        let kq = h * h * (0.5 - beta - beta * am / (1.0 - am));
+        let kv = h * (1.0 - gamma - gamma * am / (1.0 - am));
+        // Slices of one length, so that the loop indexes without checks.
+        let (sq, sv, sa) = (&start.q[..n], &start.v[..n], &start.a[..n]);
+        let (q0, v0) = (&mut c.q0[..n], &mut c.v0[..n]);
+        for i in 0..n {
+            let (q, v, a) = (sq[i], sv[i], sa[i]);
+            q0[i] = q + h * v + kq * a;
+            v0[i] = v + kv * a;
+        }
     }
 
     // Generalised forces of unit normal/tangential forces, J.
@@ -391,9 +397,11 @@ pub(crate) fn solve(
             &mut jac[2 * k * n..(2 * k + 1) * n],
         );
         let jt = &mut jac[(2 * k + 1) * n..(2 * k + 2) * n];
+        // A frictionless candidate's tangential row is never read (its Delassus entries are zero
+        // by its friction coefficient, and it takes no tangential force), so it is not written.
         if c.mu > 0.0 {
             generalised(ws, c.seg, c.point, c.t, jt);
-        } else {
+        } else if c.mu != 0.0 {
             jt.fill(0.0);
         }
     }
@@ -406,7 +414,9 @@ pub(crate) fn solve(
             &jac[2 * k * n..(2 * k + 1) * n],
             &jac[(2 * k + 1) * n..(2 * k + 2) * n],
         );
-        // Whisker point displacement from the evaluation point: J (q_end - q_eval).
+        // Whisker point displacement from the evaluation point: J (q_end - q_eval). A
+        // frictionless candidate's slip velocity is not needed (nor its tangential row written).
+        let frictionless = sc.cand[k].mu == 0.0;
         let mut dn = 0.0;
         let mut vt = 0.0;
         let mut vn = 0.0;
@@ -417,7 +427,9 @@ pub(crate) fn solve(
             let v_end = v0[i] + cv * qdd[i];
             dn += jn[i] * (q_end - q[i]);
             vn += jn[i] * v_end;
-            vt += jt[i] * v_end;
+            if !frictionless {
+                vt += jt[i] * v_end;
+            }
         }
         // The base's own rotation: its turn over the rest of the step moves the point, and its
         // rate at the end adds to the point's velocity (the joint angles are relative to it).
@@ -427,7 +439,9 @@ pub(crate) fn solve(
         let along = |d: [f64; 2]| d[0] * arm[0] + d[1] * arm[1];
         let (an, at) = (along(c.n), along(c.t));
         c.c_n += dn + start.base_turn * an;
-        c.c_t += vt + start.base_rate * at;
+        if !frictionless {
+            c.c_t += vt + start.base_rate * at;
+        }
         c.c_v += vn + start.base_rate * an;
         // Active when the step would end in penetration without a contact force; the normal row is
         // then the end-of-step normal velocity (an inelastic contact: v ≥ 0).
@@ -446,7 +460,23 @@ pub(crate) fn solve(
         }
     }
     let act = &act[..na];
-    let mut base_resp = [[0.0f64; 3]; 2 * MAX_CONTACTS];
+    if na == 0 {
+        // No candidate takes force: every force stays zero, no gap is left negative (an inactive
+        // candidate's predicted gap is positive), and the step is the unconstrained one. The
+        // superposition below would add zeros to the base reaction and the first joint's
+        // acceleration (which turns a negative zero there into a positive one); so does this.
+        ws.contacts.jac = jac;
+        ws.contacts.resp = resp;
+        ws.contacts.u = u;
+        for p in ws.pa0.iter_mut() {
+            *p += 0.0;
+        }
+        ws.seg[0].acc[0] += 0.0;
+        return Ok(());
+    }
+    // The changes of the base's bias force, per row; only the rows of active candidates are
+    // written and read (no other row takes force).
+    let mut base_resp = std::mem::take(&mut ws.contacts.base_resp);
     for &k in act {
         let mu = ws.contacts.cand[k].mu;
         let rows: &[usize] = if mu > 0.0 {
@@ -548,6 +578,7 @@ pub(crate) fn solve(
         for (r, lambda) in [(2 * k, c.lambda_n), (2 * k + 1, c.lambda_t)] {
             if lambda != 0.0 {
                 let sc = &mut ws.contacts;
+                sc.forced = true;
                 let acc = if c.impact {
                     &mut sc.acc
                 } else {
@@ -594,6 +625,7 @@ pub(crate) fn solve(
         *p += d;
     }
     ws.seg[0].acc[0] += dx0;
+    ws.contacts.base_resp = base_resp;
     Ok(())
 }
 
@@ -602,8 +634,54 @@ pub(crate) fn solve(
 /// carry force: solve for that set with the others free, drop the most negative force or add the
 /// most penetrating free contact, repeat. Exact for the few contacts a whisker has at once; returns
 /// false (leaving λ = 0) if it does not settle within its pivot budget or meets a singular set.
-#[allow(clippy::needless_range_loop)]
 fn pivot_normal(sc: &mut Scratch, act: &[usize], m: usize) -> bool {
+    match *act {
+        [k] => pivot_one(sc, k, m),
+        _ => pivot_many(sc, act, m),
+    }
+}
+
+/// [`pivot_normal`] for a single active candidate `k`, to the same bits as [`pivot_many`]: the
+/// same steps with the one-by-one matrix `W_kk` and the scalars in place of the arrays.
+fn pivot_one(sc: &mut Scratch, k: usize, m: usize) -> bool {
+    let w = sc.w[2 * k * m + 2 * k];
+    let c = sc.cand[k].c_n;
+    let tol = 1e-12 * 1e-300f64.max(c.abs());
+    let mut set = c < 0.0;
+    for _ in 0..4 * MAX_CONTACTS {
+        let mut lambda = 0.0;
+        if set {
+            // The elimination of `[w | −c]`: singular when its pivot is zero against its scale.
+            let scale = f64::MIN_POSITIVE.max(w.abs());
+            let p = w.abs();
+            if p.is_nan() || p <= 1e-12 * scale {
+                return false;
+            }
+            lambda = -c / w;
+            // The contact pulling: dropped.
+            if lambda < 0.0 {
+                set = false;
+                continue;
+            }
+        } else {
+            // The free contact penetrating: added.
+            let gap = c + std::iter::once(w * lambda).sum::<f64>();
+            if gap < -tol {
+                set = true;
+                continue;
+            }
+        }
+        let cand = &mut sc.cand[k];
+        cand.lambda_n = lambda.max(0.0);
+        cand.lambda_t = 0.0;
+        return true;
+    }
+    false
+}
+
+/// [`pivot_normal`] for any number of active candidates.
+#[allow(clippy::needless_range_loop)]
+fn pivot_many(sc: &mut Scratch, act: &[usize], m: usize) -> bool {
     let na = act.len();
     let wn = |sc: &Scratch, a: usize, b: usize| sc.w[2 * act[a] * m + 2 * act[b]];
     let tol = 1e-12
@@ -769,10 +847,59 @@ fn post_stabilise(
         sc.stat = stat;
         for (k, &muk) in mu.iter().enumerate().take(count) {
             if muk > 0.0 {
+                sc.forced = true;
                 for (i, f) in sc.position_fix.iter_mut().enumerate() {
                     *f += muk * sc.jac[2 * k * n + i] * k_inv(i);
                 }
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A value for the one-contact problem: mostly ordinary numbers of either sign, sometimes
+    /// zeros, tiny, huge or non-finite ones.
+    fn value(rng: &mut crate::rng::Rng) -> f64 {
+        let special = [
+            0.0,
+            -0.0,
+            f64::MIN_POSITIVE,
+            -f64::MIN_POSITIVE,
+            1e-310,
+            1e300,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+        ];
+        if rng.uniform() < 0.1 {
+            special[(rng.uniform() * special.len() as f64) as usize]
+        } else {
+            (2.0 * rng.uniform() - 1.0) * 10f64.powf(12.0 * rng.uniform() - 6.0)
+        }
+    }
+
+    #[test]
+    fn one_contact_pivots_to_the_bits_of_the_general_pivot() {
+        let mut rng = crate::rng::Rng::stream(7, 0);
+        for _ in 0..100_000 {
+            let count = 1 + (rng.uniform() * 4.0) as usize;
+            let k = (rng.uniform() * count as f64) as usize;
+            let m = 2 * count;
+            let mut sc = Scratch::new(5);
+            sc.count = count;
+            sc.w[2 * k * m + 2 * k] = value(&mut rng);
+            sc.cand[k].c_n = value(&mut rng);
+            // Forces left from elsewhere, which a settled pivot replaces.
+            sc.cand[k].lambda_n = value(&mut rng);
+            sc.cand[k].lambda_t = value(&mut rng);
+            let mut general = sc.clone();
+            let (one, many) = (pivot_one(&mut sc, k, m), pivot_many(&mut general, &[k], m));
+            let bits = |s: &Scratch| (s.cand[k].lambda_n.to_bits(), s.cand[k].lambda_t.to_bits());
+            assert_eq!(one, many);
+            assert_eq!(bits(&sc), bits(&general));
         }
     }
 }

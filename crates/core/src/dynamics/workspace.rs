@@ -183,6 +183,8 @@ pub struct Scratch {
     pub(super) w: Vec<f64>,
     /// Scratch for one application of `(M + A)⁻¹`: `u` per joint.
     pub(super) u: Vec<f64>,
+    /// Change of the articulated bias force at the base per row of `resp`: `[2·MAX_CONTACTS]`.
+    pub(super) base_resp: Vec<[f64; 3]>,
     /// End-of-step angles and rates at b = 0 (`q_end = q0 + cq·b`, `v_end = v0 + cv·b`).
     pub(super) q0: Vec<f64>,
     pub(super) v0: Vec<f64>,
@@ -192,6 +194,8 @@ pub struct Scratch {
     pub(crate) acc_lasting: Vec<f64>,
     /// Correction of the end-of-step angles that removes any remaining penetration `[N]`.
     pub(crate) position_fix: Vec<f64>,
+    /// Whether `acc`, `acc_lasting` or `position_fix` has been added to since it was last zeroed.
+    pub(super) forced: bool,
     /// Dense scratch of the pivoting solve, `[MAX_CONTACTS][MAX_CONTACTS + 1]` (only the part in
     /// use is written), and of post-stabilisation's compliance matrix, `[MAX_CONTACTS]²`.
     pub(super) dense: Vec<f64>,
@@ -208,11 +212,13 @@ impl Scratch {
             resp: vec![0.0; 2 * MAX_CONTACTS * n],
             w: vec![0.0; 4 * MAX_CONTACTS * MAX_CONTACTS],
             u: vec![0.0; n],
+            base_resp: vec![[0.0; 3]; 2 * MAX_CONTACTS],
             q0: vec![0.0; n],
             v0: vec![0.0; n],
             acc: vec![0.0; n],
             acc_lasting: vec![0.0; n],
             position_fix: vec![0.0; n],
+            forced: false,
             dense: vec![0.0; MAX_CONTACTS * (MAX_CONTACTS + 1)],
             stat: vec![0.0; MAX_CONTACTS * MAX_CONTACTS],
         }

@@ -698,21 +698,29 @@ fn lane_contact(
     ws: &mut Workspace,
 ) -> Result<()> {
     let n = model.n;
-    for i in 0..=n {
-        ws.node[i] = [sc.node[i][0].0[l], sc.node[i][1].0[l]];
+    // One check of the lane, and slices of one length, so that the copies index without checks.
+    assert!(l < LANES, "lane {l} of {LANES}");
+    for (to, from) in ws.node[..=n].iter_mut().zip(&sc.node[..=n]) {
+        *to = [from[0].0[l], from[1].0[l]];
     }
     // Each value is read from its lane in place (mapping a `[Wide; 3]` by value would copy all
     // of its lanes first).
-    for i in 0..n {
-        let (from, to) = (&sc.seg[i], &mut ws.seg[i]);
+    for (to, from) in ws.seg[..n].iter_mut().zip(&sc.seg[..n]) {
         to.vel = std::array::from_fn(|k| from.vel[k].0[l]);
         to.u_vec = std::array::from_fn(|k| from.u_vec[k].0[l]);
         to.inv_d = from.inv_d.0[l];
-        ws.qdd[i] = sc.qdd[i].0[l];
-        ws.q[i] = sc.q[i].0[l];
-        start[0][i] = state.q[i].0[l];
-        start[1][i] = state.v[i].0[l];
-        start[2][i] = state.a[i].0[l];
+    }
+    let [q0, v0, a0] = start;
+    let (q0, v0, a0) = (&mut q0[..n], &mut v0[..n], &mut a0[..n]);
+    let (qdd, q) = (&mut ws.qdd[..n], &mut ws.q[..n]);
+    let (sc_qdd, sc_q) = (&sc.qdd[..n], &sc.q[..n]);
+    let (sq, sv, sa) = (&state.q[..n], &state.v[..n], &state.a[..n]);
+    for i in 0..n {
+        qdd[i] = sc_qdd[i].0[l];
+        q[i] = sc_q[i].0[l];
+        q0[i] = sq[i].0[l];
+        v0[i] = sv[i].0[l];
+        a0[i] = sa[i].0[l];
     }
     ws.seg[0].acc = std::array::from_fn(|k| sc.seg[0].acc[k].0[l]);
     ws.pa0 = std::array::from_fn(|k| sc.pa0[k].0[l]);
@@ -725,11 +733,24 @@ fn lane_contact(
         base_rate: inputs.base.rate,
     };
     contact::solve(model, st, ws, inputs, &from, state.t.0[l])?;
+    let (qdd, acc, lasting, fix) = (
+        &mut sc.qdd[..n],
+        &mut cs.acc[..n],
+        &mut cs.lasting[..n],
+        &mut cs.fix[..n],
+    );
+    let c = &ws.contacts;
+    let (ws_qdd, ws_acc, ws_lasting, ws_fix) = (
+        &ws.qdd[..n],
+        &c.acc[..n],
+        &c.acc_lasting[..n],
+        &c.position_fix[..n],
+    );
     for i in 0..n {
-        sc.qdd[i].0[l] = ws.qdd[i];
-        cs.acc[i].0[l] = ws.contacts.acc[i];
-        cs.lasting[i].0[l] = ws.contacts.acc_lasting[i];
-        cs.fix[i].0[l] = ws.contacts.position_fix[i];
+        qdd[i].0[l] = ws_qdd[i];
+        acc[i].0[l] = ws_acc[i];
+        lasting[i].0[l] = ws_lasting[i];
+        fix[i].0[l] = ws_fix[i];
     }
     for k in 0..3 {
         sc.pa0[k].0[l] = ws.pa0[k];
