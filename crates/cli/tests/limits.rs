@@ -313,7 +313,7 @@ fn a_wrong_name_is_answered_with_what_exists() {
 #[test]
 fn a_table_or_a_number_given_in_the_wrong_form_is_answered_with_its_form() {
     let s = Scratch::new("forms");
-    let cases: [(&str, &[&str]); 4] = [
+    let cases: [(&str, &[&str]); 6] = [
         (
             "whisker.damping.ratio=-0.5",
             &["whisker.damping", "kind = \"modal_ratio\""],
@@ -327,6 +327,15 @@ fn a_table_or_a_number_given_in_the_wrong_form_is_answered_with_its_form() {
             &["kind = \"spring\", stiffness"],
         ),
         ("duration=NaN", &["duration", "a number is expected here"]),
+        // e2's box comes from d and v: an object key makes a new object of that one key.
+        (
+            "objects.0.radius=0.002",
+            &["`shape`", "whose box comes from `d` and `v`"],
+        ),
+        (
+            "objects.radius=0.002",
+            &["array of tables", "objects.0.friction"],
+        ),
     ];
     for (set, words) in cases {
         refused(

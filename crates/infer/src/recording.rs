@@ -169,8 +169,9 @@ impl Recording {
         }
         if t.len() < 2 {
             return Err(bad(format!(
-                "`{name}` has {} samples; at least 2 are needed",
-                t.len()
+                "`{name}` has {} sample{}; at least 2 are needed",
+                t.len(),
+                if t.len() == 1 { "" } else { "s" }
             )));
         }
         if let Some(k) = t.iter().position(|x| !x.is_finite()) {

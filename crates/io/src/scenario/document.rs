@@ -286,6 +286,23 @@ fn hint_for(message: &str) -> Option<String> {
             return Some(format!("hint: {hint}"));
         }
     }
+    if message.contains("missing field `shape`") && message.contains("in `objects`") {
+        return Some(
+            "hint: an object needs its `shape`, its size (`radius`, or `width` and `height`), \
+             `position` and `velocity`; a key such as `objects.0.radius` on a scenario without \
+             [[objects]] of its own (the built-in e1 and e2, whose box comes from `d` and `v`) \
+             makes a new object of that one key"
+                .to_string(),
+        );
+    }
+    if message.contains("invalid type: map") && message.contains("in `objects`") {
+        return Some(
+            "hint: `objects` is an array of tables: index it (`objects.0.friction`), or give a \
+             whole object (--set 'objects.0={ shape = \"circle\", radius = 0.002, position = \
+             [0.02, -0.01], velocity = [0.0, 0.5] }')"
+                .to_string(),
+        );
+    }
     if message.contains("invalid type: string") && message.contains("expected f64") {
         return Some(
             "hint: a number is expected here, written as a number (0.01, 1e-3), not as text"
