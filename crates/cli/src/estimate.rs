@@ -711,14 +711,17 @@ pub(crate) fn read_recording(
     reader: Reader,
     whisker: Option<&str>,
 ) -> Result<Recording> {
-    let (series, warnings) = vibrissa_io::series::read_csv_with_sidecar(file)
+    let (series, lines, warnings) = vibrissa_io::series::read_csv_with_sidecar_lines(file)
         .with_context(|| format!("cannot read `{}`", file.display()))?;
     for w in warnings {
         eprintln!("warning: {w}");
     }
     let name = file.display().to_string();
     let series = vibrissa_infer::recording::whisker_view(&series, &name, whisker)?;
-    Ok(Recording::from_series(&series, &name, needs, reader)?)
+    // Messages name the file's line of a bad row, as the CSV reader's own do.
+    Ok(Recording::from_series_at_lines(
+        &series, &name, needs, reader, &lines,
+    )?)
 }
 
 /// The model check of one recording at `point` (see [`vibrissa_infer::check`]; `lead`: the

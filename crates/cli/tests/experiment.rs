@@ -139,12 +139,13 @@ fn bad_inputs_fail_with_a_clear_message() {
         (
             &["--experiment", "e2", "--method", "knn"],
             &gap,
-            "data row 4",
+            // The file's line (data row 4 after the header).
+            "before line 5",
         ),
         (
             &["--experiment", "e2", "--method", "pf"],
             &backwards,
-            "does not increase at data row 3",
+            "does not increase at line 4",
         ),
         (&["--method", "knn"], &short, "--scenario"),
         (

@@ -41,6 +41,31 @@ fn bad(text: String) -> Error {
     Error::Recording(text)
 }
 
+/// The words this module's messages name a row with: "data row K", K counted from 1 after the
+/// header.
+const DATA_ROW: &str = "data row ";
+
+/// A recording's error `e` with its data row named by the file's line instead (`lines[k]`: the
+/// line of data row `k + 1`), where it names one.
+fn at_lines(e: Error, lines: &[usize]) -> Error {
+    let Error::Recording(text) = e else {
+        return e;
+    };
+    let Some(at) = text.find(DATA_ROW) else {
+        return Error::Recording(text);
+    };
+    let digits = &text[at + DATA_ROW.len()..];
+    let len = digits.bytes().take_while(u8::is_ascii_digit).count();
+    match digits[..len]
+        .parse::<usize>()
+        .ok()
+        .and_then(|k| lines.get(k.checked_sub(1)?))
+    {
+        Some(line) => Error::Recording(format!("{}line {line}{}", &text[..at], &digits[len..])),
+        None => Error::Recording(text),
+    }
+}
+
 /// `x` to four significant digits, for messages.
 fn short(x: f64) -> String {
     format!("{}", format!("{x:.3e}").parse::<f64>().unwrap_or(x))
@@ -149,6 +174,18 @@ impl Recording {
         Recording::from_columns(name, t, columns, segments, needs, reader)
     }
 
+    /// [`Recording::from_series`] of a file whose data rows are on `lines` (the file's line of
+    /// each, from 1): its messages name the line rather than the data row.
+    pub fn from_series_at_lines(
+        series: &Series,
+        name: &str,
+        needs: &[usize],
+        reader: Reader,
+        lines: &[usize],
+    ) -> Result<Recording> {
+        Recording::from_series(series, name, needs, reader).map_err(|e| at_lines(e, lines))
+    }
+
     /// The recording `name` from its times and one optional column per channel of
     /// [`CHANNELS`] (each as long as `t`).
     pub fn from_columns(
@@ -176,7 +213,7 @@ impl Recording {
         }
         if let Some(k) = t.iter().position(|x| !x.is_finite()) {
             return Err(bad(format!(
-                "`{name}`: t is not a finite number in data row {}",
+                "`{name}`: t is not a finite number in {DATA_ROW}{}",
                 k + 1
             )));
         }
@@ -186,7 +223,7 @@ impl Recording {
             let dt = t[k] - t[k - 1];
             if dt <= 0.0 {
                 return Err(bad(format!(
-                    "`{name}`: t does not increase at data row {} ({} after {})",
+                    "`{name}`: t does not increase at {DATA_ROW}{} ({} after {})",
                     k + 1,
                     t[k],
                     t[k - 1]
@@ -194,7 +231,7 @@ impl Recording {
             }
             if (dt - first).abs() > 0.01 * first {
                 return Err(bad(format!(
-                    "`{name}`: the sample step before data row {} is {} s, not the first step's \
+                    "`{name}`: the sample step before {DATA_ROW}{} is {} s, not the first step's \
                      {} s (a gap or an irregular clock; resample it to a constant rate first)",
                     k + 1,
                     short(dt),
@@ -217,7 +254,7 @@ impl Recording {
                     if matches!(reader, Reader::Method(_)) && needs.contains(&c) {
                         if let Some(k) = v.iter().position(|x| !x.is_finite()) {
                             return Err(bad(format!(
-                                "`{name}`: column {ch} has a non-finite value in data row {}",
+                                "`{name}`: column {ch} has a non-finite value in {DATA_ROW}{}",
                                 k + 1
                             )));
                         }
@@ -439,5 +476,31 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("10 values for 11 sample times"), "{e}");
+    }
+
+    #[test]
+    fn a_file_s_bad_row_is_named_by_its_line() {
+        let mut series = Series::new(&["t", "theta01", "theta12"]);
+        for k in 0..6 {
+            let y = if k == 3 { f64::NAN } else { 0.0 };
+            series.push_row(&[k as f64 * 1e-3, 0.0, y]);
+        }
+        // A comment line and the header before the data: row k + 1 is on line k + 3.
+        let lines: Vec<usize> = (3..9).collect();
+        let e = Recording::from_series_at_lines(&series, "r", &[1], Reader::Method("knn"), &lines)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("non-finite value in line 6"), "{e}");
+        assert!(!e.contains("data row"), "{e}");
+        // Without the lines, the data row.
+        let e = Recording::from_series(&series, "r", &[1], Reader::Method("knn"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("non-finite value in data row 4"), "{e}");
+        // Lines that do not reach the row leave the message as it is.
+        let e = Recording::from_series_at_lines(&series, "r", &[1], Reader::Method("knn"), &[3])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("data row 4"), "{e}");
     }
 }

@@ -39,7 +39,9 @@ pub mod sidecar;
 
 pub use csv::{read_csv, read_csv_str, to_csv_string, write_csv};
 pub use npy::{npy_header, write_npy, write_npz};
-pub use sidecar::{merge_sidecar, read_csv_with_sidecar, sidecar_path, SidecarWarning};
+pub use sidecar::{
+    merge_sidecar, read_csv_with_sidecar, read_csv_with_sidecar_lines, sidecar_path, SidecarWarning,
+};
 
 pub(crate) use csv::parse_csv;
 

@@ -280,10 +280,19 @@ pub fn merge_sidecar(series: &mut Series, data: impl AsRef<Path>) -> Vec<Sidecar
 /// sidecar (see [`merge_sidecar`]). Only the CSV can make this fail; what is wrong with the
 /// sidecar comes back as warnings.
 pub fn read_csv_with_sidecar(path: impl AsRef<Path>) -> Result<(Series, Vec<SidecarWarning>)> {
+    read_csv_with_sidecar_lines(path).map(|(series, _, warnings)| (series, warnings))
+}
+
+/// [`read_csv_with_sidecar`], with the file's line (from 1) of each data row, for messages that
+/// name a row.
+pub fn read_csv_with_sidecar_lines(
+    path: impl AsRef<Path>,
+) -> Result<(Series, Vec<usize>, Vec<SidecarWarning>)> {
     let path = path.as_ref();
-    let mut series = super::read_csv(path)?;
+    let text = std::fs::read_to_string(path).map_err(|e| crate::Error::io("read", path, e))?;
+    let (mut series, lines) = super::parse_csv(&text, &path.display().to_string())?;
     let warnings = merge_sidecar(&mut series, path);
-    Ok((series, warnings))
+    Ok((series, lines, warnings))
 }
 
 #[cfg(test)]
