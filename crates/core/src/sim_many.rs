@@ -66,10 +66,10 @@ fn lane_key(s: &Scenario) -> Scenario {
     }
 }
 
-/// One run stepped in a lane: its scenario, state, sensor stream and what it has recorded.
+/// One run stepped in a lane: its scenario, sensor stream and what it has recorded (its state
+/// is kept beside the others', so that all can be stepped as one slice).
 struct Lane<'a> {
     scenario: &'a Scenario,
-    state: State,
     sensor_rng: Rng,
     rows: Vec<[f64; 10]>,
     steps: usize,
@@ -79,8 +79,12 @@ struct Lane<'a> {
     live: bool,
 }
 
-/// The runs of `group` (scenarios that share [`lane_key`]), in order.
+/// The runs of `group` (at most [`LANES`] scenarios that share [`lane_key`]), in order.
 fn run_group(group: &[&Scenario]) -> Vec<Result<Output>> {
+    assert!(
+        group.len() <= LANES,
+        "a lane group holds at most {LANES} runs"
+    );
     let alone = |s: &Scenario| run(s, &mut |_| {});
     let Some(first) = group.first() else {
         return Vec::new();
@@ -106,6 +110,8 @@ fn run_group(group: &[&Scenario]) -> Vec<Result<Output>> {
     let mut lw = LaneWorkspace::new(&model);
 
     // Each run starts as `run` starts it: at rest, clear of every object.
+    let objects: Vec<&[Object]> = group.iter().map(|s| &s.objects[..]).collect();
+    let mut states = Vec::with_capacity(group.len());
     let mut lanes: Vec<Lane> = group
         .iter()
         .map(|&s| {
@@ -121,9 +127,9 @@ fn run_group(group: &[&Scenario]) -> Vec<Result<Output>> {
             let live = s.check().is_ok()
                 && initialize(&model, &mut state, &inputs, &mut ws).is_ok()
                 && check_clear(&model, &ws, &s.objects, 0.0).is_ok();
+            states.push(state);
             Lane {
                 scenario: s,
-                state,
                 sensor_rng: Rng::stream(s.seed, 1),
                 rows: Vec::with_capacity(samples),
                 steps: 0,
@@ -134,69 +140,89 @@ fn run_group(group: &[&Scenario]) -> Vec<Result<Output>> {
         })
         .collect();
 
+    let noise = first.process_noise;
     for k in 0..samples {
         for lane in lanes.iter_mut() {
             lane.touched = None;
         }
-        if k > 0 {
-            for j in 1..=per_sample {
-                let t = ((k - 1) * per_sample + j) as f64 * stepper.dt;
-                let base = first.base.at(t);
-                let mut live: Vec<&mut Lane> = lanes.iter_mut().filter(|l| l.live).collect();
-                if live.is_empty() {
-                    break;
-                }
-                let entered: Vec<bool> = live
-                    .iter()
-                    .map(|l| entering(&l.scenario.objects, l.state.t, t))
+        // The steps since the previous sample (none before the first).
+        let steps = if k > 0 { per_sample } else { 0 };
+        for j in 1..=steps {
+            if !lanes.iter().any(|l| l.live) {
+                break;
+            }
+            let t = ((k - 1) * per_sample + j) as f64 * stepper.dt;
+            let base = first.base.at(t);
+            let entered: [bool; LANES] = std::array::from_fn(|l| {
+                l < lanes.len() && lanes[l].live && entering(objects[l], states[l].t, t)
+            });
+            let failed: [Option<crate::Error>; LANES] = if lanes.iter().all(|l| l.live) {
+                step_group_each(
+                    &model,
+                    &stepper,
+                    &mut states,
+                    &objects,
+                    base,
+                    &|_| noise,
+                    1,
+                    &mut lw,
+                    &mut ws,
+                )
+            } else {
+                // Some runs failed and are left out (they are run again alone at the end).
+                let live: Vec<usize> = (0..lanes.len()).filter(|&l| lanes[l].live).collect();
+                let live_objects: Vec<&[Object]> = live.iter().map(|&l| objects[l]).collect();
+                let mut live_states: Vec<&mut State> = states
+                    .iter_mut()
+                    .zip(&lanes)
+                    .filter(|(_, lane)| lane.live)
+                    .map(|(s, _)| s)
                     .collect();
-                for (part, entered) in live.chunks_mut(LANES).zip(entered.chunks(LANES)) {
-                    let objects: Vec<&[Object]> =
-                        part.iter().map(|l| &l.scenario.objects[..]).collect();
-                    let mut states: Vec<&mut State> =
-                        part.iter_mut().map(|l| &mut l.state).collect();
-                    let noise = first.process_noise;
-                    let failed = step_group_each(
-                        &model,
-                        &stepper,
-                        &mut states,
-                        &objects,
-                        base,
-                        &|_| noise,
-                        1,
-                        &mut lw,
-                        &mut ws,
-                    );
-                    for ((lane, failed), &entered) in part.iter_mut().zip(failed).zip(entered) {
-                        if failed.is_some() {
-                            lane.live = false;
-                            continue;
-                        }
-                        lane.steps += 1;
-                        if entered {
-                            ws.evaluate(&model, &lane.state);
-                            if check_clear(&model, &ws, &lane.scenario.objects, lane.state.t)
-                                .is_err()
-                            {
-                                lane.live = false;
-                                continue;
-                            }
-                        }
-                        if lane.state.contact.is_some() {
-                            let p =
-                                penetration(&model, &lane.state, &mut ws, &lane.scenario.objects);
-                            lane.max_penetration = lane.max_penetration.max(p);
-                            lane.touched = lane.state.contact;
-                        }
+                let mut out = step_group_each(
+                    &model,
+                    &stepper,
+                    &mut live_states,
+                    &live_objects,
+                    base,
+                    &|_| noise,
+                    1,
+                    &mut lw,
+                    &mut ws,
+                );
+                let mut failed: [Option<crate::Error>; LANES] = Default::default();
+                for (i, &l) in live.iter().enumerate() {
+                    failed[l] = out[i].take();
+                }
+                failed
+            };
+            for (l, (lane, state)) in lanes.iter_mut().zip(&states).enumerate() {
+                if !lane.live {
+                    continue;
+                }
+                if failed[l].is_some() {
+                    lane.live = false;
+                    continue;
+                }
+                lane.steps += 1;
+                if entered[l] {
+                    ws.evaluate(&model, state);
+                    if check_clear(&model, &ws, objects[l], state.t).is_err() {
+                        lane.live = false;
+                        continue;
                     }
+                }
+                if state.contact.is_some() {
+                    let p = penetration(&model, state, &mut ws, objects[l]);
+                    lane.max_penetration = lane.max_penetration.max(p);
+                    lane.touched = state.contact;
                 }
             }
         }
-        for lane in lanes.iter_mut().filter(|l| l.live) {
+        for (lane, state) in lanes.iter_mut().zip(&states).filter(|(l, _)| l.live) {
             let s = lane.scenario;
             lane.rows.push(sample(
-                &lane.state,
-                lane.state.contact.or(lane.touched),
+                state,
+                state.contact.or(lane.touched),
                 k as f64 * period,
                 &s.sensor_noise,
                 &s.sensor_response,

@@ -3,7 +3,7 @@
 
 use super::e3;
 use crate::error::{Error, Result};
-use crate::experiment::Noise;
+use crate::experiment::{Noise, Sample};
 use crate::family::{ArrayRun, Family};
 use rayon::prelude::*;
 use std::path::Path;
@@ -355,17 +355,12 @@ impl ShapeFamily {
                     .map(|((class, p), runs)| {
                         let r = runs.and_then(|runs| {
                             let mine: Vec<_> = outs.by_ref().take(runs.len()).collect();
-                            let whiskers = self.classes[*class]
-                                .family
-                                .array_samples(p, &runs, mine)?
-                                .into_iter()
-                                .map(|s| s.series)
-                                .collect();
-                            Ok(ShapeSample {
-                                class: *class,
-                                params: p.clone(),
-                                whiskers,
-                            })
+                            let family = &self.classes[*class].family;
+                            Ok(shape_sample(
+                                *class,
+                                p,
+                                family.array_samples(p, &runs, mine)?,
+                            ))
                         });
                         tick();
                         r
@@ -403,17 +398,21 @@ impl ShapeFamily {
         noise: &Noise,
         seed: u64,
     ) -> Result<ShapeSample> {
-        let whiskers = self.classes[*class]
-            .family
-            .simulate_array(p, noise, seed)?
-            .into_iter()
-            .map(|s| s.series)
-            .collect();
-        Ok(ShapeSample {
-            class: *class,
-            params: p.clone(),
-            whiskers,
-        })
+        let family = &self.classes[*class].family;
+        Ok(shape_sample(
+            *class,
+            p,
+            family.simulate_array(p, noise, seed)?,
+        ))
+    }
+}
+
+/// The run of class `class` at `p` from its whiskers' samples, in the array's order.
+fn shape_sample(class: usize, p: &[f64], whiskers: Vec<Sample>) -> ShapeSample {
+    ShapeSample {
+        class,
+        params: p.to_vec(),
+        whiskers: whiskers.into_iter().map(|s| s.series).collect(),
     }
 }
 
