@@ -68,49 +68,84 @@ impl SensorSpread {
     }
 }
 
-/// A Gaussian over `K` gains followed by their `K` offsets (`N = 2K`).
+/// A Gaussian over `K` gains followed by their `K` offsets (`N = 2K`). Its covariance is
+/// symmetric, so only the upper triangle is kept, row by row (`T = N(N+1)/2` values): a particle's
+/// belief is copied at every resampling and updated at every sample, and half a matrix is less
+/// to move and to update.
 #[derive(Debug, Clone, Copy, PartialEq)]
-struct Block<const N: usize> {
+struct Block<const N: usize, const T: usize> {
     mean: [f64; N],
-    cov: [[f64; N]; N],
+    cov: [f64; T],
 }
 
-impl<const N: usize> Block<N> {
-    /// Takes the sample `y` of the block's channel `j` whose model value is `x` with observation
+impl<const N: usize, const T: usize> Block<N, T> {
+    /// Where the covariance of `i` and `c` is kept.
+    const fn at(i: usize, c: usize) -> usize {
+        let (a, b) = if i <= c { (i, c) } else { (c, i) };
+        a * (2 * N + 1 - a) / 2 + (b - a)
+    }
+
+    /// A block with `mean` and the covariance `cov(i, c)` (read for `i ≤ c` only).
+    fn new(mean: [f64; N], cov: impl Fn(usize, usize) -> f64) -> Self {
+        let mut packed = [0.0; T];
+        for i in 0..N {
+            for c in i..N {
+                packed[Self::at(i, c)] = cov(i, c);
+            }
+        }
+        Block { mean, cov: packed }
+    }
+
+    /// The covariance of `i` and `c`.
+    fn cov(&self, i: usize, c: usize) -> f64 {
+        self.cov[Self::at(i, c)]
+    }
+
+    /// Takes the sample `y` of the block's channel `J` whose model value is `x` with observation
     /// variance `var`: returns `(z², s/var)`, the squared residual in units of its predictive
     /// variance `s` and that variance's ratio to `var` (at least 1). The log predictive density,
     /// less the constant of a known-gain Gaussian (−½ ln 2πσ², so that it reduces to −½ z² when
-    /// the gains are known), is `−½ (z² + ln(s/var))`.
-    #[allow(clippy::needless_range_loop)] // one index over the mean, the gain and a triangle
-    fn take(&mut self, j: usize, x: f64, y: f64, var: f64) -> (f64, f64) {
-        let k = N / 2;
-        let ph: [f64; N] = std::array::from_fn(|i| self.cov[i][j] * x + self.cov[i][k + j]);
+    /// the gains are known), is `−½ (z² + ln(s/var))`. (`J` is a constant so that every place
+    /// in the triangle is known when this is compiled.)
+    #[inline(always)]
+    fn take<const J: usize>(&mut self, x: f64, y: f64, var: f64) -> (f64, f64) {
+        let (j, k) = (J, N / 2);
+        let ph: [f64; N] = std::array::from_fn(|i| self.cov(i, j) * x + self.cov(i, k + j));
         let s = (x * ph[j] + ph[k + j] + var).max(var);
         let r = y - (self.mean[j] * x + self.mean[k + j]);
-        // The Kalman gain, ph / s; the covariance falls by ph·phᵀ / s, computed once per pair so
-        // that it stays exactly symmetric.
+        // The Kalman gain, ph / s; the covariance falls by ph·phᵀ / s, each pair once.
         let inv_s = 1.0 / s;
         let gain: [f64; N] = std::array::from_fn(|i| ph[i] * inv_s);
-        for i in 0..N {
-            self.mean[i] += gain[i] * r;
-            for c in i..N {
-                let v = self.cov[i][c] - gain[i] * ph[c];
-                self.cov[i][c] = v;
-                self.cov[c][i] = v;
+        for (m, g) in self.mean.iter_mut().zip(&gain) {
+            *m += g * r;
+        }
+        let mut n = 0;
+        for (i, g) in gain.iter().enumerate() {
+            for p in &ph[i..] {
+                self.cov[n] -= g * p;
+                n += 1;
             }
-            self.cov[i][i] = self.cov[i][i].max(0.0);
+        }
+        for i in 0..N {
+            let d = &mut self.cov[Self::at(i, i)];
+            *d = d.max(0.0);
         }
         (r * r * inv_s, s / var)
     }
 }
 
+/// The block of one joint angle: its gain and offset.
+type AngleBlock = Block<2, 3>;
+/// The block of the base wrench: `m0`, `fx` and `fy`'s gains, then their offsets.
+type WrenchBlock = Block<6, 21>;
+
 /// One particle's belief over the five channels' gains and offsets.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct SensorBelief {
     /// `theta01` and `theta12`, each its own gain and offset (no prior or sample couples them).
-    angles: [Block<2>; 2],
+    angles: [AngleBlock; 2],
     /// `m0`, `fx`, `fy`: gains, then offsets.
-    wrench: Block<6>,
+    wrench: WrenchBlock,
 }
 
 impl SensorBelief {
@@ -120,28 +155,30 @@ impl SensorBelief {
         let spread = config.sensor_spread;
         let (g, o, sigma) = (config.sensor_gain, config.sensor_offset, config.sigma);
         let angle_gains = AngleGains::of(config);
-        let angles = std::array::from_fn(|j| Block {
-            mean: [angle_gains.mean[j], o[j]],
-            cov: [
-                [angle_gains.var[j], 0.0],
-                [0.0, (spread.offset * sigma[j]).powi(2)],
-            ],
+        let angles = std::array::from_fn(|j| {
+            let var = [angle_gains.var[j], (spread.offset * sigma[j]).powi(2)];
+            AngleBlock::new([angle_gains.mean[j], o[j]], |i, c| {
+                if i == c {
+                    var[i]
+                } else {
+                    0.0
+                }
+            })
         });
-        let mut wrench = Block {
-            mean: [g[2], g[3], g[4], o[2], o[3], o[4]],
-            cov: [[0.0; 6]; 6],
-        };
-        for i in 0..3 {
-            for j in 0..3 {
-                let own = if i == j {
+        let wrench = WrenchBlock::new([g[2], g[3], g[4], o[2], o[3], o[4]], |i, c| {
+            if c < 3 {
+                let own = if i == c {
                     spread.wrench_gain.powi(2)
                 } else {
                     0.0
                 };
-                wrench.cov[i][j] = g[2 + i] * g[2 + j] * (spread.wrench_scale.powi(2) + own);
+                g[2 + i] * g[2 + c] * (spread.wrench_scale.powi(2) + own)
+            } else if i == c {
+                (spread.offset * sigma[c - 1]).powi(2)
+            } else {
+                0.0
             }
-            wrench.cov[3 + i][3 + i] = (spread.offset * sigma[2 + i]).powi(2);
-        }
+        });
         SensorBelief { angles, wrench }
     }
 
@@ -153,7 +190,7 @@ impl SensorBelief {
             for j in 0..2 {
                 let block = &b.angles[j];
                 m1[j] += wi * block.mean[0];
-                m2[j] += wi * (block.cov[0][0] + block.mean[0] * block.mean[0]);
+                m2[j] += wi * (block.cov(0, 0) + block.mean[0] * block.mean[0]);
             }
         }
         AngleGains {
@@ -175,17 +212,27 @@ impl SensorBelief {
         // One logarithm for the five channels' variance ratios (each at least 1 and bounded by
         // the prior's spread, so that their product stays finite).
         let (mut z2, mut ratio) = (0.0, 1.0);
-        for c in 0..5 {
-            if seen[c] {
-                let var = sigma[c] * sigma[c];
-                let (z, r) = if c < 2 {
-                    self.angles[c].take(0, x[c], y[c], var)
-                } else {
-                    self.wrench.take(c - 2, x[c], y[c], var)
-                };
-                z2 += z;
-                ratio *= r;
-            }
+        let mut add = |(z, r): (f64, f64)| {
+            z2 += z;
+            ratio *= r;
+        };
+        let var = |c: usize| sigma[c] * sigma[c];
+        let [a0, a1] = &mut self.angles;
+        let w = &mut self.wrench;
+        if seen[0] {
+            add(a0.take::<0>(x[0], y[0], var(0)));
+        }
+        if seen[1] {
+            add(a1.take::<0>(x[1], y[1], var(1)));
+        }
+        if seen[2] {
+            add(w.take::<0>(x[2], y[2], var(2)));
+        }
+        if seen[3] {
+            add(w.take::<1>(x[3], y[3], var(3)));
+        }
+        if seen[4] {
+            add(w.take::<2>(x[4], y[4], var(4)));
         }
         -0.5 * (z2 + ratio.ln())
     }
@@ -227,16 +274,28 @@ impl SensorBelief {
 
     /// Variance of each channel's gain.
     pub(super) fn gain_variances(&self) -> [f64; 5] {
-        let [a0, a1] = self.angles.map(|b| b.cov);
-        let w = &self.wrench.cov;
-        [a0[0][0], a1[0][0], w[0][0], w[1][1], w[2][2]]
+        let [a0, a1] = &self.angles;
+        let w = &self.wrench;
+        [
+            a0.cov(0, 0),
+            a1.cov(0, 0),
+            w.cov(0, 0),
+            w.cov(1, 1),
+            w.cov(2, 2),
+        ]
     }
 
     /// Variance of each channel's offset.
     pub(super) fn offset_variances(&self) -> [f64; 5] {
-        let [a0, a1] = self.angles.map(|b| b.cov);
-        let w = &self.wrench.cov;
-        [a0[1][1], a1[1][1], w[3][3], w[4][4], w[5][5]]
+        let [a0, a1] = &self.angles;
+        let w = &self.wrench;
+        [
+            a0.cov(1, 1),
+            a1.cov(1, 1),
+            w.cov(3, 3),
+            w.cov(4, 4),
+            w.cov(5, 5),
+        ]
     }
 }
 
@@ -248,6 +307,85 @@ mod tests {
         let mut c = Config::e2([0.01, 0.01, 1e-6, 1e-4, 1e-4], 10, 1);
         c.sensor_spread = spread;
         c
+    }
+
+    /// The update on the whole square matrix, each pair's new value written to both halves.
+    #[allow(clippy::needless_range_loop)]
+    fn square_take<const N: usize>(
+        mean: &mut [f64; N],
+        cov: &mut [[f64; N]; N],
+        j: usize,
+        x: f64,
+        y: f64,
+        var: f64,
+    ) -> (f64, f64) {
+        let k = N / 2;
+        let ph: [f64; N] = std::array::from_fn(|i| cov[i][j] * x + cov[i][k + j]);
+        let s = (x * ph[j] + ph[k + j] + var).max(var);
+        let r = y - (mean[j] * x + mean[k + j]);
+        let inv_s = 1.0 / s;
+        let gain: [f64; N] = std::array::from_fn(|i| ph[i] * inv_s);
+        for i in 0..N {
+            mean[i] += gain[i] * r;
+            for c in i..N {
+                let v = cov[i][c] - gain[i] * ph[c];
+                cov[i][c] = v;
+                cov[c][i] = v;
+            }
+            cov[i][i] = cov[i][i].max(0.0);
+        }
+        (r * r * inv_s, s / var)
+    }
+
+    #[test]
+    fn the_packed_triangle_updates_as_the_whole_matrix_to_the_bit() {
+        let c = config(SensorSpread {
+            wrench_scale: 0.3,
+            ..SensorSpread::rough()
+        });
+        let mut b = SensorBelief::prior(&c).wrench;
+        let mut mean = b.mean;
+        let mut cov: [[f64; 6]; 6] = std::array::from_fn(|i| std::array::from_fn(|k| b.cov(i, k)));
+        let mut rng = vibrissa_core::rng::Rng::new(7);
+        for t in 0..3000 {
+            let j = t % 3;
+            // Model values and samples of several scales, a few of them zero.
+            let scale = [2e-5, 1e-3, 5e-4][j] * if t % 97 == 0 { 0.0 } else { 1.0 };
+            let x = scale * rng.normal();
+            let y = 0.9 * x + scale * 0.1 * rng.normal();
+            let var = c.sigma[2 + j].powi(2);
+            let ours = match j {
+                0 => b.take::<0>(x, y, var),
+                1 => b.take::<1>(x, y, var),
+                _ => b.take::<2>(x, y, var),
+            };
+            let theirs = square_take(&mut mean, &mut cov, j, x, y, var);
+            assert_eq!(ours.0.to_bits(), theirs.0.to_bits(), "z² at {t}");
+            assert_eq!(ours.1.to_bits(), theirs.1.to_bits(), "ratio at {t}");
+            for i in 0..6 {
+                assert_eq!(b.mean[i].to_bits(), mean[i].to_bits(), "mean {i} at {t}");
+                for (k, whole) in cov[i].iter().enumerate() {
+                    assert_eq!(b.cov(i, k).to_bits(), whole.to_bits(), "cov {i} {k} at {t}");
+                }
+            }
+        }
+        // The angles' blocks too.
+        let mut a = SensorBelief::prior(&c).angles[1];
+        let mut mean = a.mean;
+        let mut cov: [[f64; 2]; 2] = std::array::from_fn(|i| std::array::from_fn(|k| a.cov(i, k)));
+        for t in 0..500 {
+            let x = 0.05 * rng.normal();
+            let y = 0.4 * x + 0.01 * rng.normal();
+            let ours = a.take::<0>(x, y, 1e-4);
+            let theirs = square_take(&mut mean, &mut cov, 0, x, y, 1e-4);
+            assert_eq!(ours.0.to_bits(), theirs.0.to_bits(), "angle z² at {t}");
+            assert_eq!(
+                a.cov(0, 1).to_bits(),
+                cov[1][0].to_bits(),
+                "angle cov at {t}"
+            );
+            assert_eq!(a.mean[0].to_bits(), mean[0].to_bits(), "angle gain at {t}");
+        }
     }
 
     #[test]
@@ -295,7 +433,7 @@ mod tests {
             ours += b.take(&xs, &ys, &[false, false, true, false, false], &c.sigma);
         }
         let prior = SensorBelief::prior(&c).wrench;
-        let (var_g, var_o, sigma) = (prior.cov[0][0], prior.cov[3][3], c.sigma[2]);
+        let (var_g, var_o, sigma) = (prior.cov(0, 0), prior.cov(3, 3), c.sigma[2]);
         let h = nalgebra::DMatrix::from_fn(n, 2, |i, j| if j == 0 { x[i] } else { 1.0 });
         let p0 = nalgebra::DMatrix::from_diagonal(&nalgebra::DVector::from_vec(vec![var_g, var_o]));
         let cov = &h * p0 * h.transpose() + nalgebra::DMatrix::identity(n, n) * (sigma * sigma);
