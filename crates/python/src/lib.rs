@@ -468,12 +468,13 @@ fn estimate(
     for input in &inputs {
         let (name, rec) = match input {
             Input::Path(path) => {
-                let (series, warnings) =
-                    vibrissa_io::series::read_csv_with_sidecar(path).map_err(value_error)?;
+                let (series, lines, warnings) =
+                    vibrissa_io::series::read_csv_with_sidecar_lines(path).map_err(value_error)?;
                 messages.extend(warnings.into_iter().map(|w| format!("warning: {w}")));
                 let series = vibrissa_infer::recording::whisker_view(&series, path, whisker)
                     .map_err(value_error)?;
-                let rec = Recording::from_series(&series, path, &needs, reader);
+                // A bad row is named by the file's line, as the CSV reader names its own.
+                let rec = Recording::from_series_at_lines(&series, path, &needs, reader, &lines);
                 (path.clone(), rec)
             }
             Input::Arrays(name, t, columns) => {
@@ -759,13 +760,14 @@ fn estimate_shapes(
             let rec = match input {
                 Input::Path(path) => {
                     name = path.clone();
-                    let (series, warnings) =
-                        vibrissa_io::series::read_csv_with_sidecar(path).map_err(value_error)?;
+                    let (series, lines, warnings) =
+                        vibrissa_io::series::read_csv_with_sidecar_lines(path)
+                            .map_err(value_error)?;
                     messages.extend(warnings.into_iter().map(|w| format!("warning: {w}")));
                     let series =
                         vibrissa_infer::recording::whisker_view(&series, path, whisker.as_deref())
                             .map_err(value_error)?;
-                    Recording::from_series(&series, path, &all, reader)
+                    Recording::from_series_at_lines(&series, path, &all, reader, &lines)
                 }
                 Input::Arrays(n, t, columns) => {
                     name = n.clone();

@@ -221,7 +221,7 @@ def test_a_scenario_the_recording_defies_is_randomised_unless_told_not_to():
     assert est["d"]["std"] > kept["d"]["std"]
 
 
-def test_bad_input_raises_naming_what_is_wrong(recordings):
+def test_bad_input_raises_naming_what_is_wrong(recordings, tmp_path):
     run = noisy_run(0.021, 0.7, 0)
     with pytest.raises(ValueError, match="unknown method `nope`"):
         vibrissa.estimate(recordings[0], method="nope")
@@ -235,6 +235,17 @@ def test_bad_input_raises_naming_what_is_wrong(recordings):
     gap["t"][50:] += 0.01
     with pytest.raises(ValueError, match="sample step before data row 51"):
         vibrissa.estimate(gap, method="knn")
+    # Read from a file, a bad row is named by the file's line (its header is line 1).
+    path = tmp_path / "nan.csv"
+    cols = ["t", "theta01", "theta12", "m0", "fx", "fy"]
+    with open(path, "w") as f:
+        f.write(",".join(cols) + "\n")
+        for k in range(len(run["t"])):
+            row = [run[c][k] for c in cols]
+            f.write(",".join("nan" if (c == "theta12" and k == 5) else repr(float(v))
+                             for c, v in zip(cols, row)) + "\n")
+    with pytest.raises(ValueError, match="theta12 has a non-finite value in line 7"):
+        vibrissa.estimate(str(path), method="knn")
     with pytest.raises(ValueError, match="no 't' column"):
         vibrissa.estimate({"theta12": run["theta12"]}, method="knn")
     with pytest.raises(TypeError, match="expected a CSV path, a dict of arrays"):
