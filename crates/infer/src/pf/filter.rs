@@ -8,9 +8,7 @@ use super::likelihood::per_time_factor;
 use super::posterior::{summarise_in_order, Observations, Posterior, TraceRow};
 use super::sampling::{systematic, LiuWest};
 use super::sensors::SensorBelief;
-use super::transition::{
-    advance, advance_together, map_joints, param, ring_together, Hypothesis, ObjState,
-};
+use super::transition::{advance, advance_together, param, ring_together, Hypothesis, ObjState};
 use super::whiskers::WhiskerValues;
 use crate::error::{Error, Result};
 use crate::experiment::CHANNELS;
@@ -267,7 +265,10 @@ impl Filter {
     pub fn finish(mut self) -> Posterior {
         let np = self.config.particles;
         self.post.ringing_share = self.ringing_samples as f64 / (np * self.samples.max(1)) as f64;
+        // The sensors' posterior is read only from the finished posterior: mixed once, after
+        // the last sample, rather than after every one.
         if let (false, Some((_, w))) = (self.config.sensor_spread.is_fixed(), &self.last) {
+            self.post.sensors = Some(SensorBelief::mixture(&self.sensors, w));
             self.post.angle_gains = Some(SensorBelief::angle_gains(&self.sensors, w));
         }
         self.post
@@ -328,7 +329,7 @@ impl Filter {
         // The log-likelihood of the sample for a particle of whisker `hyp` in state `s`.
         let weigh = |hyp: &Hypothesis, s: &State, belief: &mut SensorBelief| -> f64 {
             let mut pred = Sensors::read(s).to_array();
-            [pred[0], pred[1]] = map_joints(&hyp.model, &hyp.observed, s.q());
+            [pred[0], pred[1]] = hyp.joints.apply(s.q());
             if fixed_sensors {
                 let mut ll = 0.0;
                 for c in 0..5 {
@@ -528,9 +529,6 @@ impl Filter {
             })
             .collect();
         post.trace.push(TraceRow { t, ess, estimates });
-        if !config.sensor_spread.is_fixed() {
-            post.sensors = Some(SensorBelief::mixture(&self.sensors, &w));
-        }
         if whiskers > 0 {
             // Each whisker's share of the weight: its evidence grew by the ratio of its mass
             // after the sample (share × total, relative to `max`) to its mass before.

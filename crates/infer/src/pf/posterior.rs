@@ -81,7 +81,8 @@ pub struct Posterior {
     pub rate_widening: f64,
     /// The sensors' gains and offsets after the last sample, per channel of
     /// [`crate::experiment::CHANNELS`], when the filter was not told them exactly
-    /// ([`super::Config::sensor_spread`]).
+    /// ([`super::Config::sensor_spread`]); set by [`super::Filter::finish`] (`None` while the
+    /// filter runs).
     pub sensors: Option<SensorPosterior>,
     /// The joint angles' gains after the last sample (the particles' beliefs matched to one
     /// normal each), when the filter was not told them exactly: what a batch pools.

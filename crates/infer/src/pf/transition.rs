@@ -154,24 +154,58 @@ impl FreeModel {
 /// two joints. Identical chains map exactly. `q` needs the model's joints up to the one beyond the
 /// observed chain's second joint.
 pub fn map_joints(model: &Model, observed: &Model, q: &[f64]) -> [f64; 2] {
-    if model.n == observed.n && model.stiffness == observed.stiffness {
-        return [q[0], q[1]];
-    }
-    let moment = |i: usize| model.stiffness[i] * (q[i] - model.rest[i]);
-    std::array::from_fn(|j| {
-        let s = j as f64 * observed.arc / model.arc;
-        let i = (s.floor() as usize).min(q.len().saturating_sub(2));
-        let u = s - i as f64;
-        let m = (1.0 - u) * moment(i) + u * moment(i + 1);
-        observed.rest[j] + m / observed.stiffness[j]
-    })
+    JointMap::new(model, observed, q.len()).apply(q)
 }
 
-/// One whisker the filter entertains: its transition chain, the observed chain its joint angles
-/// map onto, its free-ringing model, and the state its particles start from (at rest).
+/// [`map_joints`] from one model chain onto one observed chain, its interpolation found once:
+/// for each observed joint, the model's joint below it, the share of the way to the next, and
+/// the springs and rest angles the moments are read and mapped with.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) enum JointMap {
+    /// Identical chains: the model's first two angles.
+    Same,
+    /// Per observed joint: `(i, u, [k_i, rest_i, k_i+1, rest_i+1], [observed rest, observed k])`.
+    Between([(usize, f64, [f64; 4], [f64; 2]); 2]),
+}
+
+impl JointMap {
+    /// The map for angle vectors of `joints` values of `model`.
+    pub(super) fn new(model: &Model, observed: &Model, joints: usize) -> JointMap {
+        if model.n == observed.n && model.stiffness == observed.stiffness {
+            return JointMap::Same;
+        }
+        JointMap::Between(std::array::from_fn(|j| {
+            let s = j as f64 * observed.arc / model.arc;
+            let i = (s.floor() as usize).min(joints.saturating_sub(2));
+            let u = s - i as f64;
+            let springs = [
+                model.stiffness[i],
+                model.rest[i],
+                model.stiffness[i + 1],
+                model.rest[i + 1],
+            ];
+            (i, u, springs, [observed.rest[j], observed.stiffness[j]])
+        }))
+    }
+
+    /// The observed chain's `theta01`, `theta12` from the model's joint angles `q`.
+    pub(super) fn apply(&self, q: &[f64]) -> [f64; 2] {
+        match self {
+            JointMap::Same => [q[0], q[1]],
+            JointMap::Between(at) => at.map(|(i, u, [k0, r0, k1, r1], [rest, k])| {
+                let m = (1.0 - u) * (k0 * (q[i] - r0)) + u * (k1 * (q[i + 1] - r1));
+                rest + m / k
+            }),
+        }
+    }
+}
+
+/// One whisker the filter entertains: its transition chain, how its joint angles map onto the
+/// observed chain, its free-ringing model, and the state its particles start from (at rest).
 pub(super) struct Hypothesis {
     pub(super) model: Model,
-    pub(super) observed: Model,
+    /// The model's joint angles read as the observed chain's.
+    pub(super) joints: JointMap,
     pub(super) ringing: FreeModel,
     pub(super) at_rest: State,
 }
@@ -198,8 +232,8 @@ impl Hypothesis {
             .map_err(|e| Error::Observation(format!("filter initial state: {e}")))?;
         let ringing = FreeModel::new(config, whisker, &model, period)?;
         Ok(Hypothesis {
+            joints: JointMap::new(&model, &observed, model.n),
             model,
-            observed,
             ringing,
             at_rest,
         })
