@@ -73,7 +73,12 @@ fn row_dict<'py>(
 /// Adds the posterior of the sensors' gains and offsets, when the filter carries them, under
 /// the scenario keys `sensors.<channel>.gain` and `.offset`, and of the whisker parameters that
 /// differ between the whiskers it entertains (`whisker.youngs_modulus`, …).
-fn add_sensors(py: Python<'_>, d: &Bound<'_, PyDict>, post: &pf::Posterior) -> PyResult<()> {
+fn add_sensors(
+    py: Python<'_>,
+    d: &Bound<'_, PyDict>,
+    post: &pf::Posterior,
+    sensors: Option<pf::SensorPosterior>,
+) -> PyResult<()> {
     let put = |key: String, e: &vibrissa_infer::Estimate| -> PyResult<()> {
         let u = PyDict::new(py);
         u.set_item("mean", e.mean)?;
@@ -81,7 +86,7 @@ fn add_sensors(py: Python<'_>, d: &Bound<'_, PyDict>, post: &pf::Posterior) -> P
         u.set_item("ci90", (e.ci90[0], e.ci90[1]))?;
         d.set_item(key, u)
     };
-    if let Some(s) = &post.sensors {
+    if let Some(s) = &sensors {
         for (c, ch) in CHANNELS.iter().enumerate() {
             put(format!("sensors.{ch}.gain"), &s.gain[c])?;
             put(format!("sensors.{ch}.offset"), &s.offset[c])?;
@@ -188,7 +193,7 @@ impl Filter {
         let post = self.inner.posterior();
         let row = post.trace.last().expect("a row").widened(&self.widening);
         let d = row_dict(py, &self.unknowns, &row)?;
-        add_sensors(py, &d, post)?;
+        add_sensors(py, &d, post, self.inner.sensors())?;
         Ok(d)
     }
 
@@ -199,7 +204,7 @@ impl Filter {
         match post.trace.last() {
             Some(row) => {
                 let d = row_dict(py, &self.unknowns, &row.widened(&self.widening))?;
-                add_sensors(py, &d, post)?;
+                add_sensors(py, &d, post, self.inner.sensors())?;
                 Ok(Some(d))
             }
             None => Ok(None),

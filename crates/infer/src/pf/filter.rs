@@ -5,7 +5,7 @@
 use super::config::{Config, PARAMS};
 use super::draws::{draw_initial, redraw_waiting};
 use super::likelihood::per_time_factor;
-use super::posterior::{summarise_in_order, Observations, Posterior, TraceRow};
+use super::posterior::{summarise_in_order, Observations, Posterior, SensorPosterior, TraceRow};
 use super::sampling::{systematic, LiuWest};
 use super::sensors::SensorBelief;
 use super::transition::{advance, advance_together, param, ring_together, Hypothesis, ObjState};
@@ -225,9 +225,20 @@ impl Filter {
         })
     }
 
-    /// The posterior so far (its trace holds one row per sample).
+    /// The posterior so far (its trace holds one row per sample; its `sensors` are filled in by
+    /// [`Filter::finish`], and read as the filter runs by [`Filter::sensors`]).
     pub fn posterior(&self) -> &Posterior {
         &self.post
+    }
+
+    /// The sensors' gains and offsets after the last sample: the particles' beliefs mixed with
+    /// their weights (formed when asked, not after every sample). `None` before the first
+    /// sample, or when the filter was told them exactly.
+    pub fn sensors(&self) -> Option<SensorPosterior> {
+        match (self.config.sensor_spread.is_fixed(), &self.last) {
+            (false, Some((_, w))) => Some(SensorBelief::mixture(&self.sensors, w)),
+            _ => None,
+        }
     }
 
     /// The particles after the last sample: their values of the free unknowns (in the order
@@ -265,10 +276,8 @@ impl Filter {
     pub fn finish(mut self) -> Posterior {
         let np = self.config.particles;
         self.post.ringing_share = self.ringing_samples as f64 / (np * self.samples.max(1)) as f64;
-        // The sensors' posterior is read only from the finished posterior: mixed once, after
-        // the last sample, rather than after every one.
+        self.post.sensors = self.sensors();
         if let (false, Some((_, w))) = (self.config.sensor_spread.is_fixed(), &self.last) {
-            self.post.sensors = Some(SensorBelief::mixture(&self.sensors, w));
             self.post.angle_gains = Some(SensorBelief::angle_gains(&self.sensors, w));
         }
         self.post

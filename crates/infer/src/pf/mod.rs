@@ -57,6 +57,6 @@ pub use method::{
     alternative_whiskers, default_particles, Pf, ALTERNATIVES, CALIBRATED_TEMPER,
     RANDOMISED_TEMPER, SENSOR_FLOOR,
 };
-pub use posterior::{Observations, Posterior, TraceRow};
+pub use posterior::{Observations, Posterior, SensorPosterior, TraceRow};
 pub use sensors::SensorSpread;
 pub use transition::map_joints;

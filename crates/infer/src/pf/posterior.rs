@@ -82,7 +82,7 @@ pub struct Posterior {
     /// The sensors' gains and offsets after the last sample, per channel of
     /// [`crate::experiment::CHANNELS`], when the filter was not told them exactly
     /// ([`super::Config::sensor_spread`]); set by [`super::Filter::finish`] (`None` while the
-    /// filter runs).
+    /// filter runs: [`super::Filter::sensors`] forms them then).
     pub sensors: Option<SensorPosterior>,
     /// The joint angles' gains after the last sample (the particles' beliefs matched to one
     /// normal each), when the filter was not told them exactly: what a batch pools.
