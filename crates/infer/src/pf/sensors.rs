@@ -79,6 +79,9 @@ struct Block<const N: usize, const T: usize> {
 }
 
 impl<const N: usize, const T: usize> Block<N, T> {
+    /// `T` is the triangle's size (checked when a block is made, at compile time).
+    const TRIANGLE: () = assert!(T == N * (N + 1) / 2, "a block keeps N(N+1)/2 covariances");
+
     /// Where the covariance of `i` and `c` is kept.
     const fn at(i: usize, c: usize) -> usize {
         let (a, b) = if i <= c { (i, c) } else { (c, i) };
@@ -87,6 +90,7 @@ impl<const N: usize, const T: usize> Block<N, T> {
 
     /// A block with `mean` and the covariance `cov(i, c)` (read for `i ≤ c` only).
     fn new(mean: [f64; N], cov: impl Fn(usize, usize) -> f64) -> Self {
+        let () = Self::TRIANGLE;
         let mut packed = [0.0; T];
         for i in 0..N {
             for c in i..N {
