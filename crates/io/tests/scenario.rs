@@ -1125,3 +1125,15 @@ fn an_array_of_whiskers_is_read_and_checked() {
         assert!(e.contains(field), "{field}: {e}");
     }
 }
+
+#[test]
+fn a_set_key_of_an_array_of_tables_keeps_its_index_in_the_parser_s_message() {
+    let text = "[[objects]]\nshape = \"circle\"\nradius = 0.002\nposition = [0.02, -0.01]\n\
+                velocity = [0.0, 0.5]\n\n[[objects]]\nshape = \"circle\"\nradius = 0.002\n\
+                position = [0.01, -0.02]\nvelocity = [0.0, 0.5]\n";
+    let e = load_err(text, &["objects.1.radius=abc"]);
+    assert!(e.contains("in `objects[1].radius`"), "{e}");
+    // Two indices written to the same key: the parser's path is left as it is.
+    let e = load_err(text, &["objects.0.radius=abc", "objects.1.radius=def"]);
+    assert!(e.contains("in `objects.radius`"), "{e}");
+}

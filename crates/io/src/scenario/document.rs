@@ -150,7 +150,11 @@ impl Document {
                 } else {
                     format!("{} with --set {}", self.origin, self.sets.join(" --set "))
                 };
-                Err(toml_error(&origin, e))
+                let mut error = toml_error(&origin, e);
+                if let Error::Toml { message, .. } = &mut error {
+                    *message = indexed_path(message, &self.sets);
+                }
+                Err(error)
             }
         }
     }
@@ -255,6 +259,46 @@ fn toml_error(origin: &str, e: toml::de::Error) -> Error {
             Some(h) => format!("{message}\n{h}"),
             None => message,
         },
+    }
+}
+
+/// The parser names a key of an array of tables without its index (`in `objects.radius``); where
+/// exactly one of `sets` wrote that key, its index is put back (`in `objects[0].radius``).
+fn indexed_path(message: &str, sets: &[String]) -> String {
+    let Some(start) = message.find("in `").map(|k| k + 4) else {
+        return message.to_string();
+    };
+    let Some(len) = message[start..].find('`') else {
+        return message.to_string();
+    };
+    let path = &message[start..start + len];
+    let is_index = |part: &&str| !part.is_empty() && part.bytes().all(|b| b.is_ascii_digit());
+    let mut written: Vec<String> = sets
+        .iter()
+        .filter_map(|set| {
+            let key = set.split_once('=')?.0.trim();
+            let parts: Vec<&str> = key.split('.').collect();
+            let plain: Vec<&str> = parts.iter().filter(|p| !is_index(p)).copied().collect();
+            (plain.join(".") == path && plain.len() < parts.len()).then(|| {
+                parts.iter().fold(String::new(), |mut out, part| {
+                    if is_index(part) {
+                        out.push_str(&format!("[{part}]"));
+                    } else {
+                        if !out.is_empty() {
+                            out.push('.');
+                        }
+                        out.push_str(part);
+                    }
+                    out
+                })
+            })
+        })
+        .collect();
+    written.sort();
+    written.dedup();
+    match written.as_slice() {
+        [one] => format!("{}{one}{}", &message[..start], &message[start + len..]),
+        _ => message.to_string(),
     }
 }
 
