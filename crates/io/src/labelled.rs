@@ -110,9 +110,22 @@ pub struct Labelled {
     pub ignored: Vec<String>,
 }
 
-/// `key=value` overrides of labels (values written to read back exactly).
+/// `key=value` overrides of labels, each value written to read back exactly: a whole number as
+/// an integer (which a key of whole numbers, such as `segments`, needs, and a key of reals
+/// accepts), any other as a real.
 fn overrides(labels: &[(String, f64)]) -> Vec<String> {
-    labels.iter().map(|(k, v)| format!("{k}={v:?}")).collect()
+    labels
+        .iter()
+        .map(|(k, v)| {
+            let whole =
+                v.fract() == 0.0 && v.abs() < 9.0e15 && !(*v == 0.0 && v.is_sign_negative());
+            if whole {
+                format!("{k}={}", *v as i64)
+            } else {
+                format!("{k}={v:?}")
+            }
+        })
+        .collect()
 }
 
 /// Reads and checks the folder `dir`; `nominal` is the scenario the labels must apply to.

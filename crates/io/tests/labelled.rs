@@ -108,6 +108,32 @@ fn an_unlisted_recording_is_refused_unless_ignored() {
 }
 
 #[test]
+fn a_key_of_whole_numbers_can_be_a_label() {
+    // `segments` takes whole numbers: its labels are written as integers, and a real-valued
+    // key's whole-numbered label (v = 1) reads back as the same real.
+    let dir = good_folder("wholekey");
+    fs::write(
+        dir.join("truth.csv"),
+        "file,d,v,segments\na.csv,0.015,1,12\nb.csv,0.03,1.5,16\n",
+    )
+    .unwrap();
+    let set = read(&dir).unwrap();
+    assert_eq!(set.keys, ["d", "v", "segments"]);
+    assert_eq!(
+        set.recordings[0].overrides(),
+        ["d=0.015", "v=1", "segments=12"]
+    );
+    assert_eq!(
+        set.recordings[1].overrides(),
+        ["d=0.03", "v=1.5", "segments=16"]
+    );
+    let loaded = nominal()
+        .loaded_with(&set.recordings[0].overrides())
+        .unwrap();
+    assert_eq!(loaded.scenario.segments, 12);
+}
+
+#[test]
 fn a_label_the_scenario_does_not_take_is_named() {
     let dir = good_folder("badkey");
     fs::write(
