@@ -158,13 +158,24 @@ pub fn read_labelled(dir: &Path, nominal: &Document, options: &Options) -> Resul
                 if out_of_range(&e).is_some() {
                     continue;
                 }
+                // A key the scenario has, given a value of another kind (a fraction for a
+                // whole number): the value is what is wrong, and its row is named.
+                let wrong_kind = e.to_string().contains("invalid type");
+                let message = if wrong_kind {
+                    format!(
+                        "line {}: {} is not a value the key takes: {e}",
+                        first.line, first.labels[c]
+                    )
+                } else {
+                    format!(
+                        "names no key that the scenario {} accepts: {e}",
+                        nominal.origin()
+                    )
+                };
                 return Err(Error::Field {
                     origin: origin.clone(),
                     field: key.clone(),
-                    message: format!(
-                        "names no key that the scenario {} accepts: {e}",
-                        nominal.origin()
-                    ),
+                    message,
                 });
             }
         }

@@ -131,6 +131,17 @@ fn a_key_of_whole_numbers_can_be_a_label() {
         .loaded_with(&set.recordings[0].overrides())
         .unwrap();
     assert_eq!(loaded.scenario.segments, 12);
+    // A fraction there is named as the value it is, with its line, not as an unknown key.
+    fs::write(
+        dir.join("truth.csv"),
+        "file,d,v,segments\na.csv,0.015,1,12.5\nb.csv,0.03,1.5,16\n",
+    )
+    .unwrap();
+    let e = refused(&dir);
+    assert!(
+        e.contains("`segments` line 2: 12.5 is not a value the key takes") && !e.contains("no key"),
+        "{e}"
+    );
 }
 
 #[test]
