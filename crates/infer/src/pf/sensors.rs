@@ -248,7 +248,7 @@ impl SensorBelief {
         let (mut m1, mut m2) = ([0.0f64; 10], [0.0f64; 10]);
         for (b, &wi) in beliefs.iter().zip(w) {
             let (g, o) = b.means();
-            let (vg, vo) = (b.gain_variances(), b.offset_variances());
+            let (vg, vo) = b.variances();
             for c in 0..5 {
                 m1[c] += wi * g[c];
                 m2[c] += wi * (vg[c] + g[c] * g[c]);
@@ -276,30 +276,16 @@ impl SensorBelief {
         )
     }
 
-    /// Variance of each channel's gain.
-    pub(super) fn gain_variances(&self) -> [f64; 5] {
+    /// Variance of each channel's gain and of its offset (as [`SensorBelief::means`]).
+    pub(super) fn variances(&self) -> ([f64; 5], [f64; 5]) {
         let [a0, a1] = &self.angles;
         let w = &self.wrench;
-        [
-            a0.cov(0, 0),
-            a1.cov(0, 0),
-            w.cov(0, 0),
-            w.cov(1, 1),
-            w.cov(2, 2),
-        ]
-    }
-
-    /// Variance of each channel's offset.
-    pub(super) fn offset_variances(&self) -> [f64; 5] {
-        let [a0, a1] = &self.angles;
-        let w = &self.wrench;
-        [
-            a0.cov(1, 1),
-            a1.cov(1, 1),
-            w.cov(3, 3),
-            w.cov(4, 4),
-            w.cov(5, 5),
-        ]
+        let of = |k: usize| [a0.cov(k, k), a1.cov(k, k)];
+        let ([g0, g1], [o0, o1]) = (of(0), of(1));
+        (
+            [g0, g1, w.cov(0, 0), w.cov(1, 1), w.cov(2, 2)],
+            [o0, o1, w.cov(3, 3), w.cov(4, 4), w.cov(5, 5)],
+        )
     }
 }
 
@@ -493,6 +479,6 @@ mod tests {
         assert!((g[2] - 0.7).abs() < 0.01, "m0 gain {}", g[2]);
         // fx and fy were never seen, yet their gains followed m0's through the shared scale.
         assert!(g[3] < 0.8 && g[4] < 0.8, "{g:?}");
-        assert!(b.gain_variances()[3] < (0.3f64.powi(2) + 0.05f64.powi(2)));
+        assert!(b.variances().0[3] < (0.3f64.powi(2) + 0.05f64.powi(2)));
     }
 }
