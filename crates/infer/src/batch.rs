@@ -96,6 +96,9 @@ pub fn discriminative(
     )?;
     let method = methods::by_name(name)?;
     if !(auto && family.randomisation().is_none() && method.budget() == Budget::Free) {
+        for w in at_range_ends(family, names, &estimates, switches) {
+            log(format!("warning: {w}"));
+        }
         return Ok((family.clone(), estimates));
     }
     let points: Vec<Vec<f64>> = estimates
@@ -106,6 +109,9 @@ pub fn discriminative(
     let needs = method.channels();
     let defied = unexplained(&family.nominal(), &recs, &points, levels, &needs, leads);
     if defied as f64 <= MISMATCH_SHARE * recordings.len() as f64 {
+        for w in at_range_ends(family, names, &estimates, switches) {
+            log(format!("warning: {w}"));
+        }
         return Ok((family.clone(), estimates));
     }
     log(format!(
@@ -134,7 +140,49 @@ pub fn discriminative(
     )?;
     trained.seconds += again.seconds;
     trained.runs += again.runs;
+    for w in at_range_ends(&randomised, names, &estimates, switches) {
+        log(format!("warning: {w}"));
+    }
     Ok((randomised, estimates))
+}
+
+/// Share of an unknown's range within which an estimate counts as held at its end.
+const RANGE_END: f64 = 1e-9;
+
+/// A warning for every estimate that a discriminative method held at an end of its unknown's
+/// range. These methods read nothing beyond the range they were trained over (their outputs are
+/// clipped to it), so an object beyond it (a box farther than the range's far end, one that never
+/// touched the whisker) is read as the end itself, with an interval about it that need not hold
+/// the truth.
+pub fn at_range_ends(
+    family: &Family,
+    names: &[String],
+    estimates: &Estimates,
+    switches: &Switches,
+) -> Vec<String> {
+    let unknowns = family.unknowns();
+    let ranges = family.ranges();
+    let mut out = Vec::new();
+    for (name, (est, _)) in names.iter().zip(estimates) {
+        for ((unknown, [lo, hi]), e) in unknowns.iter().zip(&ranges).zip(est) {
+            let tol = RANGE_END * (hi - lo);
+            let end = if e.mean <= lo + tol {
+                "lower"
+            } else if e.mean >= hi - tol {
+                "upper"
+            } else {
+                continue;
+            };
+            out.push(format!(
+                "`{name}`: the estimate of {unknown} ({}) is the {end} end of its range [{lo}, \
+                 {hi}], beyond which the method reads nothing: the object may lie outside the \
+                 range (or have missed the whisker), and the interval need not hold it; widen \
+                 the range (the scenario's [unknowns]) or check the scenario ({})",
+                e.mean, switches.check
+            ));
+        }
+    }
+    out
 }
 
 /// The family the particle filter runs on for a batch. With `auto` (the user chose neither to
@@ -250,5 +298,75 @@ mod tests {
         // Asked to keep the scenario's whisker: no second pass.
         let (family, _) = run(&foreign, false, &COMMAND_LINE);
         assert!(family.randomisation().is_none());
+    }
+
+    #[test]
+    fn an_estimate_held_at_an_end_of_its_range_is_warned_of() {
+        let e2 = Family::builtin("e2").unwrap();
+        let [[d_lo, d_hi], [v_lo, _]] = [e2.ranges()[0], e2.ranges()[1]];
+        let names = ["inside", "far", "slow"].map(String::from);
+        let est = |d: f64, v: f64| {
+            (
+                vec![Estimate::normal(d, 1e-3), Estimate::normal(v, 0.05)],
+                0.0,
+            )
+        };
+        let estimates = vec![
+            est(0.5 * (d_lo + d_hi), 0.9),
+            est(d_hi, 0.9),
+            est(0.02, v_lo),
+        ];
+        let warnings = at_range_ends(&e2, &names, &estimates, &COMMAND_LINE);
+        assert_eq!(warnings.len(), 2, "{warnings:?}");
+        assert!(
+            warnings[0].starts_with("`far`: the estimate of d"),
+            "{}",
+            warnings[0]
+        );
+        assert!(warnings[0].contains("upper end"), "{}", warnings[0]);
+        assert!(
+            warnings[1].starts_with("`slow`: the estimate of v"),
+            "{}",
+            warnings[1]
+        );
+        assert!(warnings[1].contains("lower end"), "{}", warnings[1]);
+        assert!(
+            warnings[1].contains("vibrissa estimate --check"),
+            "{}",
+            warnings[1]
+        );
+        // Just inside the range: no warning.
+        let near = vec![est(d_hi - 1e-6, 0.9)];
+        assert!(at_range_ends(&e2, &names[..1], &near, &PYTHON).is_empty());
+    }
+
+    #[test]
+    fn a_box_beyond_the_range_is_read_as_the_range_s_end_with_a_warning() {
+        // The box 6 mm beyond the whisker's tip: it never touches, and `krr` reads the range's
+        // far end.
+        let e2 = Family::builtin("e2").unwrap();
+        let recs = recordings(&e2, &[[0.036, 0.9]]);
+        let names = vec!["miss".to_string()];
+        let mut log = Vec::new();
+        let (_, est) = discriminative(
+            &e2,
+            &names,
+            &recs,
+            &[LEVEL],
+            &[0],
+            "krr",
+            1,
+            false,
+            &COMMAND_LINE,
+            &mut Trained::default(),
+            &mut |m| log.push(m),
+        )
+        .unwrap();
+        assert_eq!(est[0].0[0].mean, e2.ranges()[0][1], "{log:?}");
+        assert!(
+            log.iter()
+                .any(|m| m.starts_with("warning: `miss`: the estimate of d")),
+            "{log:?}"
+        );
     }
 }
