@@ -356,10 +356,12 @@ pub fn batch_noise(
     for ((name, source), own) in names.iter().zip(&batch.sources).zip(&batch.own) {
         if *source == Source::Own && several {
             warnings.push(format!(
-                "`{name}`: its sensor noise ({}) differs from the rest of the batch's by more \
-                 than a factor {}; it is estimated from this recording alone",
+                "`{name}`: its sensor noise ({}) differs from the rest of the batch's (more \
+                 than {a} times as noisy on some channel, {a} times as quiet on every one, or \
+                 {} times as quiet on one); it is estimated from this recording alone",
                 describe_noise(own, &estimated),
-                noise::AGREEMENT
+                noise::AGREEMENT * noise::AGREEMENT,
+                a = noise::AGREEMENT
             ));
         }
     }
