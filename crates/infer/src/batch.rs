@@ -101,10 +101,7 @@ pub fn discriminative(
         }
         return Ok((family.clone(), estimates));
     }
-    let points: Vec<Vec<f64>> = estimates
-        .iter()
-        .map(|(e, _)| e.iter().map(|x| x.mean).collect())
-        .collect();
+    let points: Vec<Vec<Estimate>> = estimates.iter().map(|(e, _)| e.clone()).collect();
     let recs: Vec<&Recording> = recordings.iter().collect();
     let needs = method.channels();
     let defied = unexplained(&family.nominal(), &recs, &points, levels, &needs, leads);

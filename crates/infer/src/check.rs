@@ -178,13 +178,13 @@ pub const MISMATCH_SHARE: f64 = 0.4;
 pub const NEAR_EVALUATIONS: usize = 60;
 
 /// How many of `recordings` (each at its own timing: see [`Family::for_recording`]) the scenario
-/// `family` explains neither at their `estimates` nor near them ([`explained_near`]), with each
-/// one's sensor noise and allowed lead-in, on `channels`. A recording that cannot be checked
-/// counts as explained.
+/// `family` explains neither at their `estimates` nor near them, within each estimate's 90%
+/// interval ([`explained_near`]), with each one's sensor noise and allowed lead-in, on
+/// `channels`. A recording that cannot be checked counts as explained.
 pub fn unexplained(
     family: &Family,
     recordings: &[&crate::recording::Recording],
-    estimates: &[Vec<f64>],
+    estimates: &[Vec<crate::method::Estimate>],
     noise: &[[f64; 5]],
     channels: &[usize],
     leads: &[usize],
@@ -195,24 +195,31 @@ pub fn unexplained(
         .zip(estimates)
         .zip(noise)
         .zip(leads)
-        .filter(|(((rec, point), level), &lead)| {
+        .filter(|(((rec, est), level), &lead)| {
+            let point: Vec<f64> = est.iter().map(|e| e.mean).collect();
+            let within: Vec<[f64; 2]> = est.iter().map(|e| e.ci90).collect();
             family.for_recording(rec).is_ok_and(|timed| {
-                !explained_near(&timed, &rec.values, point, level, channels, lead)
+                !explained_near(&timed, &rec.values, &point, &within, level, channels, lead)
             })
         })
         .count()
 }
 
-/// Whether `family` explains `recording` ([`check`]) at `point` or near it: a coarse estimator's
-/// point may be a millimetre off, and a recording with little noise then defies the scenario
-/// there though not a little way off. From `point`, a pattern search over the unknowns (steps
-/// of 5% of each one's range, halved down to 0.5%, moving to the first neighbour whose worst
-/// channel is better explained, at most [`NEAR_EVALUATIONS`] simulations) looks for a point
-/// where every channel is explained. One that cannot be checked counts as explained.
+/// Whether `family` explains `recording` ([`check`]) at `point` or near it, within `within`
+/// (per unknown, the estimate's 90% interval): a coarse estimator's point may be a millimetre
+/// off, and a recording with little noise then defies the scenario there though not a little
+/// way off. From `point`, a pattern search over the unknowns (steps of 5% of each one's range,
+/// halved down to 0.5%, moving to the first neighbour whose worst channel is better explained,
+/// at most [`NEAR_EVALUATIONS`] simulations) looks for a point where every channel is explained,
+/// without leaving the interval: under heavy noise a point far from every estimate (a box that
+/// only grazes the tip, whose small signal the noise hides) may explain a recording of another
+/// whisker, which says nothing of whether the scenario's whisker reads it where the method
+/// did. One that cannot be checked counts as explained.
 pub fn explained_near(
     family: &Family,
     recording: &[Vec<f64>],
     point: &[f64],
+    within: &[[f64; 2]],
     noise: &[f64; 5],
     channels: &[usize],
     lead: usize,
@@ -229,13 +236,28 @@ pub fn explained_near(
         return true;
     }
     let ranges = family.ranges();
+    // The box searched: each estimate's interval within its unknown's range (the point itself
+    // where the interval is not a proper one).
+    let bounds: Vec<[f64; 2]> = ranges
+        .iter()
+        .zip(point)
+        .enumerate()
+        .map(|(u, ([lo, hi], &x))| {
+            let [a, b] = within.get(u).copied().unwrap_or([x, x]);
+            if a <= b {
+                [a.max(*lo).min(x), b.min(*hi).max(x)]
+            } else {
+                [x, x]
+            }
+        })
+        .collect();
     let (mut p, mut step, mut evaluations) = (point.to_vec(), 0.05, 1);
     while step >= 0.005 && evaluations < NEAR_EVALUATIONS {
         let mut moved = false;
-        'neighbours: for (u, [lo, hi]) in ranges.iter().enumerate() {
+        'neighbours: for (u, ([lo, hi], [a, b])) in ranges.iter().zip(&bounds).enumerate() {
             for sign in [1.0, -1.0] {
                 let mut q = p.clone();
-                q[u] = (q[u] + sign * step * (hi - lo)).clamp(*lo, *hi);
+                q[u] = (q[u] + sign * step * (hi - lo)).clamp(*a, *b);
                 if q[u] == p[u] {
                     continue;
                 }
@@ -408,6 +430,36 @@ mod tests {
         assert!(!c.explained, "{:?}", c.channels);
         let worst = c.worst().expect("channels");
         assert!(worst.ratio > LIMIT && worst.lag1 > 0.5, "{worst:?}");
+    }
+
+    #[test]
+    fn the_search_near_an_estimate_stays_within_its_interval() {
+        // A recording of the scenario's own whisker at 20 mm, read as 24 mm with an interval that
+        // misses the truth: the scenario explains it, but only outside that interval, so not
+        // where the method read it.
+        let f = family();
+        let clean = f
+            .simulate(&[0.02, 0.8], &Noise::NONE, 0)
+            .expect("sim")
+            .series;
+        let r = ranges(&clean);
+        let sigma: [f64; 5] = std::array::from_fn(|c| 0.03 * r[c]);
+        let rec = noisy(&clean, &sigma, 4);
+        let all: Vec<usize> = (0..5).collect();
+        let read = [0.024, 0.8];
+        let narrow = [[0.0235, 0.0245], [0.75, 0.85]];
+        assert!(!explained_near(&f, &rec, &read, &narrow, &sigma, &all, 0));
+        let wide = [[0.019, 0.025], [0.7, 0.9]];
+        assert!(explained_near(&f, &rec, &read, &wide, &sigma, &all, 0));
+        assert!(explained_near(
+            &f,
+            &rec,
+            &read,
+            &f.ranges(),
+            &sigma,
+            &all,
+            0
+        ));
     }
 
     #[test]

@@ -221,13 +221,7 @@ pub fn defied_by(
             continue;
         }
         let method = trained.get(&nominal, rec, level, "krr", seed, lead, log)?;
-        points.push(
-            method
-                .predict(&rec.values)?
-                .iter()
-                .map(|e| e.mean)
-                .collect(),
-        );
+        points.push(method.predict(&rec.values)?);
         recs.push(rec);
         levels.push(*level);
         allowed.push(lead);
