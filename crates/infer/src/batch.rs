@@ -7,12 +7,12 @@
 //! and lead-ins ([`crate::lead_in::batch_leads`]), then call [`discriminative`] or
 //! [`filter_family`]; what they print is passed to `log`.
 
-use crate::check::{unexplained, MISMATCH_SHARE};
+use crate::check::{beyond_chance, defies, unexplained, MISMATCH_SHARE, NULL_RUNS};
 use crate::error::{Error, Result};
 use crate::method::{Budget, Estimate};
 use crate::methods;
 use crate::recording::Recording;
-use crate::trained::{defied_by, Trained};
+use crate::trained::{defied_by, null_unexplained, Trained};
 use crate::Family;
 use std::time::Instant;
 
@@ -105,7 +105,19 @@ pub fn discriminative(
     let recs: Vec<&Recording> = recordings.iter().collect();
     let needs = method.channels();
     let defied = unexplained(&family.nominal(), &recs, &points, levels, &needs, leads);
-    if defied as f64 <= MISMATCH_SHARE * recordings.len() as f64 {
+    let (defiant, own) = defies(defied, recordings.len(), || {
+        null_unexplained(
+            trained,
+            family,
+            &recordings[0],
+            &levels[0],
+            leads[0],
+            name,
+            seed,
+            log,
+        )
+    })?;
+    if !defiant {
         for w in at_range_ends(family, names, &estimates, switches) {
             log(format!("warning: {w}"));
         }
@@ -113,11 +125,12 @@ pub fn discriminative(
     }
     log(format!(
         "warning: the scenario does not explain {defied} of the {} recordings at their \
-         estimates ({} says where): their whisker is not the scenario's, and estimates that \
+         estimates{} ({} says where): their whisker is not the scenario's, and estimates that \
          trust it would be wrong with narrow intervals; estimating again on whiskers drawn \
          around it, as {} does (calibrate on labelled strikes for better estimates; {} keeps \
          the scenario's whisker)",
         recordings.len(),
+        own_runs(own),
         switches.check,
         switches.randomise,
         switches.keep
@@ -202,18 +215,35 @@ pub fn filter_family(
         return Ok(family.clone());
     }
     log("checking that the scenario explains the recordings, at krr's estimates…".into());
-    let (defied, looked) = defied_by(family, recordings, levels, leads, seed, log)?;
-    if looked == 0 || defied as f64 <= MISMATCH_SHARE * looked as f64 {
+    let (defied, looked, own) = defied_by(family, recordings, levels, leads, seed, log)?;
+    let defiant = defied as f64 > MISMATCH_SHARE * looked as f64
+        || own.is_some_and(|own| beyond_chance(defied, looked, own, NULL_RUNS));
+    if !defiant {
         return Ok(family.clone());
     }
     log(format!(
-        "warning: the scenario does not explain {defied} of the {looked} recordings ({} says \
-         where): their whisker is not the scenario's, and a filter that trusts it would be wrong \
-         with narrow intervals; it entertains whiskers drawn around it instead, as {} does \
-         (calibrate on labelled strikes for better estimates; {} keeps the scenario's whisker)",
-        switches.check, switches.randomise, switches.keep
+        "warning: the scenario does not explain {defied} of the {looked} recordings{} ({} \
+         says where): their whisker is not the scenario's, and a filter that trusts it would be \
+         wrong with narrow intervals; it entertains whiskers drawn around it instead, as {} \
+         does (calibrate on labelled strikes for better estimates; {} keeps the scenario's \
+         whisker)",
+        own_runs(own),
+        switches.check,
+        switches.randomise,
+        switches.keep
     ));
     family.clone().randomised_if(true)
+}
+
+/// What the scenario's own runs said, when a batch was weighed against them
+/// ([`crate::check::defies`]).
+fn own_runs(own: Option<usize>) -> String {
+    own.map(|k| {
+        format!(
+            ", more than chance allows against {k} of {NULL_RUNS} of its own runs at their noise"
+        )
+    })
+    .unwrap_or_default()
 }
 
 #[cfg(test)]

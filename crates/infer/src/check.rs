@@ -173,6 +173,59 @@ pub fn check(
 /// the other engine's set 65–80%.
 pub const MISMATCH_SHARE: f64 = 0.4;
 
+/// Runs of the scenario itself, at a batch's noise, that [`beyond_chance`] weighs a batch's
+/// unexplained recordings against.
+pub const NULL_RUNS: usize = 40;
+
+/// Significance of [`beyond_chance`]: the chance that a batch of the scenario's own recordings
+/// is called defiant by it.
+pub const NULL_ALPHA: f64 = 0.01;
+
+/// Whether `defied` unexplained recordings of `looked` are more than the scenario's own runs
+/// leave unexplained (`null` of `runs`, simulated at the batch's noise and estimated alike), beyond
+/// chance: Fisher's exact test, one-sided, at [`NULL_ALPHA`]. Under heavy noise the check
+/// catches another whisker's recordings less often (a wrong whisker hides in the noise), so a
+/// fixed share ([`MISMATCH_SHARE`]) may not be reached by a batch that still stands out clearly
+/// from what the scenario's own recordings give.
+pub fn beyond_chance(defied: usize, looked: usize, null: usize, runs: usize) -> bool {
+    if looked == 0 || runs == 0 || defied * runs <= null * looked {
+        return false;
+    }
+    // P(X ≥ defied) for X hypergeometric: `looked` drawn from `looked + runs`, of which
+    // `defied + null` are unexplained.
+    let ln_choose = |n: usize, k: usize| -> f64 {
+        (0..k)
+            .map(|i| ((n - i) as f64).ln() - ((i + 1) as f64).ln())
+            .sum()
+    };
+    let (total, hits) = (looked + runs, defied + null);
+    let denominator = ln_choose(total, looked);
+    let tail: f64 = (defied..=hits.min(looked))
+        .map(|x| (ln_choose(hits, x) + ln_choose(total - hits, looked - x) - denominator).exp())
+        .sum();
+    tail < NULL_ALPHA
+}
+
+/// Whether a batch of `looked` recordings, `defied` of which the scenario does not explain
+/// ([`unexplained`]), defies it: more than [`MISMATCH_SHARE`] of them, or fewer but more than the
+/// scenario's own runs at the batch's noise beyond chance ([`beyond_chance`]; `null` counts those
+/// of [`NULL_RUNS`], and is called only when that decides). Returns the decision and the own runs'
+/// count when it was needed.
+pub fn defies(
+    defied: usize,
+    looked: usize,
+    null: impl FnOnce() -> Result<usize>,
+) -> Result<(bool, Option<usize>)> {
+    if looked == 0 || defied == 0 {
+        return Ok((false, None));
+    }
+    if defied as f64 > MISMATCH_SHARE * looked as f64 {
+        return Ok((true, None));
+    }
+    let own = null()?;
+    Ok((beyond_chance(defied, looked, own, NULL_RUNS), Some(own)))
+}
+
 /// Most simulations spent looking for a point near an estimate at which the scenario explains a
 /// recording ([`explained_near`]).
 pub const NEAR_EVALUATIONS: usize = 60;
@@ -460,6 +513,41 @@ mod tests {
             &all,
             0
         ));
+    }
+
+    #[test]
+    fn a_batch_stands_out_from_the_scenario_s_own_runs_beyond_chance() {
+        // 9 of 20 unexplained against none of 40 own runs: p = C(40,20)⁻¹·… ≈ 1e-4.
+        assert!(beyond_chance(9, 20, 0, 40));
+        // As many as the own runs give, or fewer: no.
+        assert!(!beyond_chance(8, 20, 16, 40));
+        assert!(!beyond_chance(0, 20, 0, 40));
+        // A few more than none: within chance.
+        assert!(!beyond_chance(2, 20, 0, 40));
+        // One recording cannot stand out at 1%: 1 of 1 against 0 of 40 is 1/41.
+        assert!(!beyond_chance(1, 1, 0, 40));
+        assert!(!beyond_chance(3, 20, 0, 0));
+        // The tail against a direct sum: 5 of 20 against 1 of 40 (6 unexplained of 60).
+        let c = |n: f64, k: f64| -> f64 {
+            (0..k as usize)
+                .map(|i| (n - i as f64) / (i as f64 + 1.0))
+                .product()
+        };
+        let p: f64 = (5..=6)
+            .map(|x| c(6.0, x as f64) * c(54.0, 20.0 - x as f64) / c(60.0, 20.0))
+            .sum();
+        assert_eq!(beyond_chance(5, 20, 1, 40), p < NULL_ALPHA, "p = {p}");
+        assert!(p > 0.005 && p < 0.02, "p = {p}");
+    }
+
+    #[test]
+    fn the_scenario_s_own_runs_are_simulated_only_when_they_decide() {
+        let never = || -> Result<usize> { panic!("the own runs were not needed") };
+        assert_eq!(defies(0, 20, never).unwrap(), (false, None));
+        assert_eq!(defies(9, 20, never).unwrap(), (true, None));
+        assert_eq!(defies(8, 20, || Ok(0)).unwrap(), (true, Some(0)));
+        assert_eq!(defies(8, 20, || Ok(16)).unwrap(), (false, Some(16)));
+        assert!(defies(3, 20, || Err(Error::Observation("no".into()))).is_err());
     }
 
     #[test]

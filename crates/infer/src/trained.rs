@@ -199,8 +199,10 @@ impl Trained {
 }
 
 /// How many of `recordings` (with their sensor noise and allowed lead-in) the scenario `family`
-/// explains neither at `krr`'s estimates nor near them ([`crate::check::unexplained`]), and how
-/// many were looked at: what tells the particle filter, before it runs, that the recordings
+/// explains neither at `krr`'s estimates nor near them ([`crate::check::unexplained`]), how
+/// many were looked at, and, where [`crate::check::defies`] needed it, how many of the
+/// scenario's own runs at the first one's noise were unexplained alike
+/// ([`null_unexplained`]): what tells the particle filter, before it runs, that the recordings
 /// defy the scenario. `krr` trains on the scenario's own whisker (`family`'s nominal); a
 /// recording that lacks a channel it reads is not looked at.
 pub fn defied_by(
@@ -210,7 +212,7 @@ pub fn defied_by(
     leads: &[usize],
     seed: u64,
     log: &mut dyn FnMut(String),
-) -> Result<(usize, usize)> {
+) -> Result<(usize, usize, Option<usize>)> {
     let nominal = family.nominal();
     let channels = methods::by_name("krr")?.channels();
     let mut trained = Trained::default();
@@ -227,7 +229,70 @@ pub fn defied_by(
         allowed.push(lead);
     }
     let defied = crate::check::unexplained(&nominal, &recs, &points, &levels, &channels, &allowed);
-    Ok((defied, recs.len()))
+    let looked = recs.len();
+    let (_, null) = crate::check::defies(defied, looked, || {
+        null_unexplained(
+            &mut trained,
+            &nominal,
+            recs[0],
+            &levels[0],
+            allowed[0],
+            "krr",
+            seed,
+            log,
+        )
+    })?;
+    Ok((defied, looked, null))
+}
+
+/// How many of [`crate::check::NULL_RUNS`] runs of the scenario itself (`family`'s nominal
+/// whisker, at `template`'s timing and chain, with the random forces of the scenario and the
+/// sensor noise that makes them read `level`, starting at the approach) the method `name`
+/// (trained on `family`, as for the recordings) reads so that the scenario explains them neither
+/// at its estimates nor near them ([`crate::check::unexplained`]): how often the check calls the
+/// scenario's own recordings unexplained at this noise.
+#[allow(clippy::too_many_arguments)]
+pub fn null_unexplained(
+    trained: &mut Trained,
+    family: &Family,
+    template: &Recording,
+    level: &[f64; 5],
+    lead: usize,
+    name: &str,
+    seed: u64,
+    log: &mut dyn FnMut(String),
+) -> Result<usize> {
+    use crate::check::NULL_RUNS;
+    let nominal = family.nominal();
+    let timed = nominal.for_recording(template)?;
+    let noise = timed.training_sensor_noise(&timed.training_noise(*level))?;
+    let null_seed = seed ^ 0x6e75_6c6c;
+    let params = timed.random_params(NULL_RUNS, null_seed);
+    let runs = timed.simulate_all(&params, &noise, null_seed, &|| {})?;
+    let method = trained.get(family, template, level, name, seed, lead, log)?;
+    let recs: Vec<Recording> = runs
+        .into_iter()
+        .map(|r| Recording {
+            t: template.t.clone(),
+            values: r.series,
+            rate: template.rate,
+            segments: template.segments,
+        })
+        .collect();
+    let points = recs
+        .iter()
+        .map(|r| method.predict(&r.values))
+        .collect::<Result<Vec<_>>>()?;
+    let refs: Vec<&Recording> = recs.iter().collect();
+    let channels = method.channels();
+    Ok(crate::check::unexplained(
+        &nominal,
+        &refs,
+        &points,
+        &vec![*level; NULL_RUNS],
+        &channels,
+        &vec![lead; NULL_RUNS],
+    ))
 }
 
 #[cfg(test)]
