@@ -106,6 +106,7 @@ impl Filter {
     #[pyo3(signature = (scenario, scenario_json, sets, noise, particles, seed, rate, randomise=false))]
     #[allow(clippy::too_many_arguments)]
     fn new(
+        py: Python<'_>,
         scenario: Option<&str>,
         scenario_json: Option<&str>,
         sets: Vec<String>,
@@ -121,6 +122,25 @@ impl Filter {
         let family = family(scenario, scenario_json, &sets)?
             .randomised_if(randomise)
             .map_err(value_error)?;
+        // A whisker file of the user's own, neither calibrated nor randomised: the filter takes
+        // its whisker as exact, which a real whisker never is. `estimate` checks the recordings
+        // against it first; a filter fed sample by sample has none to check yet.
+        let builtin = scenario.is_some_and(|s| vibrissa_io::scenario::BUILTINS.contains(&s));
+        if !builtin && family.randomisation().is_none() && !family.is_calibrated() {
+            let message = std::ffi::CString::new(
+                "vibrissa.Filter takes this scenario's whisker as exact: if the recordings \
+                 come from a real whisker (or another simulator), its intervals will not hold \
+                 the truth; pass randomise=True (the whisker known only roughly) or calibrate \
+                 the scenario on labelled strikes first (vibrissa.calibrate)",
+            )
+            .expect("no NUL in the message");
+            PyErr::warn(
+                py,
+                &py.get_type::<pyo3::exceptions::PyUserWarning>(),
+                &message,
+                2,
+            )?;
+        }
         let particles = particles.unwrap_or_else(|| pf::default_particles(&family));
         let stated = family.stated_noise();
         let mut sensor = [0.0; 5];

@@ -107,12 +107,26 @@ def test_bad_samples_raise_and_leave_the_filter_usable():
 def test_a_scenario_dict_gives_the_named_scenario_s_filter():
     run = vibrissa.simulate("e2", d=0.02, v=0.6)
     a = vibrissa.Filter("e2", particles=40, noise=NOISE, seed=4)
-    b = vibrissa.Filter({"experiment": "e2"}, particles=40, noise=NOISE, seed=4)
+    with pytest.warns(UserWarning, match="as exact"):
+        b = vibrissa.Filter({"experiment": "e2"}, particles=40, noise=NOISE, seed=4)
     for k in range(30):
         sample = {c: run[c][k] for c in vibrissa.CHANNELS}
         assert a.update(run["t"][k], sample) == b.update(run["t"][k], sample)
     with pytest.raises(ValueError, match="scenario dict"):
         vibrissa.Filter({"experiment": "e2", "nonsense": 1}, noise=NOISE)
+
+
+def test_a_whisker_file_of_one_s_own_taken_as_exact_is_warned_of(tmp_path):
+    mine = tmp_path / "my_whisker.toml"
+    mine.write_text('experiment = "e2"\n')
+    with pytest.warns(UserWarning, match="randomise=True"):
+        vibrissa.Filter(str(mine), particles=20, noise=NOISE)
+    # The built-in scenarios and a whisker known only roughly are not.
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        vibrissa.Filter("e2", particles=20, noise=NOISE)
 
 
 def test_a_whisker_known_roughly_sample_by_sample_equals_the_command_line(tmp_path):

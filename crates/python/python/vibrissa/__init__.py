@@ -653,11 +653,13 @@ class Filter:
     randomise : bool
         The whisker is known only roughly: the filter entertains 64 whiskers drawn around the
         scenario's and carries the sensors' gains and offsets as unknowns; each posterior then
-        also holds ``"sensors.<channel>.gain"`` and ``"sensors.<channel>.offset"``. About a
-        tenth of real time at its default 4000 particles on two cores. As on the command line,
+        also holds ``"sensors.<channel>.gain"`` and ``"sensors.<channel>.offset"``. About half
+        of real time at its default 4000 particles on two cores. As on the command line,
         the filter is first run on 24 held-out runs of whiskers drawn alike (about 20 s at 4000
         particles) and every posterior's intervals are widened to hold 90% of their errors
-        (the means are unchanged).
+        (the means are unchanged). Without it, a scenario file of your own that calibration
+        did not write is taken as the exact whisker, with a ``UserWarning``: a real whisker
+        rarely matches its nominal file, and the intervals then do not hold.
     overrides, **keys
         Scenario overrides, as for :func:`simulate`.
     """
