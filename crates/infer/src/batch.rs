@@ -116,7 +116,7 @@ pub fn discriminative(
             seed,
             log,
         )
-    })?;
+    });
     if !defiant {
         for w in at_range_ends(family, names, &estimates, switches) {
             log(format!("warning: {w}"));

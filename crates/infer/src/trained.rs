@@ -241,7 +241,7 @@ pub fn defied_by(
             seed,
             log,
         )
-    })?;
+    });
     Ok((defied, looked, null))
 }
 
