@@ -7,7 +7,7 @@
 //! and lead-ins ([`crate::lead_in::batch_leads`]), then call [`discriminative`] or
 //! [`filter_family`]; what they print is passed to `log`.
 
-use crate::check::{beyond_chance, defies, unexplained, MISMATCH_SHARE, NULL_RUNS};
+use crate::check::{defies, unexplained};
 use crate::error::{Error, Result};
 use crate::method::{Budget, Estimate};
 use crate::methods;
@@ -73,12 +73,37 @@ pub fn estimate_each(
 
 /// The discriminative method `name`'s estimates of a batch ([`estimate_each`]), and the family
 /// they were trained on. With `auto` (the user chose neither to randomise nor to keep the
-/// scenario's whisker), a scenario that is neither calibrated nor randomised and that more than
-/// [`MISMATCH_SHARE`] of the recordings defy at their estimates and near them
-/// ([`unexplained`]) is not their whisker: the batch is estimated again on whiskers drawn around
-/// it, with a warning. `trained` gathers the training of both passes.
+/// scenario's whisker), a scenario that is neither calibrated nor randomised and that the
+/// recordings defy at their estimates and near them ([`unexplained`], [`defies`]) is not their
+/// whisker: the batch is estimated again on whiskers drawn around it, with a warning. Estimates
+/// held at an end of their range are warned of ([`at_range_ends`]). `trained` gathers the
+/// training of both passes.
 #[allow(clippy::too_many_arguments)]
 pub fn discriminative(
+    family: &Family,
+    names: &[String],
+    recordings: &[Recording],
+    levels: &[[f64; 5]],
+    leads: &[usize],
+    name: &str,
+    seed: u64,
+    auto: bool,
+    switches: &Switches,
+    trained: &mut Trained,
+    log: &mut dyn FnMut(String),
+) -> Result<(Family, Estimates)> {
+    let (family, estimates) = trusted_or_drawn(
+        family, names, recordings, levels, leads, name, seed, auto, switches, trained, log,
+    )?;
+    for w in at_range_ends(&family, names, &estimates, switches) {
+        log(format!("warning: {w}"));
+    }
+    Ok((family, estimates))
+}
+
+/// [`discriminative`] without its warnings of estimates at the ends of their ranges.
+#[allow(clippy::too_many_arguments)]
+fn trusted_or_drawn(
     family: &Family,
     names: &[String],
     recordings: &[Recording],
@@ -96,16 +121,13 @@ pub fn discriminative(
     )?;
     let method = methods::by_name(name)?;
     if !(auto && family.randomisation().is_none() && method.budget() == Budget::Free) {
-        for w in at_range_ends(family, names, &estimates, switches) {
-            log(format!("warning: {w}"));
-        }
         return Ok((family.clone(), estimates));
     }
     let points: Vec<Vec<Estimate>> = estimates.iter().map(|(e, _)| e.clone()).collect();
     let recs: Vec<&Recording> = recordings.iter().collect();
     let needs = method.channels();
     let defied = unexplained(&family.nominal(), &recs, &points, levels, &needs, leads);
-    let (defiant, own) = defies(defied, recordings.len(), || {
+    let verdict = defies(defied, recordings.len(), || {
         null_unexplained(
             trained,
             family,
@@ -117,20 +139,15 @@ pub fn discriminative(
             log,
         )
     });
-    if !defiant {
-        for w in at_range_ends(family, names, &estimates, switches) {
-            log(format!("warning: {w}"));
-        }
+    if !verdict.defiant {
         return Ok((family.clone(), estimates));
     }
     log(format!(
-        "warning: the scenario does not explain {defied} of the {} recordings at their \
-         estimates{} ({} says where): their whisker is not the scenario's, and estimates that \
-         trust it would be wrong with narrow intervals; estimating again on whiskers drawn \
-         around it, as {} does (calibrate on labelled strikes for better estimates; {} keeps \
-         the scenario's whisker)",
-        recordings.len(),
-        own_runs(own),
+        "warning: the scenario {} ({} says where): their whisker is not the scenario's, and \
+         estimates that trust it would be wrong with narrow intervals; estimating again on \
+         whiskers drawn around it, as {} does (calibrate on labelled strikes for better \
+         estimates; {} keeps the scenario's whisker)",
+        verdict.describe(" at their estimates"),
         switches.check,
         switches.randomise,
         switches.keep
@@ -150,9 +167,6 @@ pub fn discriminative(
     )?;
     trained.seconds += again.seconds;
     trained.runs += again.runs;
-    for w in at_range_ends(&randomised, names, &estimates, switches) {
-        log(format!("warning: {w}"));
-    }
     Ok((randomised, estimates))
 }
 
@@ -197,9 +211,8 @@ pub fn at_range_ends(
 
 /// The family the particle filter runs on for a batch. With `auto` (the user chose neither to
 /// randomise nor to keep the scenario's whisker), a scenario that is neither calibrated nor
-/// randomised and that more than [`MISMATCH_SHARE`] of the recordings defy at `krr`'s estimates
-/// and near them ([`defied_by`]) is not their whisker: the filter then entertains whiskers drawn
-/// around it, with a warning.
+/// randomised and that the recordings defy at `krr`'s estimates and near them ([`defied_by`]) is
+/// not their whisker: the filter then entertains whiskers drawn around it, with a warning.
 #[allow(clippy::too_many_arguments)]
 pub fn filter_family(
     family: &Family,
@@ -215,35 +228,21 @@ pub fn filter_family(
         return Ok(family.clone());
     }
     log("checking that the scenario explains the recordings, at krr's estimates…".into());
-    let (defied, looked, own) = defied_by(family, recordings, levels, leads, seed, log)?;
-    let defiant = defied as f64 > MISMATCH_SHARE * looked as f64
-        || own.is_some_and(|own| beyond_chance(defied, looked, own, NULL_RUNS));
-    if !defiant {
+    let verdict = defied_by(family, recordings, levels, leads, seed, log)?;
+    if !verdict.defiant {
         return Ok(family.clone());
     }
     log(format!(
-        "warning: the scenario does not explain {defied} of the {looked} recordings{} ({} \
-         says where): their whisker is not the scenario's, and a filter that trusts it would be \
-         wrong with narrow intervals; it entertains whiskers drawn around it instead, as {} \
-         does (calibrate on labelled strikes for better estimates; {} keeps the scenario's \
-         whisker)",
-        own_runs(own),
+        "warning: the scenario {} ({} says where): their whisker is not the scenario's, and a \
+         filter that trusts it would be wrong with narrow intervals; it entertains whiskers \
+         drawn around it instead, as {} does (calibrate on labelled strikes for better \
+         estimates; {} keeps the scenario's whisker)",
+        verdict.describe(""),
         switches.check,
         switches.randomise,
         switches.keep
     ));
     family.clone().randomised_if(true)
-}
-
-/// What the scenario's own runs said, when a batch was weighed against them
-/// ([`crate::check::defies`]).
-fn own_runs(own: Option<usize>) -> String {
-    own.map(|k| {
-        format!(
-            ", more than chance allows against {k} of {NULL_RUNS} of its own runs at their noise"
-        )
-    })
-    .unwrap_or_default()
 }
 
 #[cfg(test)]

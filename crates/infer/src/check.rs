@@ -206,27 +206,63 @@ pub fn beyond_chance(defied: usize, looked: usize, null: usize, runs: usize) -> 
     tail < NULL_ALPHA
 }
 
+/// What the check of a batch against its scenario found ([`defies`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Verdict {
+    /// Recordings the scenario explains neither at their estimates nor near them.
+    pub defied: usize,
+    /// Recordings looked at.
+    pub looked: usize,
+    /// Of [`NULL_RUNS`] of the scenario's own runs, how many were unexplained alike, when that
+    /// decided.
+    pub own: Option<usize>,
+    /// Whether the batch defies the scenario.
+    pub defiant: bool,
+}
+
+impl Verdict {
+    /// What decided, for a warning: "does not explain 9 of the 20 recordings" followed by `at`
+    /// (where they were read, e.g. " at their estimates"), and what the scenario's own runs gave
+    /// when they were asked.
+    pub fn describe(&self, at: &str) -> String {
+        let own = self
+            .own
+            .map(|k| {
+                format!(
+                    ", more than chance allows against {k} of {NULL_RUNS} of its own runs at \
+                     their noise"
+                )
+            })
+            .unwrap_or_default();
+        format!(
+            "does not explain {} of the {} recordings{at}{own}",
+            self.defied, self.looked
+        )
+    }
+}
+
 /// Whether a batch of `looked` recordings, `defied` of which the scenario does not explain
 /// ([`unexplained`]), defies it: more than [`MISMATCH_SHARE`] of them, or fewer but more than the
 /// scenario's own runs at the batch's noise beyond chance ([`beyond_chance`]; `null` counts those
-/// of [`NULL_RUNS`], and is called only when that decides). Returns the decision and the own runs'
-/// count when it was needed. Own runs that cannot be simulated or read decide nothing: the share
-/// alone decides then.
-pub fn defies(
-    defied: usize,
-    looked: usize,
-    null: impl FnOnce() -> Result<usize>,
-) -> (bool, Option<usize>) {
+/// of [`NULL_RUNS`], and is called only when that decides). Own runs that cannot be simulated or
+/// read decide nothing: the share alone decides then.
+pub fn defies(defied: usize, looked: usize, null: impl FnOnce() -> Result<usize>) -> Verdict {
+    let mut verdict = Verdict {
+        defied,
+        looked,
+        own: None,
+        defiant: false,
+    };
     if looked == 0 || defied == 0 {
-        return (false, None);
+        return verdict;
     }
     if defied as f64 > MISMATCH_SHARE * looked as f64 {
-        return (true, None);
+        verdict.defiant = true;
+    } else if let Ok(own) = null() {
+        verdict.own = Some(own);
+        verdict.defiant = beyond_chance(defied, looked, own, NULL_RUNS);
     }
-    match null() {
-        Ok(own) => (beyond_chance(defied, looked, own, NULL_RUNS), Some(own)),
-        Err(_) => (false, None),
-    }
+    verdict
 }
 
 /// Most simulations spent looking for a point near an estimate at which the scenario explains a
@@ -546,14 +582,24 @@ mod tests {
     #[test]
     fn the_scenario_s_own_runs_are_simulated_only_when_they_decide() {
         let never = || -> Result<usize> { panic!("the own runs were not needed") };
-        assert_eq!(defies(0, 20, never), (false, None));
-        assert_eq!(defies(9, 20, never), (true, None));
-        assert_eq!(defies(8, 20, || Ok(0)), (true, Some(0)));
-        assert_eq!(defies(8, 20, || Ok(16)), (false, Some(16)));
+        let decided = |v: Verdict| (v.defiant, v.own);
+        assert_eq!(decided(defies(0, 20, never)), (false, None));
+        assert_eq!(decided(defies(9, 20, never)), (true, None));
+        assert_eq!(decided(defies(8, 20, || Ok(0))), (true, Some(0)));
+        assert_eq!(decided(defies(8, 20, || Ok(16))), (false, Some(16)));
         // Own runs that fail decide nothing.
         assert_eq!(
-            defies(8, 20, || Err(Error::Observation("no".into()))),
+            decided(defies(8, 20, || Err(Error::Observation("no".into())))),
             (false, None)
+        );
+        assert_eq!(
+            defies(8, 20, || Ok(0)).describe(" at their estimates"),
+            "does not explain 8 of the 20 recordings at their estimates, more than chance allows against 0 of 40 \
+             of its own runs at their noise"
+        );
+        assert_eq!(
+            defies(9, 20, never).describe(""),
+            "does not explain 9 of the 20 recordings"
         );
     }
 

@@ -198,13 +198,12 @@ impl Trained {
     }
 }
 
-/// How many of `recordings` (with their sensor noise and allowed lead-in) the scenario `family`
-/// explains neither at `krr`'s estimates nor near them ([`crate::check::unexplained`]), how
-/// many were looked at, and, where [`crate::check::defies`] needed it, how many of the
-/// scenario's own runs at the first one's noise were unexplained alike
-/// ([`null_unexplained`]): what tells the particle filter, before it runs, that the recordings
-/// defy the scenario. `krr` trains on the scenario's own whisker (`family`'s nominal); a
-/// recording that lacks a channel it reads is not looked at.
+/// Whether `recordings` (with their sensor noise and allowed lead-in) defy the scenario
+/// `family` at `krr`'s estimates and near them ([`crate::check::unexplained`],
+/// [`crate::check::defies`], weighed where that decides against the scenario's own runs at the
+/// first recording's noise, [`null_unexplained`]): what tells the particle filter, before it
+/// runs, that the recordings are not of the scenario's whisker. `krr` trains on the scenario's
+/// own whisker (`family`'s nominal); a recording that lacks a channel it reads is not looked at.
 pub fn defied_by(
     family: &Family,
     recordings: &[Recording],
@@ -212,7 +211,7 @@ pub fn defied_by(
     leads: &[usize],
     seed: u64,
     log: &mut dyn FnMut(String),
-) -> Result<(usize, usize, Option<usize>)> {
+) -> Result<crate::check::Verdict> {
     let nominal = family.nominal();
     let channels = methods::by_name("krr")?.channels();
     let mut trained = Trained::default();
@@ -229,8 +228,7 @@ pub fn defied_by(
         allowed.push(lead);
     }
     let defied = crate::check::unexplained(&nominal, &recs, &points, &levels, &channels, &allowed);
-    let looked = recs.len();
-    let (_, null) = crate::check::defies(defied, looked, || {
+    Ok(crate::check::defies(defied, recs.len(), || {
         null_unexplained(
             &mut trained,
             &nominal,
@@ -241,8 +239,7 @@ pub fn defied_by(
             seed,
             log,
         )
-    });
-    Ok((defied, looked, null))
+    }))
 }
 
 /// How many of [`crate::check::NULL_RUNS`] runs of the scenario itself (`family`'s nominal
