@@ -367,6 +367,7 @@ pub fn run(args: &Args) -> Result<()> {
             )
         })
         .collect::<Result<Vec<_>>>()?;
+    check_sample_rates(&family, &args.obs, &recordings)?;
 
     // The sensor noise of every recording, then training once per distinct timing, noise
     // level and lead-in, on the family's runs at that rate and length with that noise.
@@ -722,6 +723,21 @@ pub(crate) fn read_recording(
     Ok(Recording::from_series_at_lines(
         &series, &name, needs, reader, &lines,
     )?)
+}
+
+/// Refuses, naming the file, a recording sampled too slowly for `family`'s run
+/// ([`Family::check_sample_rate`]).
+pub(crate) fn check_sample_rates(
+    family: &Family,
+    files: &[PathBuf],
+    recordings: &[Recording],
+) -> Result<()> {
+    for (file, rec) in files.iter().zip(recordings) {
+        family
+            .check_sample_rate(rec.rate)
+            .map_err(|e| anyhow!("`{}`: {e}", file.display()))?;
+    }
+    Ok(())
 }
 
 /// The model check of one recording at `point` (see [`vibrissa_infer::check`]; `lead`: the

@@ -6,8 +6,8 @@
 //! sample size fell below 1% of the particles gets a warning: its posterior may be too narrow.
 
 use crate::estimate::{
-    check_recording, draw_check, lead_ins, named_noise, noise_levels, print_json_rows,
-    read_recording, render_checks, trained_for, Args, FileEstimate,
+    check_recording, check_sample_rates, draw_check, lead_ins, named_noise, noise_levels,
+    print_json_rows, read_recording, render_checks, trained_for, Args, FileEstimate,
 };
 use crate::files;
 use crate::plot::{render_series, Axis, Curve, Panel};
@@ -41,6 +41,7 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
         .iter()
         .map(|f| read_recording(f, &channels, Reader::Filter, args.whisker.as_deref()))
         .collect::<Result<Vec<_>>>()?;
+    check_sample_rates(family, &args.obs, &recordings)?;
 
     // The sensor noise of every recording (the filter is fitted to each level: no runs).
     let levels = noise_levels(&args.obs, &recordings, &channels, stated)?;

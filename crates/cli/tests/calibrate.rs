@@ -273,6 +273,22 @@ fn recordings_at_another_rate_or_with_bad_times_are_refused() {
     fs::write(&path, lines.join("\n") + "\n").unwrap();
     let out = calibrate(&scratch, &dir, &[]);
     assert_refused(&scratch, &out, &["s1.csv", "does not increase"]);
+    fs::write(&path, &text).unwrap();
+
+    // Every strike's time in milliseconds: a rate 1000 times too low for the scenario's run.
+    for k in 0..3 {
+        let path = dir.join(format!("s{k}.csv"));
+        let text = fs::read_to_string(&path).unwrap();
+        let mut lines = text.lines();
+        let mut out = vec![lines.next().unwrap().to_string()];
+        for line in lines {
+            let (t, rest) = line.split_once(',').unwrap();
+            out.push(format!("{},{rest}", t.parse::<f64>().unwrap() * 1000.0));
+        }
+        fs::write(&path, out.join("\n") + "\n").unwrap();
+    }
+    let out = calibrate(&scratch, &dir, &[]);
+    assert_refused(&scratch, &out, &["s0.csv", "`t` must be in seconds"]);
 }
 
 #[test]

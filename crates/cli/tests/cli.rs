@@ -884,3 +884,39 @@ fn estimate_takes_the_whisker_of_another_scenario() {
         stderr(&out)
     );
 }
+
+#[test]
+fn estimate_refuses_a_time_column_in_milliseconds() {
+    // A strike whose `t` was written in milliseconds reads as a 1 Hz recording lasting 150 s:
+    // refused before any training, naming the file and the column's unit.
+    let dir = Scratch::new("ms");
+    let out = dir.path().join("strike.csv");
+    let out = out.to_str().unwrap();
+    let run = vibrissa(&["simulate", "e2", "--set", "d=0.02", "--out", out]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let text = fs::read_to_string(out).unwrap();
+    let mut lines = text.lines();
+    let mut ms = vec![lines.next().unwrap().to_string()];
+    for line in lines {
+        let (t, rest) = line.split_once(',').unwrap();
+        ms.push(format!("{},{rest}", t.parse::<f64>().unwrap() * 1000.0));
+    }
+    let ms_file = dir.path().join("strike_ms.csv");
+    fs::write(&ms_file, ms.join("\n") + "\n").unwrap();
+    let ms_file = ms_file.to_str().unwrap();
+    for method in [&["--method", "krr"][..], &["--method", "pf", "--randomise"]] {
+        let args = [
+            &["estimate", "--experiment", "e2", "--json", "--obs", ms_file],
+            method,
+        ]
+        .concat();
+        let run = vibrissa(&args);
+        assert_refused(&run);
+        let err = stderr(&run);
+        assert!(
+            err.contains("strike_ms.csv") && err.contains("`t` must be in seconds"),
+            "{err}"
+        );
+        assert!(!err.contains("training"), "refused before training: {err}");
+    }
+}

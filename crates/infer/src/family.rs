@@ -37,6 +37,9 @@ pub struct Family {
     experiment: Option<ExperimentRun>,
     /// Samples per run.
     samples: usize,
+    /// The run's duration as the file gives it, s: kept when a recording's timing is applied,
+    /// to refuse a sample step that could not sample such a run ([`Family::with_timing`]).
+    file_duration: f64,
     /// The sensor noise the file states per channel of [`CHANNELS`] (its `[sensor_noise]`).
     stated_noise: [Option<f64>; 5],
     /// Whether every run gets its own whisker and sensor gains ([`crate::randomise`]).
@@ -59,6 +62,26 @@ pub struct Family {
     labelled: Option<std::path::PathBuf>,
     /// Residuals of the fitted whisker added to every run ([`Family::with_model_error`]).
     model_error: Option<std::sync::Arc<ModelError>>,
+}
+
+/// The fewest samples a recording may hold over the scenario's run (its `duration`): at a
+/// longer step the recording cannot show the strike the scenario describes, and the usual cause
+/// is a time column in other units than seconds.
+pub const MIN_SAMPLES_PER_RUN: usize = 10;
+
+/// Why samples at `rate` Hz cannot read a run of `duration` s (fewer than
+/// [`MIN_SAMPLES_PER_RUN`] fall in it), or `None` when they can.
+pub fn too_slow(rate: f64, duration: f64) -> Option<String> {
+    (MIN_SAMPLES_PER_RUN as f64 / rate > duration).then(|| {
+        format!(
+            "samples {} s apart ({} Hz): fewer than {MIN_SAMPLES_PER_RUN} would fall in the \
+             scenario's run of {} s, too few to read it; `t` must be in seconds (a time in \
+             milliseconds reads as a rate 1000 times too low)",
+            crate::trained::Short(1.0 / rate),
+            crate::trained::Short(rate),
+            crate::trained::Short(duration)
+        )
+    })
 }
 
 /// Stream of a run's random start (see the field `start_jitter`), apart from its other streams.
@@ -122,6 +145,7 @@ impl Family {
             name: spec.to_string(),
             doc,
             spec: family,
+            file_duration: base.duration,
             base,
             experiment: loaded.experiment,
             samples,
@@ -340,6 +364,16 @@ impl Family {
         self.experiment.is_some() && matches!(self.unknowns()[..], ["d"] | ["d", "v"])
     }
 
+    /// Refuses a recording's sample rate at which fewer than [`MIN_SAMPLES_PER_RUN`] samples
+    /// fall in the run the file describes (its `duration`): such a recording cannot show the
+    /// strike, and its time column is most likely in other units than seconds.
+    pub fn check_sample_rate(&self, rate: f64) -> Result<()> {
+        match too_slow(rate, self.file_duration) {
+            Some(why) => Err(Error::Observation(why)),
+            None => Ok(()),
+        }
+    }
+
     /// The same family with runs of `samples` samples at `rate` Hz (e.g. a recording's).
     pub fn with_timing(&self, rate: f64, samples: usize) -> Result<Family> {
         if !(rate.is_finite() && rate > 0.0) || samples < 2 {
@@ -348,6 +382,7 @@ impl Family {
                  and {samples}"
             )));
         }
+        self.check_sample_rate(rate)?;
         let mut f = self.clone();
         f.base.sample_rate = rate;
         f.base.duration = (samples - 1) as f64 / rate;
@@ -1089,5 +1124,22 @@ mod tests {
         }
         assert!(e2.with_timing(0.0, 10).is_err());
         assert!(e2.with_timing(1000.0, 1).is_err());
+    }
+
+    #[test]
+    fn a_rate_too_low_for_the_scenario_s_run_is_refused_whatever_the_retiming() {
+        // e2's run lasts 0.15 s: 100 Hz puts 15 samples in it, 60 Hz 9, and a time column in
+        // milliseconds (1 Hz) one.
+        let e2 = Family::builtin("e2").unwrap();
+        assert!(e2.with_timing(100.0, 16).is_ok());
+        for rate in [60.0, 1.0] {
+            let e = e2.with_timing(rate, 151).unwrap_err().to_string();
+            assert!(e.contains("`t` must be in seconds"), "{e}");
+            assert!(e.contains("0.150 s"), "{e}");
+        }
+        // A family already retimed to a long recording still judges by the file's run.
+        let long = e2.with_timing(1000.0, 2001).unwrap();
+        assert!(long.with_timing(50.0, 101).is_err());
+        assert!(long.check_sample_rate(1000.0).is_ok());
     }
 }

@@ -42,7 +42,7 @@ pub fn describe_noise(level: &[f64; 5], channels: &[usize]) -> String {
 
 /// A number to a given count of significant digits (the precision), in plain notation for
 /// moderate magnitudes and in exponent notation otherwise.
-struct Short(f64);
+pub(crate) struct Short(pub(crate) f64);
 
 impl std::fmt::Display for Short {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {

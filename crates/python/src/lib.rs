@@ -512,8 +512,13 @@ fn estimate(
                 (name.clone(), rec)
             }
         };
+        let rec = rec.map_err(value_error)?;
+        // A recording sampled too slowly for the scenario's run (a `t` in milliseconds).
+        family
+            .check_sample_rate(rec.rate)
+            .map_err(|e| PyValueError::new_err(format!("`{name}`: {e}")))?;
         names.push(name);
-        recordings.push(rec.map_err(value_error)?);
+        recordings.push(rec);
     }
     // A calibrated scenario trains over what its calibration leaves uncertain unless told not to.
     let auto = randomise.is_none();

@@ -260,6 +260,13 @@ def test_bad_input_raises_naming_what_is_wrong(recordings, tmp_path):
         vibrissa.estimate(recordings[0], method="pf", particles=0)
     with pytest.raises(ValueError, match="no recordings"):
         vibrissa.estimate([])
+    # A time column in milliseconds: 1 Hz, fewer than 10 samples in the scenario's 0.15 s run.
+    ms = dict(run)
+    ms["t"] = ms["t"] * 1000.0
+    with pytest.raises(ValueError, match="`t` must be in seconds"):
+        vibrissa.estimate(ms, method="knn")
+    with pytest.raises(ValueError, match="`t` must be in seconds"):
+        vibrissa.estimate(ms, method="pf", randomise=True)
 
 
 def test_one_whisker_of_an_array_recording(tmp_path):

@@ -525,6 +525,9 @@ fn prepare(nominal: &Document, set: &Labelled) -> Result<Vec<Run>> {
         .iter()
         .map(|rec| {
             let mut scenario = nominal.loaded_with(&rec.overrides())?.scenario;
+            if let Some(why) = crate::family::too_slow(rec.rate(), scenario.duration) {
+                return Err(Error::Observation(format!("`{}`: {why}", rec.file)));
+            }
             let n = rec.t().len();
             scenario.sample_rate = rec.rate();
             scenario.duration = (n - 1) as f64 / scenario.sample_rate;
