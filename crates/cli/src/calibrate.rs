@@ -92,6 +92,8 @@ struct Report {
     other_minima: usize,
     /// Correlations of the determined parameters' errors.
     correlation: vibrissa_io::scenario::Correlation,
+    /// Channels left out of the fit: one value in every strike (channel, value).
+    left_out: Vec<(&'static str, f64)>,
     /// Wall-clock time of the fit, s.
     seconds: f64,
 }
@@ -158,6 +160,13 @@ pub fn run(args: &Args) -> Result<()> {
         )
     })?;
     let seconds = start.elapsed().as_secs_f64();
+    for (name, value) in &fit.left_out {
+        eprintln!(
+            "warning: channel `{name}` holds {} in every strike: a sensor that recorded nothing? \
+             It is left out of the fit (leave the column out of the recordings to say so)",
+            sig(*value, 3)
+        );
+    }
 
     let labelled = recorded_folder(&args.labelled, &args.out);
     let fitted = fit.document(&nominal, &labelled)?;
@@ -185,6 +194,7 @@ pub fn run(args: &Args) -> Result<()> {
         simulations: fit.simulations,
         other_minima: fit.other_minima,
         correlation: fit.correlation.clone(),
+        left_out: fit.left_out.clone(),
         seconds,
     };
     args.format.format().print(&report)?;
@@ -417,6 +427,7 @@ mod tests {
             fits: 2,
             simulations: 100,
             other_minima: 1,
+            left_out: Vec::new(),
             correlation: Correlation {
                 keys: vec![
                     "whisker.youngs_modulus".into(),

@@ -435,3 +435,56 @@ fn a_label_out_of_range_is_named_with_its_row_and_what_is_allowed() {
         );
     }
 }
+
+/// Sets column `col` of every strike in `dir` (named s0.csv, s1.csv, …) to `value`.
+fn flatten_column(dir: &Path, col: &str, value: &str) {
+    for k in 0..3 {
+        let path = dir.join(format!("s{k}.csv"));
+        let text = fs::read_to_string(&path).unwrap();
+        let mut lines = text.lines();
+        let header = lines.next().unwrap().to_string();
+        let at = header.split(',').position(|h| h == col).unwrap();
+        let mut out = vec![header.clone()];
+        for line in lines {
+            let mut cells: Vec<&str> = line.split(',').collect();
+            cells[at] = value;
+            out.push(cells.join(","));
+        }
+        fs::write(&path, out.join("\n") + "\n").unwrap();
+    }
+}
+
+#[test]
+fn a_channel_that_recorded_nothing_is_left_out_of_the_fit() {
+    let scratch = Scratch::new("flat");
+    let dir = folder(&scratch, &["whisker.youngs_modulus=3.4e9"]);
+    flatten_column(&dir, "fx", "0");
+    let out = calibrate(&scratch, &dir, &["--json", "--finalists", "1"]);
+    let err = stderr(&out);
+    assert!(out.status.success(), "calibrate: {err}");
+    assert!(
+        err.contains("channel `fx` holds 0 in every strike") && err.contains("left out"),
+        "{err}"
+    );
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    assert_eq!(report["left_out"], serde_json::json!([["fx", 0.0]]));
+    let fitted: Vec<&str> = report["channels"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(fitted, ["theta01", "theta12", "m0", "fy"]);
+
+    // Nothing but flat channels: nothing to fit.
+    fs::remove_file(scratch.join("fitted.toml")).unwrap();
+    for col in ["theta01", "theta12", "m0", "fy"] {
+        flatten_column(&dir, col, "0");
+    }
+    let out = calibrate(&scratch, &dir, &[]);
+    assert_refused(
+        &scratch,
+        &out,
+        &["every channel holds one value", "nothing to fit"],
+    );
+}

@@ -1142,6 +1142,7 @@ fn calibrate(
         "simulations": fit.simulations,
         "other_minima": fit.other_minima,
         "correlation": fit.correlation,
+        "left_out": fit.left_out,
         "overrides": fit.overrides,
         "seconds": seconds,
         "scenario": text,

@@ -62,3 +62,17 @@ def test_bad_input_raises_and_writes_nothing(labelled, tmp_path):
         vibrissa.calibrate("e1", labelled, finalists=0)
     with pytest.raises(TypeError, match="labelled"):
         vibrissa.calibrate("e1", 3)
+
+
+def test_a_channel_that_recorded_nothing_is_left_out_with_a_warning(tmp_path):
+    rows = ["file,d"]
+    for k, d in enumerate([0.017, 0.026]):
+        run = vibrissa.simulate("e1", d=d, whisker__youngs_modulus=3.4e9)
+        run["fx"] = run["fx"] * 0.0
+        write_csv(tmp_path / f"r{k}.csv", run)
+        rows.append(f"r{k}.csv,{d}")
+    (tmp_path / "truth.csv").write_text("\n".join(rows) + "\n")
+    with pytest.warns(UserWarning, match="channel 'fx' holds 0 in every strike"):
+        fit = vibrissa.calibrate("e1", tmp_path, finalists=1)
+    assert fit["left_out"] == [["fx", 0.0]]
+    assert "fx" not in [c["name"] for c in fit["channels"]]

@@ -247,6 +247,9 @@ pub struct Fit {
     /// Correlations of the determined parameters' errors, from the same covariance as their
     /// standard errors.
     pub correlation: Correlation,
+    /// Channels left out of the fit because they hold one value (given) in every strike: a
+    /// sensor that recorded nothing.
+    pub left_out: Vec<(&'static str, f64)>,
 }
 
 impl Fit {
@@ -311,8 +314,10 @@ pub fn calibrate(
     let params = params::parameters(&base, &reference, &set.keys, settings.step, 0.25 * period);
     let count = AtomicUsize::new(0);
 
-    // Channels with data, and the reference of the force scale.
-    let channels: Vec<usize> = (0..CHANNELS)
+    // Channels with data, and the reference of the force scale. A channel that holds one value
+    // in every strike (a sensor that recorded nothing) says nothing of the whisker, and fitted
+    // it would pull the whisker towards a flat signal: it is left out.
+    let with_data: Vec<usize> = (0..CHANNELS)
         .filter(|&c| {
             runs.iter().any(|r| {
                 r.y[c]
@@ -321,6 +326,20 @@ pub fn calibrate(
             })
         })
         .collect();
+    let (channels, constant): (Vec<usize>, Vec<usize>) = with_data
+        .into_iter()
+        .partition(|&c| constant_value(&runs, c).is_none());
+    if channels.is_empty() {
+        return Err(Error::Observation(format!(
+            "{}: every channel holds one value in every strike ({}): nothing to fit",
+            set.dir.display(),
+            constant
+                .iter()
+                .map(|&c| NAMES[c])
+                .collect::<Vec<_>>()
+                .join(", ")
+        )));
+    }
     let reference_channel = [2, 3, 4].into_iter().find(|c| channels.contains(c));
     let nominal_resp = base.sensor_response.to_array();
     let mut gain_free = [false; CHANNELS];
@@ -460,7 +479,25 @@ pub fn calibrate(
         count.load(Ordering::Relaxed),
     );
     fit.other_minima = other_minima;
+    fit.left_out = constant
+        .iter()
+        .map(|&c| {
+            let v = constant_value(&runs, c).unwrap_or(f64::NAN);
+            (NAMES[c], v)
+        })
+        .collect();
     Ok(fit)
+}
+
+/// The one value channel `c` holds in every run, where it holds one (every finite sample alike).
+fn constant_value(runs: &[Run], c: usize) -> Option<f64> {
+    let mut values = runs
+        .iter()
+        .filter_map(|r| r.y[c].as_ref())
+        .flatten()
+        .filter(|v| v.is_finite());
+    let first = *values.next()?;
+    values.all(|&v| v == first).then_some(first)
 }
 
 /// Refuses settings out of range.

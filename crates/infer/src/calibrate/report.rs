@@ -153,6 +153,7 @@ pub(super) fn assemble(
         fits,
         other_minima: 0,
         correlation: correlation(&rows, &cov.cov),
+        left_out: Vec::new(),
     }
 }
 

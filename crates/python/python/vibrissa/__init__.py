@@ -551,7 +551,8 @@ def calibrate(
         ``nominal``, ``value``, ``std_error``, ``determined``, ``note``), ``channels`` (residual
         RMS before and after, noise), ``recordings``, ``iterations``, ``fits``, ``simulations``,
         ``other_minima`` (how many other minima of the cost the standard errors count),
-        ``seconds``; plus ``overrides`` (the ``key=value`` texts that make the nominal the fitted
+        ``left_out`` (``[channel, value]`` of each channel that holds one value in every strike,
+        left out of the fit with a ``UserWarning``), ``seconds``; plus ``overrides`` (the ``key=value`` texts that make the nominal the fitted
         scenario) and ``scenario``, the fitted scenario's TOML text.
     """
     if gain_prior is not None:
@@ -579,7 +580,17 @@ def calibrate(
 
         for s in stages:
             print(s, file=sys.stderr)
-    return json.loads(report)
+    report = json.loads(report)
+    for name, value in report["left_out"]:
+        import warnings
+
+        warnings.warn(
+            f"channel '{name}' holds {value:g} in every strike: a sensor that recorded nothing? "
+            "It is left out of the fit (leave the column out of the recordings to say so)",
+            UserWarning,
+            stacklevel=2,
+        )
+    return report
 
 
 def _count(name, value, least):
