@@ -205,6 +205,20 @@ fn csv_errors_name_file_line_and_column() {
 }
 
 #[test]
+fn a_file_separated_by_semicolons_or_tabs_is_named_so() {
+    for (sep, shown) in [(";", "';'"), ("\t", "'\\t'")] {
+        let text = format!("t{sep}theta01{sep}theta12\n0{sep}0.1{sep}0.2\n");
+        let e = read_csv_str(&text, "sep.csv").unwrap_err().to_string();
+        assert!(
+            e.contains("sep.csv, line 1") && e.contains(&format!("separated by {shown}")),
+            "{e}"
+        );
+    }
+    // A one-column file is still a file of one column.
+    assert_eq!(read_csv_str("t\n0\n1\n", "t.csv").unwrap().rows(), 2);
+}
+
+#[test]
 fn header_only_csv_has_no_rows() {
     let s = read_csv_str("t,theta01,theta12\n", "h.csv").unwrap();
     assert_eq!(s.rows(), 0);

@@ -129,6 +129,24 @@ pub(crate) fn parse_csv(text: &str, origin: &str) -> Result<(Series, Vec<usize>)
         }
         // The first other line is the header.
         if !header {
+            // One column whose name holds another separator: a file separated by it.
+            if record.len() == 1 {
+                if let Some(sep) = [';', '\t', '|']
+                    .into_iter()
+                    .find(|&c| record[0].contains(c))
+                {
+                    return Err(Error::data(
+                        origin,
+                        line_no,
+                        format!(
+                            "the header is one column, {:?}: the file seems separated by {sep:?}, \
+                             and recordings are read as comma-separated values (`t,theta01,...`; \
+                             `.` as the decimal point)",
+                            &record[0]
+                        ),
+                    ));
+                }
+            }
             for (c, name) in record.iter().enumerate() {
                 if name.is_empty() {
                     return Err(Error::data(
