@@ -368,6 +368,7 @@ pub fn run(args: &Args) -> Result<()> {
         })
         .collect::<Result<Vec<_>>>()?;
     check_sample_rates(&family, &args.obs, &recordings)?;
+    warn_of_units(&family, &args.obs, &recordings, &needs)?;
 
     // The sensor noise of every recording, then training once per distinct timing, noise
     // level and lead-in, on the family's runs at that rate and length with that noise.
@@ -736,6 +737,21 @@ pub(crate) fn check_sample_rates(
         family
             .check_sample_rate(rec.rate)
             .map_err(|e| anyhow!("`{}`: {e}", file.display()))?;
+    }
+    Ok(())
+}
+
+/// Warns of channels that span far more than the scenario's runs do: a recording in other
+/// units ([`vibrissa_infer::units`]).
+pub(crate) fn warn_of_units(
+    family: &Family,
+    files: &[PathBuf],
+    recordings: &[Recording],
+    needs: &[usize],
+) -> Result<()> {
+    let names: Vec<String> = files.iter().map(|f| f.display().to_string()).collect();
+    for w in vibrissa_infer::units::unit_warnings(family, &names, recordings, needs)? {
+        eprintln!("warning: {w}");
     }
     Ok(())
 }

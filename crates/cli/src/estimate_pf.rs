@@ -7,7 +7,7 @@
 
 use crate::estimate::{
     check_recording, check_sample_rates, draw_check, lead_ins, named_noise, noise_levels,
-    print_json_rows, read_recording, render_checks, trained_for, Args, FileEstimate,
+    print_json_rows, read_recording, render_checks, trained_for, warn_of_units, Args, FileEstimate,
 };
 use crate::files;
 use crate::plot::{render_series, Axis, Curve, Panel};
@@ -42,6 +42,7 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
         .map(|f| read_recording(f, &channels, Reader::Filter, args.whisker.as_deref()))
         .collect::<Result<Vec<_>>>()?;
     check_sample_rates(family, &args.obs, &recordings)?;
+    warn_of_units(family, &args.obs, &recordings, &channels)?;
 
     // The sensor noise of every recording (the filter is fitted to each level: no runs).
     let levels = noise_levels(&args.obs, &recordings, &channels, stated)?;

@@ -35,6 +35,7 @@ mod reference;
 pub mod shapes;
 pub mod standin;
 pub mod trained;
+pub mod units;
 pub mod unknown_start;
 
 pub use error::{Error, Result};

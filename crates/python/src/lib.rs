@@ -539,6 +539,9 @@ fn estimate(
     }
     let several = names.len() > 1;
     let rows = py.detach(|| -> vibrissa_infer::Result<Vec<String>> {
+        // Channels far wider than the scenario's runs: a recording in other units.
+        let units = vibrissa_infer::units::unit_warnings(&family, &names, &recordings, &needs)?;
+        messages.extend(units.iter().map(|w| format!("warning: {w}")));
         let noise = batch_noise(&names, &recordings, &needs, &stated, "noise={...}")?;
         messages.extend(noise.warnings.iter().map(|w| format!("warning: {w}")));
         messages.push(noise.summary.clone());

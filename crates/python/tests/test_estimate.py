@@ -269,6 +269,19 @@ def test_bad_input_raises_naming_what_is_wrong(recordings, tmp_path):
         vibrissa.estimate(ms, method="pf", randomise=True)
 
 
+def test_angles_in_degrees_are_warned_of():
+    run = noisy_run(0.021, 0.7, 0)
+    deg = dict(run)
+    deg["theta01"] = np.degrees(run["theta01"])
+    deg["theta12"] = np.degrees(run["theta12"])
+    est = vibrissa.estimate(deg, method="knn", randomise=False)
+    said = " ".join(est["warnings"])
+    assert "channel theta01 spans up to" in said and "degrees" in said, est["warnings"]
+    assert "channel theta12" in said
+    est = vibrissa.estimate(run, method="knn", randomise=False)
+    assert not any("spans up to" in w for w in est["warnings"]), est["warnings"]
+
+
 def test_one_whisker_of_an_array_recording(tmp_path):
     from test_simulate import ROOT
 
