@@ -148,7 +148,8 @@ pub struct Args {
     pub(crate) pf_model: String,
     /// pf: a uniform prior NAME=LO:HI for an unknown of the object (d, v, t0, size, mu; SI), which
     /// makes a fixed parameter unknown (size: the box's side, default 0.01 m; mu: its friction
-    /// coefficient, default 0) or narrows or widens a free one. Repeatable.
+    /// coefficient, default 0) or narrows or widens a free one; LO = HI fixes it at that value
+    /// (then not estimated, nor reported). Repeatable.
     #[arg(long, value_name = "NAME=LO:HI")]
     pub(crate) prior: Vec<String>,
     /// pf: observed channels, comma-separated (theta01, theta12, m0, fx, fy).

@@ -320,6 +320,13 @@ fn parse_priors(specs: &[String]) -> Result<Vec<(usize, pf::Prior)>> {
                     name.trim()
                 );
             }
+            if lo == hi {
+                eprintln!(
+                    "note: --prior `{spec}` fixes {} at {lo}: the filter does not estimate it, \
+                     and the estimate leaves it out",
+                    name.trim()
+                );
+            }
             Ok((k, pf::Prior::uniform(lo, hi)))
         })
         .collect()
