@@ -374,10 +374,13 @@ pub fn run(args: &Args) -> Result<()> {
     // The sensor noise of every recording, then training once per distinct timing, noise
     // level and lead-in, on the family's runs at that rate and length with that noise.
     let levels = noise_levels(&args.obs, &recordings, &needs, &stated)?;
+    let names: Vec<String> = args.obs.iter().map(|f| f.display().to_string()).collect();
+    for w in vibrissa_infer::batch::without_strikes(&names, &recordings, &levels, &needs) {
+        eprintln!("warning: {w}");
+    }
     let leads = lead_ins(args.max_delay, &family, &args.obs, &recordings, &levels)?;
     // A scenario that is neither calibrated nor randomised, which most of the recordings defy
     // at their estimates, is not their whisker: estimate again on whiskers drawn around it.
-    let names: Vec<String> = args.obs.iter().map(|f| f.display().to_string()).collect();
     let mut trained = Trained::default();
     let (family, estimates) = batch::discriminative(
         &family,

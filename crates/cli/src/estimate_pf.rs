@@ -46,6 +46,10 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
 
     // The sensor noise of every recording (the filter is fitted to each level: no runs).
     let levels = noise_levels(&args.obs, &recordings, &channels, stated)?;
+    let names: Vec<String> = args.obs.iter().map(|f| f.display().to_string()).collect();
+    for w in vibrissa_infer::batch::without_strikes(&names, &recordings, &levels, &channels) {
+        eprintln!("warning: {w}");
+    }
     let leads = lead_ins(args.max_delay, family, &args.obs, &recordings, &levels)?;
     // A scenario that is neither calibrated nor randomised, which most of the recordings defy
     // (at `krr`'s estimates and near them), is not their whisker: the filter then entertains
@@ -188,7 +192,6 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
             },
             &mut |m| eprintln!("{m}"),
         )?;
-        let names: Vec<String> = args.obs.iter().map(|f| f.display().to_string()).collect();
         for w in pf::pool::warnings(&pooled, &names) {
             eprintln!("warning: {w}");
         }

@@ -920,3 +920,71 @@ fn estimate_refuses_a_time_column_in_milliseconds() {
         assert!(!err.contains("training"), "refused before training: {err}");
     }
 }
+
+#[test]
+fn estimate_warns_of_a_recording_that_shows_only_noise() {
+    // A box that missed: 151 samples of white noise (a sum of twelve uniforms, less six) on
+    // every channel, at levels like a strike's sensors.
+    let dir = Scratch::new("miss");
+    let mut state = 12345u64;
+    let mut normal = || {
+        let mut s = 0.0;
+        for _ in 0..12 {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            s += (state >> 11) as f64 / (1u64 << 53) as f64;
+        }
+        s - 6.0
+    };
+    let sigma = [5e-3, 1e-3, 5e-7, 2e-5, 3e-5];
+    let mut text = String::from("t,theta01,theta12,m0,fx,fy\n");
+    for k in 0..151 {
+        let row: Vec<String> = sigma
+            .iter()
+            .map(|s| format!("{:e}", s * normal()))
+            .collect();
+        text.push_str(&format!("{},{}\n", k as f64 * 1e-3, row.join(",")));
+    }
+    let miss = dir.path().join("miss.csv");
+    fs::write(&miss, text).unwrap();
+    let miss = miss.to_str().unwrap();
+    let run = vibrissa(&[
+        "estimate",
+        "--experiment",
+        "e2",
+        "--method",
+        "template",
+        "--json",
+        "--obs",
+        miss,
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let err = stderr(&run);
+    assert!(
+        err.contains("miss.csv`: nothing the method reads (theta12) moves beyond its sensor noise"),
+        "{err}"
+    );
+    // A strike of the scenario says no such thing.
+    let strike = dir.path().join("strike.csv");
+    let strike = strike.to_str().unwrap();
+    assert!(
+        vibrissa(&["simulate", "e2", "--set", "d=0.02", "--out", strike])
+            .status
+            .success()
+    );
+    let run = vibrissa(&[
+        "estimate",
+        "--experiment",
+        "e2",
+        "--method",
+        "template",
+        "--noise",
+        "theta12=1e-3",
+        "--json",
+        "--obs",
+        strike,
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    assert!(!stderr(&run).contains("moves beyond"), "{}", stderr(&run));
+}

@@ -209,6 +209,32 @@ pub fn at_range_ends(
     out
 }
 
+/// A warning for every recording that shows nothing beyond its sensor noise
+/// ([`crate::noise::shows_signal`]): no strike to read, so that any estimate of it is the
+/// method's reading of noise, and its interval need not hold the object.
+pub fn without_strikes(
+    names: &[String],
+    recordings: &[Recording],
+    levels: &[[f64; 5]],
+    needs: &[usize],
+) -> Vec<String> {
+    names
+        .iter()
+        .zip(recordings)
+        .zip(levels)
+        .filter(|((_, rec), level)| crate::noise::shows_signal(rec, level, needs) == Some(false))
+        .map(|((name, _), _)| {
+            let read: Vec<&str> = needs.iter().map(|&c| crate::CHANNELS[c]).collect();
+            format!(
+                "`{name}`: nothing the method reads ({}) moves beyond its sensor noise: the \
+                 object missed the whisker, stayed beyond its reach or barely touched its tip, \
+                 and the estimate reads noise, with an interval that need not hold the object",
+                read.join(", ")
+            )
+        })
+        .collect()
+}
+
 /// The family the particle filter runs on for a batch. With `auto` (the user chose neither to
 /// randomise nor to keep the scenario's whisker), a scenario that is neither calibrated nor
 /// randomised and that the recordings defy at `krr`'s estimates and near them ([`defied_by`]) is

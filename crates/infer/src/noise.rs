@@ -138,6 +138,49 @@ fn normal_tail(z: f64) -> f64 {
     (-0.5 * z * z).exp() / (2.0 * std::f64::consts::PI).sqrt() * poly
 }
 
+/// Chance at which white noise alone, over a whole recording, varies as much as a recording that
+/// [`shows_signal`] counts as moving.
+pub const NO_SIGNAL_CHANCE: f64 = 1e-3;
+
+/// Whether `rec` shows anything beyond its sensor noise `level` on the channels `needs`: the sum
+/// over those channels of each sample's squared deviation from the channel's mean, in units of
+/// its noise variance, exceeds what white noise of those levels gives with a chance of
+/// [`NO_SIGNAL_CHANCE`] (a χ² with one degree of freedom per sample and channel, less one per
+/// channel; its quantile by Wilson and Hilferty's cube). A strike adds the energy of its whole
+/// bend, where one sample's extreme would be lost in the noise. `None` when no channel of
+/// `needs` has a noise level above 0 to compare with. A recording that shows nothing holds no
+/// strike the estimators can read: the object missed the whisker or stayed beyond its reach.
+pub fn shows_signal(
+    rec: &crate::recording::Recording,
+    level: &[f64; 5],
+    needs: &[usize],
+) -> Option<bool> {
+    let mut chi2 = 0.0;
+    let mut dof = 0usize;
+    for &c in needs {
+        let sigma = level[c];
+        let x: Vec<f64> = rec.values[c]
+            .iter()
+            .copied()
+            .filter(|v| v.is_finite())
+            .collect();
+        if !(sigma > 0.0 && sigma.is_finite()) || x.len() < 2 {
+            continue;
+        }
+        let mean = x.iter().sum::<f64>() / x.len() as f64;
+        chi2 += x.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / (sigma * sigma);
+        dof += x.len() - 1;
+    }
+    if dof == 0 {
+        return None;
+    }
+    let k = dof as f64;
+    let z = crate::evaluate::normal_quantile(1.0 - NO_SIGNAL_CHANCE);
+    let w = 2.0 / (9.0 * k);
+    let quantile = k * (1.0 - w + z * w.sqrt()).powi(3);
+    Some(chi2 > quantile)
+}
+
 /// The sensor noise (standard deviation, in the series' unit) of one channel of several
 /// recordings of one rig, `name` naming the channel in errors.
 pub fn channel_sigma(name: &str, series: &[&[f64]]) -> Result<f64> {
@@ -337,6 +380,60 @@ mod tests {
                 (2.0 * std::f64::consts::PI * f * t).sin() * (-3.0 * t).exp() + sigma * rng.normal()
             })
             .collect()
+    }
+
+    /// A recording of one channel `x` (theta12) at 1 kHz.
+    fn one_channel(x: Vec<f64>) -> crate::recording::Recording {
+        let t = (0..x.len()).map(|k| k as f64 * 1e-3).collect();
+        let mut columns = vec![None; 5];
+        columns[1] = Some(x);
+        crate::recording::Recording::from_columns(
+            "r",
+            t,
+            columns,
+            None,
+            &[1],
+            crate::recording::Reader::Filter,
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn noise_alone_shows_no_signal_and_a_bend_buried_sample_by_sample_does() {
+        let sigma = 0.01;
+        let mut level = [0.0; 5];
+        level[1] = sigma;
+        // White noise alone: counted as moving in about one recording in a thousand.
+        let moving = (0..2000)
+            .filter(|&seed| {
+                let mut rng = Rng::stream(seed, 7);
+                let x = (0..151).map(|_| sigma * rng.normal()).collect();
+                shows_signal(&one_channel(x), &level, &[1]) == Some(true)
+            })
+            .count();
+        assert!(moving <= 8, "{moving} of 2000");
+        // A bend of 2.5 σ over 40 samples: no sample stands out of the noise, the whole does.
+        let shown = (0..200)
+            .filter(|&seed| {
+                let mut rng = Rng::stream(seed, 9);
+                let x = (0..151)
+                    .map(|k| {
+                        let bend = if (50..90).contains(&k) {
+                            2.5 * sigma
+                        } else {
+                            0.0
+                        };
+                        bend + sigma * rng.normal()
+                    })
+                    .collect();
+                shows_signal(&one_channel(x), &level, &[1]) == Some(true)
+            })
+            .count();
+        assert_eq!(shown, 200);
+        // Nothing to compare with: no noise level, or a channel not read.
+        let x: Vec<f64> = (0..151).map(|k| k as f64).collect();
+        assert_eq!(shows_signal(&one_channel(x.clone()), &[0.0; 5], &[1]), None);
+        assert_eq!(shows_signal(&one_channel(x), &level, &[0]), None);
     }
 
     #[test]

@@ -545,6 +545,10 @@ fn estimate(
         let noise = batch_noise(&names, &recordings, &needs, &stated, "noise={...}")?;
         messages.extend(noise.warnings.iter().map(|w| format!("warning: {w}")));
         messages.push(noise.summary.clone());
+        // Recordings that show nothing beyond their noise: no strike to read.
+        let quiet =
+            vibrissa_infer::batch::without_strikes(&names, &recordings, &noise.levels, &needs);
+        messages.extend(quiet.iter().map(|w| format!("warning: {w}")));
         // Recordings that start before the approach (stated, or evident in the batch).
         let leads = vibrissa_infer::lead_in::batch_leads(
             max_delay,
