@@ -988,3 +988,50 @@ fn estimate_warns_of_a_recording_that_shows_only_noise() {
     assert!(run.status.success(), "{}", stderr(&run));
     assert!(!stderr(&run).contains("moves beyond"), "{}", stderr(&run));
 }
+
+#[test]
+fn a_narrow_prior_keeps_the_widened_interval_of_the_filter_within_it() {
+    // The randomised filter widens its intervals to hold its errors on held-out runs: those runs
+    // lie within the prior it was given, and the widened interval stays within that prior too
+    // (it reached 6.6–25.3 mm for a prior of 15–17 mm when the runs spread over the whole range).
+    let dir = Scratch::new("prior");
+    let strike = dir.path().join("s24.csv");
+    let strike = strike.to_str().unwrap();
+    let run = vibrissa(&[
+        "simulate", "e2", "--set", "d=0.024", "--set", "v=0.9", "--out", strike,
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let run = vibrissa(&[
+        "estimate",
+        "--experiment",
+        "e2",
+        "--method",
+        "pf",
+        "--randomise",
+        "--particles",
+        "500",
+        "--alternatives",
+        "15",
+        "--prior",
+        "d=0.015:0.017",
+        "--noise",
+        "theta01=1e-3,theta12=1e-3,m0=1e-7,fx=1e-5,fy=1e-5",
+        "--json",
+        "--obs",
+        strike,
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let d = &json(&run)["d"];
+    let ci: Vec<f64> = d["ci90"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    let (mean, std) = (d["mean"].as_f64().unwrap(), d["std"].as_f64().unwrap());
+    assert!(
+        0.015 <= ci[0] && ci[0] <= mean && mean <= ci[1] && ci[1] <= 0.017,
+        "{d}"
+    );
+    assert!(std <= 0.002 / 12f64.sqrt(), "{d}");
+}

@@ -49,6 +49,8 @@ struct Filter {
     /// Per unknown, the factor its intervals are widened by (1: none; see
     /// `recording::fitted`).
     widening: Vec<f64>,
+    /// Per unknown, its prior's `[lo, hi]`, within which a widened row is kept.
+    support: Vec<Option<[f64; 2]>>,
 }
 
 /// A posterior row as a dict: `t`, `ess` and one `{mean, std, ci90}` dict per unknown.
@@ -96,6 +98,13 @@ fn add_sensors(
         put(key.to_string(), e)?;
     }
     Ok(())
+}
+
+impl Filter {
+    /// A posterior row as the user sees it: widened, and within the priors.
+    fn shown(&self, row: &TraceRow) -> TraceRow {
+        row.widened(&self.widening).within(&self.support)
+    }
 }
 
 #[pymethods]
@@ -190,12 +199,14 @@ impl Filter {
         let inner = pf::Filter::new(&config, 1.0 / rate).map_err(value_error)?;
         let unknowns = config.unknowns();
         let widening = filter.widening(&unknowns);
+        let support = config.support(&unknowns);
         Ok(Filter {
             unknowns,
             inner,
             period: 1.0 / rate,
             noise: filter.sensor_noise().expect("fitted"),
             widening,
+            support,
         })
     }
 
@@ -211,7 +222,7 @@ impl Filter {
         py.detach(|| inner.update(t, &values).map(|_| ()))
             .map_err(value_error)?;
         let post = self.inner.posterior();
-        let row = post.trace.last().expect("a row").widened(&self.widening);
+        let row = self.shown(post.trace.last().expect("a row"));
         let d = row_dict(py, &self.unknowns, &row)?;
         add_sensors(py, &d, post, self.inner.sensors())?;
         Ok(d)
@@ -223,7 +234,7 @@ impl Filter {
         let post = self.inner.posterior();
         match post.trace.last() {
             Some(row) => {
-                let d = row_dict(py, &self.unknowns, &row.widened(&self.widening))?;
+                let d = row_dict(py, &self.unknowns, &self.shown(row))?;
                 add_sensors(py, &d, post, self.inner.sensors())?;
                 Ok(Some(d))
             }
@@ -240,7 +251,7 @@ impl Filter {
             .posterior()
             .trace
             .iter()
-            .map(|r| r.widened(&self.widening))
+            .map(|r| self.shown(r))
             .collect();
         let d = PyDict::new(py);
         let column = |f: &dyn Fn(&TraceRow) -> f64| rows.iter().map(f).collect::<Vec<f64>>();

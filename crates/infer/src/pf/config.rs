@@ -227,6 +227,20 @@ pub const PRIOR_BOUNDS: [(f64, f64); 5] = [
 ];
 
 impl Config {
+    /// Per unknown named in `unknowns`, the `[lo, hi]` of its prior (`None` for a name that is
+    /// not one of [`PARAMS`]): where the filter's posterior can lie.
+    pub fn support(&self, unknowns: &[&str]) -> Vec<Option<[f64; 2]>> {
+        unknowns
+            .iter()
+            .map(|u| {
+                PARAMS
+                    .iter()
+                    .position(|p| p == u)
+                    .map(|k| [self.priors[k].lo, self.priors[k].hi])
+            })
+            .collect()
+    }
+
     /// The `e2` family: d ∈ [14, 31] mm, v ∈ [0.2, 1.6] m/s (the experiment's ranges, widened by
     /// 1 mm and 0.1 m/s), known start, 10 mm frictionless box,
     /// the `w30` whisker observed on a chain of 20 segments and modelled with 5, all five channels

@@ -50,6 +50,21 @@ impl TraceRow {
         }
         row
     }
+
+    /// The row with each estimate kept within `support` (per unknown, `[lo, hi]` of its prior,
+    /// or `None`): the interval clipped to it, the std at most the prior's own (a uniform's,
+    /// (hi − lo)/√12), the mean inside it. A widened row may otherwise claim to know less than
+    /// the prior, or place its interval where the prior gives no weight.
+    pub fn within(&self, support: &[Option<[f64; 2]>]) -> TraceRow {
+        let mut row = self.clone();
+        for (e, s) in row.estimates.iter_mut().zip(support) {
+            let Some([lo, hi]) = *s else { continue };
+            e.mean = e.mean.clamp(lo, hi);
+            e.std = e.std.min((hi - lo) / 12f64.sqrt());
+            e.ci90 = [e.ci90[0].clamp(lo, hi), e.ci90[1].clamp(lo, hi)];
+        }
+        row
+    }
 }
 
 /// What a filter run returns.
@@ -137,6 +152,13 @@ impl Posterior {
     pub fn widen(&mut self, factors: &[f64]) {
         for row in &mut self.trace {
             *row = row.widened(factors);
+        }
+    }
+
+    /// Every row kept within `support` ([`TraceRow::within`]).
+    pub fn within(&mut self, support: &[Option<[f64; 2]>]) {
+        for row in &mut self.trace {
+            *row = row.within(support);
         }
     }
 

@@ -299,7 +299,24 @@ fn held_out_runs(
 ) -> Result<HeldOut> {
     use rayon::prelude::*;
     let seed = options.seed ^ 0x1a7e_2f11;
-    let params = family.random_params(options.interval_runs, seed);
+    // The runs' truths lie within the filter's own priors where they narrow the family's ranges
+    // (each draw placed at the same share of the prior as of the range).
+    let ranges = family.ranges();
+    let mut params = family.random_params(options.interval_runs, seed);
+    for (u, name) in family.unknowns().iter().enumerate() {
+        let Some(&(_, prior)) = options.priors.iter().find(|(k, _)| PARAMS[*k] == *name) else {
+            continue;
+        };
+        let [lo, hi] = ranges[u];
+        for p in &mut params {
+            let share = if hi > lo {
+                (p[u] - lo) / (hi - lo)
+            } else {
+                0.5
+            };
+            p[u] = prior.lo + share * (prior.hi - prior.lo);
+        }
+    }
     let runs = family.simulate_all(&params, noise, seed, &|| {})?;
     let rate = family.sample_rate();
     let names: Vec<String> = family.unknowns().iter().map(|k| k.to_string()).collect();
@@ -401,6 +418,8 @@ pub fn estimate(
     let misfit = filter.misfit(&posterior, config.channels.len());
     if !filter.interval_scale.is_empty() {
         posterior.widen(&filter.widening(&posterior.unknowns));
+        // Widened, an interval still says nothing outside the prior the filter was given.
+        posterior.within(&config.support(&posterior.unknowns));
     }
     Ok(Estimate {
         posterior,
