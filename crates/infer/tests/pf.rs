@@ -399,7 +399,7 @@ fn a_randomised_filter_widens_its_intervals_to_hold_on_held_out_whiskers() {
     assert_eq!(names, ["d", "v"]);
     assert!(widened.interval_scale.iter().all(|(_, f)| *f >= 1.0));
     // The same filter without the held-out runs: the estimate is the same, its spread narrower
-    // by the factors.
+    // by the factors, where the widened one stays within the prior's (its interval too).
     options.interval_runs = 0;
     let plain = fitted(&family, &level, &options).unwrap();
     assert!(plain.interval_scale.is_empty());
@@ -408,12 +408,19 @@ fn a_randomised_filter_widens_its_intervals_to_hold_on_held_out_whiskers() {
         estimate(&widened, &family, &rec, &options).unwrap(),
         estimate(&plain, &family, &rec, &options).unwrap(),
     );
+    let support = a.config.support(&a.posterior.unknowns);
     for (u, (_, f)) in widened.interval_scale.iter().enumerate() {
         let (w, p) = (a.posterior.last()[u], b.posterior.last()[u]);
+        let [lo, hi] = support[u].expect("a prior");
+        let expected = (f * p.std).min((hi - lo) / 12f64.sqrt());
         assert_eq!(w.mean, p.mean);
         assert!(
-            (w.std - f * p.std).abs() <= 1e-12 * w.std.max(1e-300),
+            (w.std - expected).abs() <= 1e-12 * w.std.max(1e-300),
             "{w:?} {p:?}"
+        );
+        assert!(
+            lo <= w.ci90[0] && w.ci90[1] <= hi,
+            "{w:?} within [{lo}, {hi}]"
         );
     }
     // A nominal family's filter is not widened.
