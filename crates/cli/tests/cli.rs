@@ -885,15 +885,25 @@ fn estimate_takes_the_whisker_of_another_scenario() {
     );
 }
 
+/// Simulates an `e2` strike with `sets` (`d=0.02`, …) into `dir/name` and gives its path.
+fn e2_strike(dir: &Scratch, name: &str, sets: &[&str]) -> String {
+    let out = dir.path().join(name).to_str().unwrap().to_string();
+    let mut args = vec!["simulate", "e2"];
+    for s in sets {
+        args.extend(["--set", s]);
+    }
+    args.extend(["--out", &out]);
+    let run = vibrissa(&args);
+    assert!(run.status.success(), "{}", stderr(&run));
+    out
+}
+
 #[test]
 fn estimate_refuses_a_time_column_in_milliseconds() {
     // A strike whose `t` was written in milliseconds reads as a 1 Hz recording lasting 150 s:
     // refused before any training, naming the file and the column's unit.
     let dir = Scratch::new("ms");
-    let out = dir.path().join("strike.csv");
-    let out = out.to_str().unwrap();
-    let run = vibrissa(&["simulate", "e2", "--set", "d=0.02", "--out", out]);
-    assert!(run.status.success(), "{}", stderr(&run));
+    let out = e2_strike(&dir, "strike.csv", &["d=0.02"]);
     let text = fs::read_to_string(out).unwrap();
     let mut lines = text.lines();
     let mut ms = vec![lines.next().unwrap().to_string()];
@@ -966,13 +976,7 @@ fn estimate_warns_of_a_recording_that_shows_only_noise() {
         "{err}"
     );
     // A strike of the scenario says no such thing.
-    let strike = dir.path().join("strike.csv");
-    let strike = strike.to_str().unwrap();
-    assert!(
-        vibrissa(&["simulate", "e2", "--set", "d=0.02", "--out", strike])
-            .status
-            .success()
-    );
+    let strike = e2_strike(&dir, "strike.csv", &["d=0.02"]);
     let run = vibrissa(&[
         "estimate",
         "--experiment",
@@ -983,7 +987,7 @@ fn estimate_warns_of_a_recording_that_shows_only_noise() {
         "theta12=1e-3",
         "--json",
         "--obs",
-        strike,
+        &strike,
     ]);
     assert!(run.status.success(), "{}", stderr(&run));
     assert!(!stderr(&run).contains("moves beyond"), "{}", stderr(&run));
@@ -995,12 +999,7 @@ fn a_narrow_prior_keeps_the_widened_interval_of_the_filter_within_it() {
     // lie within the prior it was given, and the widened interval stays within that prior too
     // (it reached 6.6–25.3 mm for a prior of 15–17 mm when the runs spread over the whole range).
     let dir = Scratch::new("prior");
-    let strike = dir.path().join("s24.csv");
-    let strike = strike.to_str().unwrap();
-    let run = vibrissa(&[
-        "simulate", "e2", "--set", "d=0.024", "--set", "v=0.9", "--out", strike,
-    ]);
-    assert!(run.status.success(), "{}", stderr(&run));
+    let strike = e2_strike(&dir, "s24.csv", &["d=0.024", "v=0.9"]);
     let run = vibrissa(&[
         "estimate",
         "--experiment",
@@ -1018,7 +1017,7 @@ fn a_narrow_prior_keeps_the_widened_interval_of_the_filter_within_it() {
         "theta01=1e-3,theta12=1e-3,m0=1e-7,fx=1e-5,fy=1e-5",
         "--json",
         "--obs",
-        strike,
+        &strike,
     ]);
     assert!(run.status.success(), "{}", stderr(&run));
     let d = &json(&run)["d"];
