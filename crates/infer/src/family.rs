@@ -93,6 +93,12 @@ fn noise_cache() -> &'static Mutex<HashMap<u64, [f64; 5]>> {
     CACHE.get_or_init(|| Mutex::new(HashMap::new()))
 }
 
+/// [`Family::clean_ranges`] by the family's digest.
+fn ranges_cache() -> &'static Mutex<HashMap<u64, [f64; 5]>> {
+    static CACHE: OnceLock<Mutex<HashMap<u64, [f64; 5]>>> = OnceLock::new();
+    CACHE.get_or_init(|| Mutex::new(HashMap::new()))
+}
+
 impl Family {
     /// Opens a family: `spec` is a built-in name (`e1`, `e2`) or the path of a scenario file,
     /// `sets` are `key=value` overrides. The file must have `[unknowns]`, or name an experiment
@@ -932,6 +938,15 @@ impl Family {
     /// Peak-to-peak range of each channel over the clean reference runs (see
     /// [`Family::noise`]), `[CHANNELS]`, SI.
     pub fn clean_ranges(&self) -> Result<[f64; 5]> {
+        // Computed once per family and timing: every estimate's check of units asks for them.
+        let key = self.digest();
+        if let Some(r) = ranges_cache()
+            .lock()
+            .ok()
+            .and_then(|c| c.get(&key).copied())
+        {
+            return Ok(r);
+        }
         let runs = match self.experiment {
             Some(_) => {
                 let e2 = Family::builtin("e2")?;
@@ -957,7 +972,11 @@ impl Family {
                 }
             }
         }
-        Ok(std::array::from_fn(|c| hi[c] - lo[c]))
+        let ranges = std::array::from_fn(|c| hi[c] - lo[c]);
+        if let Ok(mut c) = ranges_cache().lock() {
+            c.insert(key, ranges);
+        }
+        Ok(ranges)
     }
 }
 
