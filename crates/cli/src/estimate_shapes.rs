@@ -103,13 +103,13 @@ pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
             vec![read_recording(
                 file,
                 &all,
-                Reader::Method(ShapeKrr::NAME),
+                Reader::Complete(ShapeKrr::NAME),
                 None,
             )?]
         } else {
             whiskers
                 .iter()
-                .map(|w| read_recording(file, &all, Reader::Method(ShapeKrr::NAME), Some(w)))
+                .map(|w| read_recording(file, &all, Reader::Complete(ShapeKrr::NAME), Some(w)))
                 .collect::<Result<_>>()?
         };
         recordings.push(per);

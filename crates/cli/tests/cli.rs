@@ -931,6 +931,71 @@ fn estimate_refuses_a_time_column_in_milliseconds() {
     }
 }
 
+/// `strike` with the angles of data rows `rows` (from 0) written as missing (`NaN`), at `to`.
+fn with_missing_angles(strike: &str, rows: std::ops::Range<usize>, to: &std::path::Path) {
+    let text = fs::read_to_string(strike).unwrap();
+    let mut out = Vec::new();
+    for (k, line) in text.lines().enumerate() {
+        let mut cells: Vec<String> = line.split(',').map(str::to_string).collect();
+        if k > 0 && rows.contains(&(k - 1)) {
+            cells[1] = "NaN".into();
+            cells[2] = "NaN".into();
+        }
+        out.push(cells.join(","));
+    }
+    fs::write(to, out.join("\n") + "\n").unwrap();
+}
+
+#[test]
+fn estimate_fills_in_a_few_missing_values_and_refuses_many() {
+    // A tracker that lost the whisker for three frames: a discriminative method reads the
+    // strike with those angles interpolated and says so; a fifth of a channel missing is
+    // refused, naming the channel and the filter, which skips missing values.
+    let dir = Scratch::new("gaps");
+    let strike = e2_strike(&dir, "strike.csv", &["d=0.024", "v=0.9"]);
+    let few = dir.path().join("few.csv");
+    with_missing_angles(&strike, 60..63, &few);
+    let run = vibrissa(&[
+        "estimate",
+        "--experiment",
+        "e2",
+        "--method",
+        "krr",
+        "--json",
+        "--obs",
+        few.to_str().unwrap(),
+    ]);
+    let err = stderr(&run);
+    assert!(run.status.success(), "{err}");
+    assert!(
+        err.contains("missing values filled in by linear interpolation")
+            && err.contains("theta01 3 (the longest gap 3 samples, 3 ms)"),
+        "{err}"
+    );
+    let est: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    let d = est["d"]["mean"].as_f64().unwrap();
+    assert!((d - 0.024).abs() < 5e-4, "{est}");
+
+    let many = dir.path().join("many.csv");
+    with_missing_angles(&strike, 40..80, &many);
+    let run = vibrissa(&[
+        "estimate",
+        "--experiment",
+        "e2",
+        "--method",
+        "knn",
+        "--obs",
+        many.to_str().unwrap(),
+    ]);
+    assert_refused(&run);
+    let err = stderr(&run);
+    assert!(
+        err.contains("column theta01 misses 40 of its 151 values") && err.contains("--method pf"),
+        "{err}"
+    );
+    assert!(run.stdout.is_empty());
+}
+
 #[test]
 fn estimate_warns_of_a_recording_that_shows_only_noise() {
     // A box that missed: 151 samples of white noise (a sum of twelve uniforms, less six) on

@@ -3,8 +3,9 @@
 //! timing, noise level and lead-in), and the choice, when the user left it open, to entertain
 //! whiskers drawn around a scenario that most of the recordings defy.
 //!
-//! The front ends read the recordings, measure their noise ([`crate::recording::batch_noise`])
-//! and lead-ins ([`crate::lead_in::batch_leads`]), then call [`discriminative`] or
+//! The front ends read the recordings, measure their noise ([`crate::recording::batch_noise`]),
+//! fill in the values missing for a discriminative method ([`fill_missing`]), measure the
+//! lead-ins ([`crate::lead_in::batch_leads`]), then call [`discriminative`] or
 //! [`filter_family`]; what they print is passed to `log`.
 
 use crate::check::{defies, unexplained};
@@ -233,6 +234,47 @@ pub fn without_strikes(
             )
         })
         .collect()
+}
+
+/// The recordings with the missing (`NaN`) values of the channels `needs` filled in for a
+/// discriminative method ([`Recording::filled`]), and a warning for each recording that missed
+/// any. Called once the noise has been estimated from the values recorded (an interpolated
+/// stretch has no noise to measure).
+pub fn fill_missing(
+    names: &[String],
+    recordings: &[Recording],
+    needs: &[usize],
+) -> (Vec<Recording>, Vec<String>) {
+    let mut warnings = Vec::new();
+    let filled = names
+        .iter()
+        .zip(recordings)
+        .map(|(name, rec)| {
+            let (filled, gaps) = rec.filled(needs);
+            if !gaps.is_empty() {
+                let each: Vec<String> = gaps
+                    .iter()
+                    .map(|g| {
+                        format!(
+                            "{} {} (the longest gap {} sample{}, {} ms)",
+                            crate::CHANNELS[g.channel],
+                            g.missing,
+                            g.longest,
+                            if g.longest == 1 { "" } else { "s" },
+                            (1e6 * g.longest as f64 / rec.rate).round() / 1e3
+                        )
+                    })
+                    .collect();
+                warnings.push(format!(
+                    "`{name}`: missing values filled in by linear interpolation for the \
+                     discriminative method: {}; the filter (--method pf) skips them instead",
+                    each.join(", ")
+                ));
+            }
+            filled
+        })
+        .collect();
+    (filled, warnings)
 }
 
 /// The family the particle filter runs on for a batch. With `auto` (the user chose neither to

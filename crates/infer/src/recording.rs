@@ -4,8 +4,10 @@
 //!
 //! The times may start anywhere and may have any constant step: a step that differs from the
 //! first by more than 1% (a gap, an irregular clock) or that does not advance is refused with
-//! its row. The channels an estimator reads must be present; a discriminative method also needs
-//! them finite, while the filter skips missing (`NaN`) values.
+//! its row. The channels an estimator reads must be present. Missing (`NaN`) values are skipped
+//! by the filter; a discriminative method, which reads whole series, has them filled in by linear
+//! interpolation ([`Recording::filled`], up to [`MAX_MISSING`] of a channel) once the noise has
+//! been estimated from the samples recorded; the shape estimators need complete series.
 
 use crate::experiment::CHANNELS;
 use crate::noise::{self, Source};
@@ -31,11 +33,21 @@ pub struct Recording {
 /// Who reads a recording, for what it must hold.
 #[derive(Debug, Clone, Copy)]
 pub enum Reader<'a> {
-    /// A discriminative method, by name: the channels it reads must be finite.
+    /// A discriminative method, by name: the channels it reads may miss (`NaN`) up to
+    /// [`MAX_MISSING`] of their values, which [`Recording::filled`] fills in; infinities are
+    /// refused.
     Method(&'a str),
+    /// A method that reads complete series, by name (the shape estimators): the channels it
+    /// reads must be finite.
+    Complete(&'a str),
     /// The particle filter: missing (`NaN`) values are skipped.
     Filter,
 }
+
+/// The largest share of a channel's samples that may be missing (`NaN`) for a discriminative
+/// method, which fills them in by linear interpolation: a tracker that lost the whisker for a
+/// few frames. Beyond it the interpolated stretches would be read as data.
+pub const MAX_MISSING: f64 = 0.2;
 
 fn bad(text: String) -> Error {
     Error::Recording(text)
@@ -251,19 +263,14 @@ impl Recording {
                             t.len()
                         )));
                     }
-                    if matches!(reader, Reader::Method(_)) && needs.contains(&c) {
-                        if let Some(k) = v.iter().position(|x| !x.is_finite()) {
-                            return Err(bad(format!(
-                                "`{name}`: column {ch} has a non-finite value in {DATA_ROW}{}",
-                                k + 1
-                            )));
-                        }
+                    if needs.contains(&c) {
+                        check_values(name, ch, &v, reader)?;
                     }
                     values.push(v);
                 }
                 None if needs.contains(&c) => {
                     return Err(bad(match reader {
-                        Reader::Method(m) => format!(
+                        Reader::Method(m) | Reader::Complete(m) => format!(
                             "method {m} needs column {ch}, which `{name}` lacks (the template \
                              method uses theta12 alone)"
                         ),
@@ -284,6 +291,53 @@ impl Recording {
         })
     }
 
+    /// The recording with the missing (`NaN`) values of the channels `needs` filled in, for a
+    /// discriminative method: each by linear interpolation between the nearest recorded values
+    /// before and after it (the nearest one where it has a recorded value on one side only).
+    /// Also per channel that had any: the channel, how many were missing and the longest run of
+    /// them, in samples.
+    pub fn filled(&self, needs: &[usize]) -> (Recording, Vec<Gaps>) {
+        let mut rec = self.clone();
+        let mut gaps = Vec::new();
+        for &c in needs {
+            let v = &mut rec.values[c];
+            let missing = v.iter().filter(|x| x.is_nan()).count();
+            if missing == 0 || missing == v.len() {
+                continue;
+            }
+            let mut longest = 0;
+            let mut k = 0;
+            while k < v.len() {
+                if !v[k].is_nan() {
+                    k += 1;
+                    continue;
+                }
+                let end = (k..v.len()).find(|&j| !v[j].is_nan()).unwrap_or(v.len());
+                longest = longest.max(end - k);
+                let before = k.checked_sub(1).map(|j| v[j]);
+                let after = v.get(end).copied();
+                for j in k..end {
+                    v[j] = match (before, after) {
+                        (Some(a), Some(b)) => {
+                            let f = (j + 1 - k) as f64 / (end + 1 - k) as f64;
+                            a + f * (b - a)
+                        }
+                        (Some(a), None) => a,
+                        (None, Some(b)) => b,
+                        (None, None) => unreachable!("a channel with a recorded value"),
+                    };
+                }
+                k = end;
+            }
+            gaps.push(Gaps {
+                channel: c,
+                missing,
+                longest,
+            });
+        }
+        (rec, gaps)
+    }
+
     /// The channels of `needs` that never change (a sensor that recorded nothing), with their
     /// one value.
     pub fn constant_channels(&self, needs: &[usize]) -> Vec<(usize, f64)> {
@@ -297,6 +351,53 @@ impl Recording {
                 (lo == hi).then_some((c, lo))
             })
             .collect()
+    }
+}
+
+/// Missing values of one channel that [`Recording::filled`] filled in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Gaps {
+    /// The channel, an index into [`CHANNELS`].
+    pub channel: usize,
+    /// How many of its values were missing.
+    pub missing: usize,
+    /// The longest run of missing values, samples.
+    pub longest: usize,
+}
+
+/// Checks the values `v` of channel `ch` that `reader` reads (see [`Reader`]).
+fn check_values(name: &str, ch: &str, v: &[f64], reader: Reader) -> Result<()> {
+    let row = |k: usize| format!("{DATA_ROW}{}", k + 1);
+    match reader {
+        Reader::Filter => Ok(()),
+        Reader::Complete(m) => match v.iter().position(|x| !x.is_finite()) {
+            Some(k) => Err(bad(format!(
+                "`{name}`: column {ch} has a non-finite value in {}; method {m} needs every \
+                 value of the channels it reads",
+                row(k)
+            ))),
+            None => Ok(()),
+        },
+        Reader::Method(m) => {
+            if let Some(k) = v.iter().position(|x| x.is_infinite()) {
+                return Err(bad(format!(
+                    "`{name}`: column {ch} has an infinite value in {} (a missing value is \
+                     written NaN)",
+                    row(k)
+                )));
+            }
+            let missing = v.iter().filter(|x| x.is_nan()).count();
+            if missing as f64 > MAX_MISSING * v.len() as f64 {
+                return Err(bad(format!(
+                    "`{name}`: column {ch} misses {missing} of its {} values (NaN), more than \
+                     the {}% that method {m} fills in by interpolation; the filter (--method pf) \
+                     skips missing values instead",
+                    v.len(),
+                    100.0 * MAX_MISSING
+                )));
+            }
+            Ok(())
+        }
     }
 }
 
@@ -468,12 +569,52 @@ mod tests {
         assert!(e.contains("method knn needs column m0"), "{e}");
         let mut c = columns(11);
         c[1].as_mut().unwrap()[3] = f64::NAN;
-        let e =
-            Recording::from_columns("r", t.clone(), c.clone(), None, &[1], Reader::Method("knn"))
-                .unwrap_err()
-                .to_string();
+        let e = Recording::from_columns(
+            "r",
+            t.clone(),
+            c.clone(),
+            None,
+            &[1],
+            Reader::Complete("shape-krr"),
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("non-finite value in data row 4"), "{e}");
-        assert!(Recording::from_columns("r", t.clone(), c, None, &[1], Reader::Filter).is_ok());
+        // One missing value of 11 is filled in for a discriminative method, skipped by the filter.
+        assert!(
+            Recording::from_columns("r", t.clone(), c.clone(), None, &[1], Reader::Filter).is_ok()
+        );
+        assert!(Recording::from_columns(
+            "r",
+            t.clone(),
+            c.clone(),
+            None,
+            &[1],
+            Reader::Method("knn")
+        )
+        .is_ok());
+        // Three of 11 are more than a discriminative method fills in; an infinity is no gap.
+        for k in [5, 7] {
+            c[1].as_mut().unwrap()[k] = f64::NAN;
+        }
+        let e = Recording::from_columns("r", t.clone(), c, None, &[1], Reader::Method("knn"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("column theta12 misses 3 of its 11 values")
+                && e.contains("20%")
+                && e.contains("--method pf"),
+            "{e}"
+        );
+        let mut c = columns(11);
+        c[0].as_mut().unwrap()[2] = f64::INFINITY;
+        let e = Recording::from_columns("r", t.clone(), c, None, &[0], Reader::Method("knn"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("column theta01 has an infinite value in data row 3"),
+            "{e}"
+        );
         let e = Recording::from_columns("r", t, columns(10), None, &[1], Reader::Filter)
             .unwrap_err()
             .to_string();
@@ -489,20 +630,55 @@ mod tests {
         }
         // A comment line and the header before the data: row k + 1 is on line k + 3.
         let lines: Vec<usize> = (3..9).collect();
-        let e = Recording::from_series_at_lines(&series, "r", &[1], Reader::Method("knn"), &lines)
+        let knn = Reader::Complete("knn");
+        let e = Recording::from_series_at_lines(&series, "r", &[1], knn, &lines)
             .unwrap_err()
             .to_string();
         assert!(e.contains("non-finite value in line 6"), "{e}");
         assert!(!e.contains("data row"), "{e}");
         // Without the lines, the data row.
-        let e = Recording::from_series(&series, "r", &[1], Reader::Method("knn"))
+        let e = Recording::from_series(&series, "r", &[1], knn)
             .unwrap_err()
             .to_string();
         assert!(e.contains("non-finite value in data row 4"), "{e}");
         // Lines that do not reach the row leave the message as it is.
-        let e = Recording::from_series_at_lines(&series, "r", &[1], Reader::Method("knn"), &[3])
+        let e = Recording::from_series_at_lines(&series, "r", &[1], knn, &[3])
             .unwrap_err()
             .to_string();
         assert!(e.contains("data row 4"), "{e}");
+    }
+
+    #[test]
+    fn missing_values_are_interpolated_in_time_and_held_at_the_ends() {
+        let t: Vec<f64> = (0..8).map(|k| k as f64 * 1e-3).collect();
+        let nan = f64::NAN;
+        let mut c = columns(8);
+        c[0] = Some(vec![nan, 1.0, 2.0, nan, nan, 8.0, 9.0, nan]);
+        c[1] = Some(vec![0.0, 1.0, nan, 3.0, 4.0, 5.0, 6.0, 7.0]);
+        // theta12's one gap in eight is within the share filled; theta01's four are not, but a
+        // channel is filled wherever it is asked for.
+        let rec = Recording::from_columns("r", t, c, None, &[1], Reader::Method("knn")).unwrap();
+        let (filled, gaps) = rec.filled(&[0, 1, 2]);
+        assert_eq!(filled.values[0], [1.0, 1.0, 2.0, 4.0, 6.0, 8.0, 9.0, 9.0]);
+        assert_eq!(filled.values[1], [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0]);
+        assert_eq!(
+            gaps,
+            [
+                Gaps {
+                    channel: 0,
+                    missing: 4,
+                    longest: 2
+                },
+                Gaps {
+                    channel: 1,
+                    missing: 1,
+                    longest: 1
+                }
+            ]
+        );
+        // The recording itself keeps its missing values (its noise is measured from the rest).
+        assert!(rec.values[0][0].is_nan());
+        let (_, none) = rec.filled(&[2]);
+        assert!(none.is_empty());
     }
 }

@@ -560,6 +560,16 @@ fn estimate(
         let quiet =
             vibrissa_infer::batch::without_strikes(&names, &recordings, &noise.levels, &needs);
         messages.extend(quiet.iter().map(|w| format!("warning: {w}")));
+        // A discriminative method reads whole series: values a tracker missed are filled in now
+        // that the noise is measured from those recorded (the filter skips them).
+        let recordings = if pf {
+            recordings
+        } else {
+            let (filled, gaps) =
+                vibrissa_infer::batch::fill_missing(&names, &recordings, &needs);
+            messages.extend(gaps.iter().map(|w| format!("warning: {w}")));
+            filled
+        };
         // Recordings that start before the approach (stated, or evident in the batch).
         let leads = vibrissa_infer::lead_in::batch_leads(
             max_delay,
@@ -797,7 +807,7 @@ fn estimate_shapes(
     let stated = vibrissa_infer::noise::parse_statement(noise)
         .map_err(|e| value_error(format!("noise: {e}")))?;
     let all: Vec<usize> = (0..CHANNELS.len()).collect();
-    let reader = Reader::Method(ShapeKrr::NAME);
+    let reader = Reader::Complete(ShapeKrr::NAME);
     let mut messages = Vec::new();
     let mut names = Vec::new();
     let mut recordings = Vec::new();
