@@ -502,7 +502,9 @@ fn filter_all(
         options.inject = match &args.inject {
             Some(name) => {
                 let m = trained_for(inject, family, rec, level, name, args.seed, lead)?;
-                Some(m.predict(&rec.values).with_context(|| {
+                // It reads whole series: missing values filled in, as for its own estimates.
+                let filled = rec.filled(&m.channels()).0;
+                Some(m.predict(&filled.values).with_context(|| {
                     format!(
                         "--inject {}: cannot estimate from `{}`",
                         m.name(),

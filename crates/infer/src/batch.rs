@@ -344,6 +344,41 @@ mod tests {
     }
 
     #[test]
+    fn recordings_with_missing_values_still_defy_a_scenario_that_is_not_their_whisker() {
+        // The filter skips missing values, but its check reads `krr`'s estimates, which need
+        // whole series: with three samples missing in every channel, a stiffer whisker's batch
+        // must still send the filter to whiskers drawn around the scenario.
+        let e2 = Family::builtin("e2").unwrap();
+        let points = [[0.018, 0.5], [0.024, 1.1], [0.027, 0.8]];
+        let sets = [
+            "whisker.youngs_modulus=4.5e9",
+            "sensors.theta01.gain=0.8",
+            "sensors.theta12.gain=0.8",
+        ]
+        .map(String::from);
+        let mut foreign = recordings(&Family::open("e2", &sets).unwrap(), &points);
+        for rec in &mut foreign {
+            for channel in &mut rec.values {
+                channel[60..63].fill(f64::NAN);
+            }
+        }
+        let (levels, leads) = (vec![LEVEL; points.len()], vec![0; points.len()]);
+        let mut log = Vec::new();
+        let family = filter_family(
+            &e2,
+            &foreign,
+            &levels,
+            &leads,
+            1,
+            true,
+            &COMMAND_LINE,
+            &mut |m| log.push(m),
+        )
+        .unwrap();
+        assert!(family.randomisation().is_some(), "{log:?}");
+    }
+
+    #[test]
     fn the_scenario_s_own_recordings_keep_it_and_a_stiffer_whisker_s_defy_it() {
         let e2 = Family::builtin("e2").unwrap();
         let points = [[0.018, 0.5], [0.024, 1.1], [0.027, 0.8]];

@@ -222,7 +222,9 @@ pub fn defied_by(
             continue;
         }
         let method = trained.get(&nominal, rec, level, "krr", seed, lead, log)?;
-        points.push(method.predict(&rec.values)?);
+        // `krr` reads whole series: values the filter would skip are filled in for it (the
+        // check itself skips them).
+        points.push(method.predict(&rec.filled(&channels).0.values)?);
         recs.push(rec);
         levels.push(*level);
         allowed.push(lead);
