@@ -316,10 +316,10 @@ impl Recording {
                 longest = longest.max(end - k);
                 let before = k.checked_sub(1).map(|j| v[j]);
                 let after = v.get(end).copied();
-                for j in k..end {
-                    v[j] = match (before, after) {
+                for (i, x) in v[k..end].iter_mut().enumerate() {
+                    *x = match (before, after) {
                         (Some(a), Some(b)) => {
-                            let f = (j + 1 - k) as f64 / (end + 1 - k) as f64;
+                            let f = (i + 1) as f64 / (end + 1 - k) as f64;
                             a + f * (b - a)
                         }
                         (Some(a), None) => a,

@@ -565,8 +565,7 @@ fn estimate(
         let recordings = if pf {
             recordings
         } else {
-            let (filled, gaps) =
-                vibrissa_infer::batch::fill_missing(&names, &recordings, &needs);
+            let (filled, gaps) = vibrissa_infer::batch::fill_missing(&names, &recordings, &needs);
             messages.extend(gaps.iter().map(|w| format!("warning: {w}")));
             filled
         };
