@@ -949,8 +949,8 @@ fn with_missing_angles(strike: &str, rows: std::ops::Range<usize>, to: &std::pat
 #[test]
 fn estimate_fills_in_a_few_missing_values_and_refuses_many() {
     // A tracker that lost the whisker for three frames: a discriminative method reads the
-    // strike with those angles interpolated and says so; a fifth of a channel missing is
-    // refused, naming the channel and the filter, which skips missing values.
+    // strike with those angles interpolated and says so; more than a tenth of a channel missing
+    // is refused, naming the channel and the filter, which skips missing values.
     let dir = Scratch::new("gaps");
     let strike = e2_strike(&dir, "strike.csv", &["d=0.024", "v=0.9"]);
     let few = dir.path().join("few.csv");

@@ -267,7 +267,8 @@ pub fn fill_missing(
                     .collect();
                 warnings.push(format!(
                     "`{name}`: missing values filled in by linear interpolation for the \
-                     discriminative method: {}; the filter (--method pf) skips them instead",
+                     discriminative method: {}; its interval does not count what the \
+                     interpolation misses (the filter, --method pf, skips them instead)",
                     each.join(", ")
                 ));
             }

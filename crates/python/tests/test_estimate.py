@@ -230,7 +230,7 @@ def test_bad_input_raises_naming_what_is_wrong(recordings, tmp_path):
     bad["theta12"][5] = np.inf
     with pytest.raises(ValueError, match="theta12 has an infinite value in data row 6"):
         vibrissa.estimate(bad, method="knn")
-    # Missing values (NaN) beyond a fifth of a channel are more than a discriminative method
+    # Missing values (NaN) beyond a tenth of a channel are more than a discriminative method
     # fills in.
     bad["theta12"][5:40] = np.nan
     with pytest.raises(ValueError, match="theta12 misses 35 of its 151 values"):
