@@ -77,8 +77,9 @@ pub fn estimate_each(
 /// scenario's whisker), a scenario that is neither calibrated nor randomised and that the
 /// recordings defy at their estimates and near them ([`unexplained`], [`defies`]) is not their
 /// whisker: the batch is estimated again on whiskers drawn around it, with a warning. Estimates
-/// held at an end of their range are warned of ([`at_range_ends`]). `trained` gathers the
-/// training of both passes.
+/// held at an end of their range are warned of ([`at_range_ends`]), and so are channels that
+/// look recorded with the opposite sign ([`crate::signs::sign_warnings`]). `trained` ends with
+/// the methods that made the estimates, and counts the training of both passes.
 #[allow(clippy::too_many_arguments)]
 pub fn discriminative(
     family: &Family,
@@ -97,6 +98,12 @@ pub fn discriminative(
         family, names, recordings, levels, leads, name, seed, auto, switches, trained, log,
     )?;
     for w in at_range_ends(&family, names, &estimates, switches) {
+        log(format!("warning: {w}"));
+    }
+    let flipped = crate::signs::sign_warnings(
+        &family, names, recordings, levels, leads, &estimates, name, seed, trained, log,
+    )?;
+    for w in flipped {
         log(format!("warning: {w}"));
     }
     Ok((family, estimates))
@@ -166,8 +173,10 @@ fn trusted_or_drawn(
         &mut again,
         log,
     )?;
-    trained.seconds += again.seconds;
-    trained.runs += again.runs;
+    // What trained the estimates returned, with the time and runs of both passes.
+    again.seconds += trained.seconds;
+    again.runs += trained.runs;
+    *trained = again;
     Ok((randomised, estimates))
 }
 

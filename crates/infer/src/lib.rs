@@ -33,6 +33,7 @@ pub mod randomise;
 pub mod recording;
 mod reference;
 pub mod shapes;
+pub mod signs;
 pub mod standin;
 pub mod trained;
 pub mod units;
