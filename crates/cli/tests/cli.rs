@@ -997,6 +997,45 @@ fn estimate_fills_in_a_few_missing_values_and_refuses_many() {
 }
 
 #[test]
+fn estimate_warns_of_angles_recorded_clockwise() {
+    // A rig that measures its angles clockwise: the two angle columns negated. The method reads
+    // some other strike; negated back, the scenario follows the recording far better.
+    let dir = Scratch::new("signs");
+    let strike = e2_strike(&dir, "strike.csv", &["d=0.022", "v=0.8"]);
+    let text = fs::read_to_string(&strike).unwrap();
+    let mut out = Vec::new();
+    for (k, line) in text.lines().enumerate() {
+        let mut cells: Vec<String> = line.split(',').map(str::to_string).collect();
+        if k > 0 {
+            for c in [1, 2] {
+                cells[c] = format!("{}", -cells[c].parse::<f64>().unwrap());
+            }
+        }
+        out.push(cells.join(","));
+    }
+    let flipped = dir.path().join("clockwise.csv");
+    fs::write(&flipped, out.join("\n") + "\n").unwrap();
+    for (file, warned) in [(strike.as_str(), false), (flipped.to_str().unwrap(), true)] {
+        let run = vibrissa(&[
+            "estimate",
+            "--experiment",
+            "e2",
+            "--method",
+            "krr",
+            "--obs",
+            file,
+        ]);
+        let err = stderr(&run);
+        assert!(run.status.success(), "{err}");
+        assert_eq!(
+            err.contains("with theta01 and theta12 negated"),
+            warned,
+            "{file}: {err}"
+        );
+    }
+}
+
+#[test]
 fn estimate_warns_of_a_recording_that_shows_only_noise() {
     // A box that missed: 151 samples of white noise (a sum of twelve uniforms, less six) on
     // every channel, at levels like a strike's sensors.

@@ -35,10 +35,17 @@ pub const FLIP_MARGIN: f64 = 1.2;
 /// Recordings named in a warning before the rest are counted.
 const NAMED: usize = 3;
 
-/// The channel sets tried negated: each channel of `needs` alone, the two joint angles together
-/// and the base wrench's channels together (those of them in `needs`, where more than one).
+/// The channel sets tried negated: each joint angle and the base moment alone, the two joint
+/// angles together and the base wrench's channels together (those of them in `needs`, where
+/// more than one). The force components alone are not tried: which way they point depends on
+/// the whisker (on a stand-in whisker's near strikes, read on the scenario's own whisker, `fy`
+/// ran against the scenario's in 4 of 20 strikes, and negated it fitted far better).
 fn hypotheses(needs: &[usize]) -> Vec<Vec<usize>> {
-    let mut out: Vec<Vec<usize>> = needs.iter().map(|&c| vec![c]).collect();
+    let mut out: Vec<Vec<usize>> = needs
+        .iter()
+        .filter(|&&c| c <= 2)
+        .map(|&c| vec![c])
+        .collect();
     for group in [&[0, 1][..], &[2, 3, 4]] {
         let g: Vec<usize> = group
             .iter()
@@ -100,9 +107,10 @@ struct Flip {
 }
 
 /// A warning for every set of channels that, negated, the scenario's simulation follows
-/// better by more than [`FLIP_MARGIN`] ([`agreement`]) in some of `recordings` (named by `names`; with their noise
-/// `levels` and lead-ins `leads`), read by the discriminative method `name` as trained by
-/// `trained` on `family`, whose readings of the recordings as recorded are `estimates`.
+/// better by more than [`FLIP_MARGIN`] ([`agreement`]) in some of `recordings` (named by
+/// `names`; with their noise `levels` and lead-ins `leads`), read by the discriminative method
+/// `name` as trained by `trained` on `family`, whose readings of the recordings as recorded are
+/// `estimates`.
 #[allow(clippy::too_many_arguments)]
 pub fn sign_warnings(
     family: &Family,
@@ -294,20 +302,12 @@ mod tests {
     fn each_channel_alone_and_the_angles_and_the_wrench_together() {
         assert_eq!(
             hypotheses(&[0, 1, 2, 3, 4]),
-            vec![
-                vec![0],
-                vec![1],
-                vec![2],
-                vec![3],
-                vec![4],
-                vec![0, 1],
-                vec![2, 3, 4]
-            ]
+            vec![vec![0], vec![1], vec![2], vec![0, 1], vec![2, 3, 4]]
         );
         assert_eq!(hypotheses(&[1]), vec![vec![1]]);
         assert_eq!(
-            hypotheses(&[0, 1, 4]),
-            vec![vec![0], vec![1], vec![4], vec![0, 1]]
+            hypotheses(&[0, 1, 3, 4]),
+            vec![vec![0], vec![1], vec![0, 1], vec![3, 4]]
         );
     }
 }
