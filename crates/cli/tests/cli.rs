@@ -931,19 +931,28 @@ fn estimate_refuses_a_time_column_in_milliseconds() {
     }
 }
 
-/// `strike` with the angles of data rows `rows` (from 0) written as missing (`NaN`), at `to`.
-fn with_missing_angles(strike: &str, rows: std::ops::Range<usize>, to: &std::path::Path) {
+/// `strike` with `edit` applied to each data row's cells (with the row's index from 0), at `to`.
+fn rewritten(strike: &str, to: &std::path::Path, edit: impl Fn(usize, &mut [String])) {
     let text = fs::read_to_string(strike).unwrap();
     let mut out = Vec::new();
     for (k, line) in text.lines().enumerate() {
         let mut cells: Vec<String> = line.split(',').map(str::to_string).collect();
-        if k > 0 && rows.contains(&(k - 1)) {
-            cells[1] = "NaN".into();
-            cells[2] = "NaN".into();
+        if k > 0 {
+            edit(k - 1, &mut cells);
         }
         out.push(cells.join(","));
     }
     fs::write(to, out.join("\n") + "\n").unwrap();
+}
+
+/// `strike` with the angles of data rows `rows` (from 0) written as missing (`NaN`), at `to`.
+fn with_missing_angles(strike: &str, rows: std::ops::Range<usize>, to: &std::path::Path) {
+    rewritten(strike, to, |k, cells| {
+        if rows.contains(&k) {
+            cells[1] = "NaN".into();
+            cells[2] = "NaN".into();
+        }
+    });
 }
 
 #[test]
@@ -1002,19 +1011,12 @@ fn estimate_warns_of_angles_recorded_clockwise() {
     // some other strike; negated back, the scenario follows the recording far better.
     let dir = Scratch::new("signs");
     let strike = e2_strike(&dir, "strike.csv", &["d=0.022", "v=0.8"]);
-    let text = fs::read_to_string(&strike).unwrap();
-    let mut out = Vec::new();
-    for (k, line) in text.lines().enumerate() {
-        let mut cells: Vec<String> = line.split(',').map(str::to_string).collect();
-        if k > 0 {
-            for c in [1, 2] {
-                cells[c] = format!("{}", -cells[c].parse::<f64>().unwrap());
-            }
-        }
-        out.push(cells.join(","));
-    }
     let flipped = dir.path().join("clockwise.csv");
-    fs::write(&flipped, out.join("\n") + "\n").unwrap();
+    rewritten(&strike, &flipped, |_, cells| {
+        for c in &mut cells[1..3] {
+            *c = format!("{}", -c.parse::<f64>().unwrap());
+        }
+    });
     for (file, warned) in [(strike.as_str(), false), (flipped.to_str().unwrap(), true)] {
         let run = vibrissa(&[
             "estimate",

@@ -342,13 +342,7 @@ mod tests {
             .enumerate()
             .map(|(k, p)| {
                 let s = family.simulate(p, &noise, k as u64).unwrap();
-                let rate = family.sample_rate();
-                Recording {
-                    t: (0..s.series[0].len()).map(|i| i as f64 / rate).collect(),
-                    values: s.series,
-                    rate,
-                    segments: None,
-                }
+                Recording::at_rate(s.series, family.sample_rate())
             })
             .collect()
     }

@@ -294,6 +294,18 @@ impl Recording {
         })
     }
 
+    /// A simulated run's channels (`[CHANNELS][samples]`) as a recording sampled at `rate` from
+    /// t = 0, without chain metadata.
+    pub fn at_rate(values: Vec<Vec<f64>>, rate: f64) -> Recording {
+        let n = values.first().map_or(0, Vec::len);
+        Recording {
+            t: (0..n).map(|k| k as f64 / rate).collect(),
+            values,
+            rate,
+            segments: None,
+        }
+    }
+
     /// The recording with the missing (`NaN`) values of the channels `needs` filled in, for a
     /// discriminative method: each by linear interpolation between the nearest recorded values
     /// before and after it (the nearest one where it has a recorded value on one side only).

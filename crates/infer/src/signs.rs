@@ -234,13 +234,7 @@ mod tests {
                         s.series[c].iter_mut().for_each(|x| *x = -*x);
                     }
                 }
-                let rate = e2.sample_rate();
-                Recording {
-                    t: (0..s.series[0].len()).map(|i| i as f64 / rate).collect(),
-                    values: s.series,
-                    rate,
-                    segments: None,
-                }
+                Recording::at_rate(s.series, e2.sample_rate())
             })
             .collect()
     }

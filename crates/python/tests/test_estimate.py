@@ -331,3 +331,16 @@ def test_missing_values_are_filled_in_for_a_discriminative_method(recordings):
     # Three of 151 samples moved by interpolation: the estimate stays within its interval.
     assert abs(est["d"]["mean"] - full["d"]["mean"]) < full["d"]["std"], (est["d"], full["d"])
     assert not any("missing values" in w for w in full["warnings"])
+
+
+def test_angles_recorded_clockwise_are_warned_of():
+    # The angle columns negated (a rig that measures clockwise): the method reads some other
+    # strike, and says which channels, negated back, the scenario follows far better.
+    run = noisy_run(0.024, 0.9, 3)
+    flipped = dict(run)
+    for c in ("theta01", "theta12"):
+        flipped[c] = -run[c]
+    est = vibrissa.estimate(flipped, method="krr")
+    assert any("with theta01 and theta12 negated" in w for w in est["warnings"]), est["warnings"]
+    kept = vibrissa.estimate(run, method="krr")
+    assert not any("negated" in w for w in kept["warnings"]), kept["warnings"]
