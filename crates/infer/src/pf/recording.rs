@@ -221,6 +221,24 @@ impl Estimate {
                 ));
             }
         }
+        // A gain read below zero: the channel runs against the scenario's sign relative to the
+        // others. Only the angles' gains are loose enough a priori to turn negative, so a wrench
+        // recorded the other way shows as angles read negative too.
+        if let Some(s) = &post.sensors {
+            for &c in &config.channels {
+                let (g, ch) = (s.gain[c], crate::CHANNELS[c]);
+                if g.ci90[1] < 0.0 {
+                    out.push(format!(
+                        "`{name}`: the filter reads the gain of {ch} as negative ({:.2}, its 90% \
+                         interval {:.2} to {:.2}): {ch} runs against the other channels as the \
+                         scenario has them; is it, or the base wrench, recorded with the \
+                         opposite sign? (angles are counter-clockwise positive; m0, fx and fy \
+                         are what the base applies to the whisker)",
+                        g.mean, g.ci90[0], g.ci90[1]
+                    ));
+                }
+            }
+        }
         if post.diverged as f64 > DIVERGED_SHARE * config.particles as f64 {
             out.push(format!(
                 "`{name}`: {} particle steps diverged (those particles were dropped, of {})",
