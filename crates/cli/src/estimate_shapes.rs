@@ -100,16 +100,11 @@ pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
     let mut recordings = Vec::with_capacity(args.obs.len());
     for file in &args.obs {
         let per: Vec<_> = if whiskers.is_empty() {
-            vec![read_recording(
-                file,
-                &all,
-                Reader::Complete(ShapeKrr::NAME),
-                None,
-            )?]
+            vec![read_recording(file, &all, Reader::Complete(method), None)?]
         } else {
             whiskers
                 .iter()
-                .map(|w| read_recording(file, &all, Reader::Complete(ShapeKrr::NAME), Some(w)))
+                .map(|w| read_recording(file, &all, Reader::Complete(method), Some(w)))
                 .collect::<Result<_>>()?
         };
         recordings.push(per);

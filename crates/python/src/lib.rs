@@ -799,14 +799,14 @@ fn estimate_shapes(
     bank: usize,
     whisker_from: Option<&str>,
 ) -> PyResult<(Vec<String>, Vec<String>, Vec<Vec<Vec<f64>>>, Vec<String>)> {
-    use vibrissa_infer::shapes::{estimate_batch, BatchOptions, ShapeKrr};
+    use vibrissa_infer::shapes::{estimate_batch, BatchOptions};
     check_count("training", training, 1, MAX_TRAINING).map_err(value_error)?;
     check_count("bank", bank, 1, MAX_BANK).map_err(value_error)?;
     let family = shape_family(shapes, whiskers, whisker_from)?;
     let stated = vibrissa_infer::noise::parse_statement(noise)
         .map_err(|e| value_error(format!("noise: {e}")))?;
     let all: Vec<usize> = (0..CHANNELS.len()).collect();
-    let reader = Reader::Complete(ShapeKrr::NAME);
+    let reader = Reader::Complete(method);
     let mut messages = Vec::new();
     let mut names = Vec::new();
     let mut recordings = Vec::new();
