@@ -16,10 +16,12 @@
 //! from anticorrelated to correlated and the sum rises by up to twice its correlation; a
 //! channel recorded in the contract's sign, negated, makes the sum fall, but for channels that
 //! the noise hides, whose reading may move either way. A rise of more than [`FLIP_MARGIN`] is
-//! warned of. On the other engine's strike with one channel negated the sums rose by 1.49
-//! (`fx`) to 3.74 (the wrench); over 20-strike sets of stand-in whiskers and the other engine's
-//! strikes at 0.5–10% noise and 333 Hz to 1 kHz, read by `krr-invariant`, `knn` and the template
-//! method, the largest rise was 0.90 (`fy` at 10% noise).
+//! warned of. On the other engine's strike read by `krr-invariant` the sums rose by 1.9
+//! (`theta01` negated), 2.6 (the angles), 3.7 (`m0`) and 3.7 (the wrench); over 20-strike sets
+//! of stand-in whiskers and the other engine's strikes at 0.5–10% noise and 333 Hz to 1 kHz,
+//! read by `krr-invariant` and `knn`, no sound strike rose by more than 1.2. With the force
+//! components alone tried as well, a negated `fx` rose by 1.49 while sound strikes rose by up to
+//! 0.90 (`fy` at 10% noise): too close to tell apart, so they are not tried ([`hypotheses`]).
 
 use crate::batch::Estimates;
 use crate::check::{check, Check};
