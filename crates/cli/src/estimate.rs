@@ -378,11 +378,6 @@ pub fn run(args: &Args) -> Result<()> {
     for w in vibrissa_infer::batch::without_strikes(&names, &recordings, &levels, &needs) {
         eprintln!("warning: {w}");
     }
-    // Values a tracker missed, filled in now that the noise is measured from those recorded.
-    let (recordings, gaps) = vibrissa_infer::batch::fill_missing(&names, &recordings, &needs);
-    for w in gaps {
-        eprintln!("warning: {w}");
-    }
     let leads = lead_ins(args.max_delay, &family, &args.obs, &recordings, &levels)?;
     // A scenario that is neither calibrated nor randomised, which most of the recordings defy
     // at their estimates, is not their whisker: estimate again on whiskers drawn around it.

@@ -3,10 +3,10 @@
 //! timing, noise level and lead-in), and the choice, when the user left it open, to entertain
 //! whiskers drawn around a scenario that most of the recordings defy.
 //!
-//! The front ends read the recordings, measure their noise ([`crate::recording::batch_noise`]),
-//! fill in the values missing for a discriminative method ([`fill_missing`]), measure the
-//! lead-ins ([`crate::lead_in::batch_leads`]), then call [`discriminative`] or
-//! [`filter_family`]; what they print is passed to `log`.
+//! The front ends read the recordings, measure their noise ([`crate::recording::batch_noise`])
+//! and lead-ins ([`crate::lead_in::batch_leads`]), then call [`discriminative`] (which fills in
+//! the values missing for the method, [`fill_missing`]) or [`filter_family`]; what they print is
+//! passed to `log`.
 
 use crate::check::{defies, unexplained};
 use crate::error::{Error, Result};
@@ -76,7 +76,8 @@ pub fn estimate_each(
 /// they were trained on. With `auto` (the user chose neither to randomise nor to keep the
 /// scenario's whisker), a scenario that is neither calibrated nor randomised and that the
 /// recordings defy at their estimates and near them ([`unexplained`], [`defies`]) is not their
-/// whisker: the batch is estimated again on whiskers drawn around it, with a warning. Estimates
+/// whisker: the batch is estimated again on whiskers drawn around it, with a warning. Missing
+/// values are filled in first ([`fill_missing`], with a warning). Estimates
 /// held at an end of their range are warned of ([`at_range_ends`]), and so are channels that
 /// look recorded with the opposite sign ([`crate::signs::sign_warnings`]). `trained` ends with
 /// the methods that made the estimates, and counts the training of both passes.
@@ -94,6 +95,13 @@ pub fn discriminative(
     trained: &mut Trained,
     log: &mut dyn FnMut(String),
 ) -> Result<(Family, Estimates)> {
+    // Whole series: values a tracker missed are filled in (the noise was measured without them).
+    let needs = methods::by_name(name)?.channels();
+    let (filled, gaps) = fill_missing(names, recordings, &needs);
+    for w in gaps {
+        log(format!("warning: {w}"));
+    }
+    let recordings = &filled[..];
     let (family, estimates) = trusted_or_drawn(
         family, names, recordings, levels, leads, name, seed, auto, switches, trained, log,
     )?;
@@ -249,7 +257,7 @@ pub fn without_strikes(
 /// discriminative method ([`Recording::filled`]), and a warning for each recording that missed
 /// any. Called once the noise has been estimated from the values recorded (an interpolated
 /// stretch has no noise to measure).
-pub fn fill_missing(
+fn fill_missing(
     names: &[String],
     recordings: &[Recording],
     needs: &[usize],

@@ -560,15 +560,6 @@ fn estimate(
         let quiet =
             vibrissa_infer::batch::without_strikes(&names, &recordings, &noise.levels, &needs);
         messages.extend(quiet.iter().map(|w| format!("warning: {w}")));
-        // A discriminative method reads whole series: values a tracker missed are filled in now
-        // that the noise is measured from those recorded (the filter skips them).
-        let recordings = if pf {
-            recordings
-        } else {
-            let (filled, gaps) = vibrissa_infer::batch::fill_missing(&names, &recordings, &needs);
-            messages.extend(gaps.iter().map(|w| format!("warning: {w}")));
-            filled
-        };
         // Recordings that start before the approach (stated, or evident in the batch).
         let leads = vibrissa_infer::lead_in::batch_leads(
             max_delay,
