@@ -51,6 +51,8 @@ struct Filter {
     widening: Vec<f64>,
     /// Per unknown, its prior's `[lo, hi]`, within which a widened row is kept.
     support: Vec<Option<[f64; 2]>>,
+    /// Number of particles.
+    particles: usize,
 }
 
 /// A posterior row as a dict: `t`, `ess` and one `{mean, std, ci90}` dict per unknown.
@@ -150,7 +152,9 @@ impl Filter {
                 2,
             )?;
         }
-        let particles = particles.unwrap_or_else(|| pf::default_particles(&family));
+        // Online, real time comes first: the same count on every family (a whole recording in hand
+        // is filtered by `estimate` with more on a randomised one).
+        let particles = particles.unwrap_or(pf::ONLINE_PARTICLES);
         let stated = family.stated_noise();
         let mut sensor = [0.0; 5];
         for c in 0..5 {
@@ -207,6 +211,7 @@ impl Filter {
             noise: filter.sensor_noise().expect("fitted"),
             widening,
             support,
+            particles,
         })
     }
 
@@ -282,6 +287,12 @@ impl Filter {
     #[getter]
     fn unknowns(&self) -> Vec<&'static str> {
         self.unknowns.clone()
+    }
+
+    /// Number of particles.
+    #[getter]
+    fn particles(&self) -> usize {
+        self.particles
     }
 
     /// The sample period, s.

@@ -143,3 +143,11 @@ def test_a_whisker_known_roughly_sample_by_sample_equals_the_command_line(tmp_pa
     gain = post["sensors.theta12.gain"]
     assert gain["ci90"][0] < 0.5 < gain["ci90"][1]
     assert gain["mean"] < 0.8
+
+
+def test_the_online_filter_defaults_to_a_real_time_particle_count():
+    # Fed one sample at a time, the filter keeps its particle count at what two cores step in
+    # real time, on a whisker known only roughly too; a count given is kept.
+    assert vibrissa.Filter("e2", noise=NOISE).particles == 1000
+    assert vibrissa.Filter("e2", noise=NOISE, randomise=True).particles == 1000
+    assert vibrissa.Filter("e2", noise=NOISE, particles=300).particles == 300
