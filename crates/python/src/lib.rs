@@ -2,9 +2,9 @@
 //! (`python/vibrissa/__init__.py`) turns keyword arguments into scenario overrides, checks types
 //! and offers a pandas frame; this crate loads the scenario and does the work with the
 //! interpreter released: here the simulator behind `vibrissa.simulate` and the scenario
-//! helpers the others share; in [`filter`] the particle filter fed sample by sample
-//! (`vibrissa.Filter`), in [`estimate`] the estimators on whole recordings, in [`calibrate`]
-//! calibration from labelled strikes, in [`sweeps`] the pieces of a sweep.
+//! helpers the others share; in `filter` the particle filter fed sample by sample
+//! (`vibrissa.Filter`), in `estimate` the estimators on whole recordings, in `calibrate`
+//! calibration from labelled strikes, in `sweeps` the pieces of a sweep.
 
 use numpy::IntoPyArray;
 use pyo3::exceptions::PyValueError;
