@@ -45,6 +45,9 @@ pub const MIN_RESIDUALS: usize = 30;
 /// channel, falls below it by more than this factor on every channel, or by more than its square
 /// on some channel, is given its own level ([`batch_levels`]).
 pub const AGREEMENT: f64 = 1.5;
+/// The samples of a recording whose own estimate scatters by about 12%, for which [`AGREEMENT`]
+/// was set: an `e2` strike at 1 kHz. Shorter recordings scatter more ([`agreement_factor`]).
+pub const AGREEMENT_SAMPLES: usize = 151;
 /// Levels are rounded to powers of 2^(1/`STEPS_PER_OCTAVE`) ([`quantise`]): at most 4.4% off.
 pub const STEPS_PER_OCTAVE: f64 = 8.0;
 
@@ -248,15 +251,31 @@ pub struct BatchNoise {
     /// Per recording: its own estimate of each asked-for channel, unquantised (stated channels
     /// as stated).
     pub own: Vec<[f64; 5]>,
+    /// Per recording: the factor within which its own estimate agreed with the pooled one
+    /// ([`agreement_factor`]).
+    pub agreement: Vec<f64>,
+}
+
+/// The factor by which the noise estimate of a recording of `samples` samples may stray from
+/// its batch's pooled estimate and still agree with it: [`AGREEMENT`] from
+/// [`AGREEMENT_SAMPLES`] samples on, and for a shorter recording [`AGREEMENT`] raised to the
+/// square root of the ratio of the counts, as its estimate's scatter grows (2.0 for 51 samples,
+/// a 150-ms strike at 333 Hz). At 333 Hz a recording's own estimate strayed 0.3–3.7 times the
+/// true noise (four stand-in whiskers, 40 strikes each, every third sample; 0.72–1.33 at 1 kHz),
+/// and with [`AGREEMENT`] 37 of their 160 strikes were given their own, scattered, levels; with
+/// this factor 3.
+pub fn agreement_factor(samples: usize) -> f64 {
+    let ratio = AGREEMENT_SAMPLES as f64 / samples.max(1) as f64;
+    AGREEMENT.powf(ratio.sqrt().max(1.0))
 }
 
 /// The noise levels of a batch of recordings (channel-major `[CHANNELS][samples]` each) on the
 /// channels `channels`: a channel given in `stated` is taken as stated; every other one is
 /// estimated. Recordings whose own estimates agree with the batch's pooled estimate share the
 /// pooled estimate of those recordings (one rig: one level, estimated from all of them); a
-/// recording noisier than the pooled estimate by more than a factor [`AGREEMENT`] on some
-/// channel, quieter by more than that on every channel, or by more than its square on some
-/// channel keeps its own. Levels are [`quantise`]d.
+/// recording noisier than the pooled estimate by more than a factor ([`agreement_factor`]:
+/// [`AGREEMENT`], wider for a short recording) on some channel, quieter by more than that on every channel, or by
+/// more than its square on some channel keeps its own. Levels are [`quantise`]d.
 pub fn batch_levels(
     recordings: &[&[Vec<f64>]],
     channels: &[usize],
@@ -277,16 +296,32 @@ pub fn batch_levels(
     // read quieter alone is therefore not enough to set a recording apart (nor is it the side
     // that makes intervals too narrow); a recording is its own when it is noisier on some
     // channel, quieter on every one, or far quieter on one.
-    let agrees = |mine: &[f64; 5], pooled: &[f64; 5]| {
+    // A shorter recording's estimate scatters more: it agrees within a wider factor.
+    let pooled = estimate_pooled(recordings, &estimated)?;
+    let factors: Vec<f64> = recordings
+        .iter()
+        .map(|r| {
+            let samples = estimated
+                .iter()
+                .filter_map(|&c| r.get(c).map(|x| x.iter().filter(|v| v.is_finite()).count()))
+                .min()
+                .unwrap_or(AGREEMENT_SAMPLES);
+            agreement_factor(samples)
+        })
+        .collect();
+    let agrees = |mine: &[f64; 5], pooled: &[f64; 5], f: f64| {
         let pairs = || estimated.iter().map(|&c| (mine[c], pooled[c]));
-        let noisier = pairs().any(|(a, b)| a > AGREEMENT * b);
-        let quieter = |f: f64| move |(a, b): (f64, f64)| f * a < b;
-        let all_quieter = !estimated.is_empty() && pairs().all(quieter(AGREEMENT));
-        let far_quieter = pairs().any(quieter(AGREEMENT * AGREEMENT));
+        let noisier = pairs().any(|(a, b)| a > f * b);
+        let quieter = |g: f64| move |(a, b): (f64, f64)| g * a < b;
+        let all_quieter = !estimated.is_empty() && pairs().all(quieter(f));
+        let far_quieter = pairs().any(quieter(f * f));
         !(noisier || all_quieter || far_quieter)
     };
-    let pooled = estimate_pooled(recordings, &estimated)?;
-    let members: Vec<bool> = own.iter().map(|o| agrees(o, &pooled)).collect();
+    let members: Vec<bool> = own
+        .iter()
+        .zip(&factors)
+        .map(|(o, f)| agrees(o, &pooled, *f))
+        .collect();
     let shared = if members.iter().filter(|m| **m).count() > 1 {
         let chosen: Vec<&[Vec<f64>]> = recordings
             .iter()
@@ -324,6 +359,7 @@ pub fn batch_levels(
         levels,
         sources,
         own: own.into_iter().map(with_stated).collect(),
+        agreement: factors,
     })
 }
 
@@ -628,6 +664,73 @@ mod tests {
         assert_eq!(b.sources[6], Source::Own, "{:?}", b.own[6]);
         assert_eq!(b.sources[7], Source::Own, "{:?}", b.own[7]);
         assert_eq!(b.levels[5], b.levels[0]);
+    }
+
+    #[test]
+    fn short_recordings_of_one_level_share_it_and_a_noisier_one_is_still_set_apart() {
+        // 51 samples at 333 Hz (an e2 strike every third sample): each recording's own estimate
+        // scatters far more than at 151 samples, so the factor within which they agree widens
+        // (white noise alone strays little at this count: see the next test for strikes);
+        // recording 24 is four times as noisy on its first channel.
+        let runs: Vec<Vec<Vec<f64>>> = (0..25)
+            .map(|k| {
+                let s0 = if k == 24 { 0.12 } else { 0.03 };
+                vec![
+                    ringing_at(51, 333.3, 31.0, s0, 100 + k),
+                    ringing_at(51, 333.3, 23.0, 0.01, 200 + k),
+                ]
+            })
+            .collect();
+        let refs: Vec<&[Vec<f64>]> = runs.iter().map(|r| &r[..]).collect();
+        let b = batch_levels(&refs, &[0, 1], &[None; 5]).unwrap();
+        for k in 0..24 {
+            assert_eq!(b.sources[k], Source::Batch, "recording {k}: {:?}", b.own[k]);
+        }
+        assert_eq!(b.sources[24], Source::Own, "{:?}", b.own[24]);
+        assert!(
+            b.agreement.iter().all(|f| (f - 2.0).abs() < 0.02),
+            "{:?}",
+            b.agreement
+        );
+        assert_eq!(agreement_factor(151), AGREEMENT);
+        assert_eq!(agreement_factor(1000), AGREEMENT);
+    }
+
+    #[test]
+    fn strikes_at_333_hz_share_their_level() {
+        // Thirty e2 strikes of a 50-segment chain on the seed paper's stiffness rule (as another
+        // engine's whisker), every third sample (51 samples), 3% noise: each strike's own
+        // estimate strays further from the pooled one than at 1 kHz, by chance and by the
+        // chain's faster modes aliased into its residuals (our 20-segment chain strays less).
+        let sets = ["segments=50".to_string(), "discretisation=seed".to_string()];
+        let family = crate::Family::open("e2", &sets)
+            .unwrap()
+            .with_timing(1000.0 / 3.0, 51)
+            .unwrap();
+        let noise = crate::experiment::Noise {
+            sensor: [3.6e-3, 8.9e-3, 1.4e-6, 1.0e-4, 7.1e-5],
+            process: 0.0,
+        };
+        let runs: Vec<Vec<Vec<f64>>> = (0..30)
+            .map(|k| {
+                let d = 0.0155 + 0.0141 * ((k as f64 * 0.618_034) % 1.0);
+                let v = 0.32 + 1.16 * ((k as f64 * 0.414_214) % 1.0);
+                family.simulate(&[d, v], &noise, 40 + k).unwrap().series
+            })
+            .collect();
+        let refs: Vec<&[Vec<f64>]> = runs.iter().map(|r| &r[..]).collect();
+        let all = [0, 1, 2, 3, 4];
+        let b = batch_levels(&refs, &all, &[None; 5]).unwrap();
+        let own = b.sources.iter().filter(|s| **s == Source::Own).count();
+        // What AGREEMENT alone would have set apart.
+        let pooled = estimate_pooled(&refs, &all).unwrap();
+        let strays = b
+            .own
+            .iter()
+            .filter(|o| all.iter().any(|&c| o[c] > AGREEMENT * pooled[c]))
+            .count();
+        assert!(own <= 1, "{own} of 30 set apart: {:?}", b.own);
+        assert!(strays >= 3, "{strays}");
     }
 
     #[test]

@@ -469,15 +469,21 @@ pub fn batch_noise(
     let series: Vec<&[Vec<f64>]> = recordings.iter().map(|r| &r.values[..]).collect();
     let batch = noise::batch_levels(&series, needs, stated)?;
     let several = names.len() > 1;
-    for ((name, source), own) in names.iter().zip(&batch.sources).zip(&batch.own) {
+    for (((name, source), own), f) in names
+        .iter()
+        .zip(&batch.sources)
+        .zip(&batch.own)
+        .zip(&batch.agreement)
+    {
         if *source == Source::Own && several {
             warnings.push(format!(
                 "`{name}`: its sensor noise ({}) differs from the rest of the batch's (more \
-                 than {a} times as noisy on some channel, {a} times as quiet on every one, or \
-                 {} times as quiet on one); it is estimated from this recording alone",
+                 than {f:.2} times as noisy on some channel, {f:.2} times as quiet on every \
+                 one, or {:.2} times as quiet on one; a recording shorter than {} samples is \
+                 allowed more); it is estimated from this recording alone",
                 describe_noise(own, &estimated),
-                noise::AGREEMENT * noise::AGREEMENT,
-                a = noise::AGREEMENT
+                f * f,
+                noise::AGREEMENT_SAMPLES
             ));
         }
     }
