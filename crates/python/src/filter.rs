@@ -125,9 +125,9 @@ impl Filter {
                 2,
             )?;
         }
-        // Online, real time comes first: the same count on every family (a whole recording in hand
-        // is filtered by `estimate` with more on a randomised one).
-        let particles = particles.unwrap_or(pf::ONLINE_PARTICLES);
+        // Online, real time comes first, but for a calibrated family, whose intervals need the
+        // particles (`pf::online_particles`).
+        let particles = particles.unwrap_or_else(|| pf::online_particles(&family));
         let stated = family.stated_noise();
         let mut sensor = [0.0; 5];
         for c in 0..5 {

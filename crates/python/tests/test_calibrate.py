@@ -46,6 +46,11 @@ def test_the_fit_and_the_fitted_file_are_the_command_line_s(labelled, tmp_path, 
     assert abs(est["d"]["mean"] - 0.017) < 1e-3
     # It trains on whiskers drawn from the correlations the fitted file records.
     assert "drawn from the fit's standard errors and correlations" in capsys.readouterr().err
+    # Fed sample by sample, the filter keeps estimate's particle count on a calibrated file
+    # with what calibration left uncertain drawn (its intervals need them), where on a nominal
+    # one it takes a real-time count.
+    from test_filter import NOISE
+    assert vibrissa.Filter(tmp_path / "py.toml", noise=NOISE, randomise=True).particles == 4000
 
 
 def test_bad_input_raises_and_writes_nothing(labelled, tmp_path):

@@ -54,8 +54,8 @@ pub use likelihood::{
     FINE_TEMPER, MODEL_ERROR, TEMPERED_PERIOD, TRANSITION_MODELS, UNKNOWN_START_TEMPER,
 };
 pub use method::{
-    alternative_whiskers, default_particles, Pf, ALTERNATIVES, CALIBRATED_TEMPER, ONLINE_PARTICLES,
-    RANDOMISED_TEMPER, SENSOR_FLOOR,
+    alternative_whiskers, default_particles, online_particles, Pf, ALTERNATIVES, CALIBRATED_TEMPER,
+    ONLINE_PARTICLES, RANDOMISED_TEMPER, SENSOR_FLOOR,
 };
 pub use posterior::{Observations, Posterior, SensorPosterior, TraceRow};
 pub use sensors::SensorSpread;
