@@ -494,6 +494,15 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_filter_fed_sample_by_sample_defaults_to_a_real_time_count() {
+        let e2 = crate::Family::builtin("e2").unwrap();
+        assert_eq!(online_particles(&e2), ONLINE_PARTICLES);
+        let randomised = e2.randomised_if(true).unwrap();
+        assert_eq!(default_particles(&randomised), 4000);
+        assert_eq!(online_particles(&randomised), ONLINE_PARTICLES);
+    }
+
+    #[test]
     fn the_misfit_limit_is_the_held_out_runs_largest_where_that_is_larger() {
         let mut pf = Pf::new(100);
         assert_eq!(pf.misfit_limit(), MISFIT_LIMIT);
