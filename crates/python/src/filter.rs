@@ -87,7 +87,7 @@ impl Filter {
     /// `noise` holds each channel's sensor noise (NaN where not given: the scenario's
     /// `[sensor_noise]` must state it then).
     #[new]
-    #[pyo3(signature = (scenario, scenario_json, sets, noise, particles, seed, rate, randomise=false))]
+    #[pyo3(signature = (scenario, scenario_json, sets, noise, particles, seed, rate, randomise=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -98,14 +98,16 @@ impl Filter {
         particles: Option<usize>,
         seed: u64,
         rate: Option<f64>,
-        randomise: bool,
+        randomise: Option<bool>,
     ) -> PyResult<Self> {
         if let Some(n) = particles {
             check_count("particles", n, 1, MAX_PARTICLES).map_err(value_error)?;
         }
-        let family = family(scenario, scenario_json, &sets)?
-            .randomised_if(randomise)
-            .map_err(value_error)?;
+        let family = family(scenario, scenario_json, &sets)?;
+        // As `estimate`: a calibrated file draws what its calibration left uncertain unless told
+        // otherwise.
+        let randomise = randomise.unwrap_or(family.is_calibrated());
+        let family = family.randomised_if(randomise).map_err(value_error)?;
         // A whisker file of the user's own, neither calibrated nor randomised: the filter takes
         // its whisker as exact, which a real whisker never is. `estimate` checks the recordings
         // against it first; a filter fed sample by sample has none to check yet.

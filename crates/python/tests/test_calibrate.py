@@ -46,11 +46,18 @@ def test_the_fit_and_the_fitted_file_are_the_command_line_s(labelled, tmp_path, 
     assert abs(est["d"]["mean"] - 0.017) < 1e-3
     # It trains on whiskers drawn from the correlations the fitted file records.
     assert "drawn from the fit's standard errors and correlations" in capsys.readouterr().err
-    # Fed sample by sample, the filter keeps estimate's particle count on a calibrated file
-    # with what calibration left uncertain drawn (its intervals need them), where on a nominal
-    # one it takes a real-time count.
+    # Fed sample by sample, the filter on a calibrated file draws what calibration left
+    # uncertain, as estimate does, and keeps estimate's particle count there (its intervals
+    # need them), where on a nominal file it takes a real-time count.
     from test_filter import NOISE
-    assert vibrissa.Filter(tmp_path / "py.toml", noise=NOISE, randomise=True).particles == 4000
+    run = vibrissa.simulate("e1", d=0.02)
+    first = {c: run[c][0] for c in vibrissa.CHANNELS}
+    drawn = vibrissa.Filter(tmp_path / "py.toml", noise=NOISE)
+    assert drawn.particles == 4000
+    assert "whisker.youngs_modulus" in drawn.update(run["t"][0], first)
+    exact = vibrissa.Filter(tmp_path / "py.toml", noise=NOISE, randomise=False)
+    assert exact.particles == 1000
+    assert "whisker.youngs_modulus" not in exact.update(run["t"][0], first)
 
 
 def test_bad_input_raises_and_writes_nothing(labelled, tmp_path):

@@ -654,8 +654,8 @@ class Filter:
         a dict of its keys.
     particles : int, optional
         Particles (default 1000, with or without ``randomise``: the filter then keeps up with
-        the samples on two cores; 4000 on a calibrated file with ``randomise``, whose intervals
-        held about 80% at 1000). :func:`estimate` filters a whole recording of a whisker
+        the samples on two cores; 4000 on a calibrated file, randomised there by default, whose
+        intervals held about 80% at 1000). :func:`estimate` filters a whole recording of a whisker
         known only roughly with 4000, which read single strikes about a sixth more accurately.
     noise : mapping, optional
         Each channel's sensor noise (standard deviation, SI). Channels left out must be stated by
@@ -664,16 +664,18 @@ class Filter:
         Seed of the filter's random streams (the same seed gives the same bits).
     rate : float, optional
         Sample rate of the recording, Hz (default: the scenario's).
-    randomise : bool
+    randomise : bool, optional
         The whisker is known only roughly: the filter entertains 64 whiskers drawn around the
         scenario's and carries the sensors' gains and offsets as unknowns; each posterior then
         also holds ``"sensors.<channel>.gain"`` and ``"sensors.<channel>.offset"``. At the default
         1000 particles it keeps up with the samples on two cores. As on the command line,
         the filter is first run on 24 held-out runs of whiskers drawn alike (about 2 s at 1000
         particles) and every posterior's intervals are widened to hold 90% of their errors
-        (the means are unchanged). Without it, a scenario file of your own that calibration
-        did not write is taken as the exact whisker, with a ``UserWarning``: a real whisker
-        rarely matches its nominal file, and the intervals then do not hold.
+        (the means are unchanged). Default (None): on a calibrated scenario (written by
+        ``vibrissa calibrate``), over what its calibration leaves uncertain, as
+        :func:`estimate` does; otherwise not, and a scenario file of your own is then taken as
+        the exact whisker, with a ``UserWarning``: a real whisker rarely matches its nominal
+        file, and the intervals then do not hold.
     overrides, **keys
         Scenario overrides, as for :func:`simulate`.
     """
@@ -686,7 +688,7 @@ class Filter:
         noise=None,
         seed=1,
         rate=None,
-        randomise=False,
+        randomise=None,
         overrides=None,
         **keys,
     ):
@@ -698,7 +700,14 @@ class Filter:
         values = _channels("noise", noise if noise is not None else {})
         name, text = _scenario_args(scenario)
         self._inner = _vibrissa.Filter(
-            name, text, _overrides(overrides, keys), values, particles, seed, rate, bool(randomise)
+            name,
+            text,
+            _overrides(overrides, keys),
+            values,
+            particles,
+            seed,
+            rate,
+            None if randomise is None else bool(randomise),
         )
 
     def update(self, t, sample):

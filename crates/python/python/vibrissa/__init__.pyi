@@ -94,7 +94,7 @@ class Filter:
         noise: Mapping[str, float] | None = None,
         seed: int = 1,
         rate: float | None = None,
-        randomise: bool = False,
+        randomise: bool | None = None,
         overrides: Mapping[str, Value] | None = None,
         **keys: Value,
     ) -> None: ...
