@@ -274,8 +274,9 @@ pub fn agreement_factor(samples: usize) -> f64 {
 /// estimated. Recordings whose own estimates agree with the batch's pooled estimate share the
 /// pooled estimate of those recordings (one rig: one level, estimated from all of them); a
 /// recording noisier than the pooled estimate by more than a factor ([`agreement_factor`]:
-/// [`AGREEMENT`], wider for a short recording) on some channel, quieter by more than that on every channel, or by
-/// more than its square on some channel keeps its own. Levels are [`quantise`]d.
+/// [`AGREEMENT`], wider for a short recording) on some channel, quieter by more than that on
+/// every channel, or by more than its square on some channel keeps its own. Levels are
+/// [`quantise`]d.
 pub fn batch_levels(
     recordings: &[&[Vec<f64>]],
     channels: &[usize],
