@@ -23,7 +23,7 @@ use nalgebra::{DMatrix, DVector};
 use std::f64::consts::PI;
 
 // ---------------------------------------------------------------------------
-// 3. Clamped–free natural frequencies
+// 1. Clamped–free natural frequencies
 // ---------------------------------------------------------------------------
 
 /// The first `n` roots βL of `cos x·cosh x = −1` (clamped–free beam), ascending.
@@ -242,7 +242,7 @@ pub fn clamped_free_tapered(profile: &dyn BeamProfile, n: usize) -> Result<Vec<f
 }
 
 // ---------------------------------------------------------------------------
-// 4. Kaneko's massless-beam / tip-mass frequency
+// 2. Kaneko's massless-beam / tip-mass frequency
 // ---------------------------------------------------------------------------
 
 /// Kaneko's natural angular frequency (rad/s) of a massless cantilever of stiffness
@@ -261,7 +261,7 @@ mod tests {
     use super::super::UniformBeam;
     use super::*;
 
-    // ----- 3. Natural frequencies -----
+    // ----- 1. Natural frequencies -----
 
     #[test]
     fn clamped_free_roots_are_exact() {
@@ -373,7 +373,7 @@ mod tests {
         .is_err());
     }
 
-    // ----- 4. Kaneko -----
+    // ----- 2. Kaneko -----
 
     #[test]
     fn kaneko_limits() {
