@@ -65,6 +65,11 @@ pub struct Args {
     /// --randomise`): 63 alternative whiskers, the sensors' gains and offsets as unknowns.
     #[arg(long, requires = "pf")]
     randomise: bool,
+    /// With --pf --randomise: islands the particles are split among, as `estimate --islands`
+    /// (each keeps at least 1000 particles).
+    #[arg(long, value_name = "N", default_value_t = vibrissa_infer::pf::ISLANDS,
+          value_parser = crate::limits::islands, requires = "randomise")]
+    islands: usize,
 }
 
 /// Segment counts of the single-state measurement, ascending.
@@ -238,7 +243,12 @@ struct BenchReport {
 /// Measures, then prints the figures.
 pub fn run(args: &Args) -> Result<()> {
     if args.pf {
-        return crate::bench_pf::run(&args.particles, args.quick, args.randomise, &args.format);
+        return crate::bench_pf::run(
+            &args.particles,
+            args.quick,
+            args.randomise.then_some(args.islands),
+            &args.format,
+        );
     }
     let plan = Plan::new(args.quick);
     let optimised = !cfg!(debug_assertions);

@@ -23,6 +23,8 @@ use vibrissa_infer::{Family, Method, Training};
 #[derive(Debug, Clone, Serialize)]
 struct Row {
     particles: usize,
+    /// Independent filters the particles were split among.
+    islands: usize,
     /// Wall seconds of the fastest repetition.
     seconds: f64,
     /// Seconds of data filtered.
@@ -103,6 +105,7 @@ impl Render for Report {
         }
         let mut t = Table::new(&[
             ("particles", Align::Right),
+            ("islands", Align::Right),
             ("wall (s)", Align::Right),
             ("data (s)", Align::Right),
             ("real-time factor", Align::Right),
@@ -115,6 +118,7 @@ impl Render for Report {
         for r in &self.rows {
             t.row(vec![
                 r.particles.to_string(),
+                r.islands.to_string(),
                 sig(r.seconds, 3),
                 sig(r.data_seconds, 3),
                 format!("{:.2}", r.real_time_factor),
@@ -129,8 +133,14 @@ impl Render for Report {
     }
 }
 
-/// Measures and prints.
-pub fn run(particles: &[usize], quick: bool, randomise: bool, format: &FormatArgs) -> Result<()> {
+/// Measures and prints; `randomise` holds the islands of the randomised filter, `None` times the
+/// filter of the known whisker.
+pub fn run(
+    particles: &[usize],
+    quick: bool,
+    randomise: Option<usize>,
+    format: &FormatArgs,
+) -> Result<()> {
     if particles.is_empty() || particles.contains(&0) {
         bail!("--particles takes counts of at least 1 (e.g. 100,1000,10000)");
     }
@@ -143,10 +153,11 @@ pub fn run(particles: &[usize], quick: bool, randomise: bool, format: &FormatArg
     let mut rows = Vec::new();
     let mut model = None;
     for &n in particles {
-        let config = if randomise {
+        let config = if let Some(islands) = randomise {
             // As `estimate --method pf --randomise` sets the filter up.
             let family = e2.clone().randomised_if(true)?;
             let mut filter = Pf::new(n);
+            filter.islands = islands;
             filter.fit(&Training {
                 noise: family.training_noise(noise.sensor),
                 family: family.clone(),
@@ -190,6 +201,7 @@ pub fn run(particles: &[usize], quick: bool, randomise: bool, format: &FormatArg
         eprintln!("{n} particles: {best:.3} s");
         rows.push(Row {
             particles: n,
+            islands: pf::islands::island_count(&config),
             seconds: best,
             data_seconds,
             real_time_factor: data_seconds / best,

@@ -103,6 +103,12 @@ pub struct Args {
     /// pf: number of particles [default: 1000, or 4000 with --randomise].
     #[arg(long, value_name = "N", value_parser = crate::limits::particles)]
     pub(crate) particles: Option<usize>,
+    /// pf: independent filters the particles are split among, each with its own random streams,
+    /// merged at the end so that the intervals hold the spread between them (each keeps at
+    /// least 1000 particles: 4000 run as 3 islands, 1000 as one).
+    #[arg(long, default_value_t = vibrissa_infer::pf::ISLANDS, value_name = "N",
+          value_parser = crate::limits::islands)]
+    pub(crate) islands: usize,
     /// pf with --randomise: whiskers entertained besides the scenario's.
     #[arg(long, default_value_t = vibrissa_infer::pf::ALTERNATIVES, value_name = "N",
           value_parser = crate::limits::alternatives)]

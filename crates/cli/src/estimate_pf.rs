@@ -93,6 +93,7 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
     }
     let mut options = pf::recording::Options::new(particles);
     options.seed = args.seed;
+    options.islands = args.islands;
     // A lead-in that the recordings show, unless one is stated: the start delay is then unknown.
     options.max_delay = leads
         .iter()
@@ -470,8 +471,12 @@ fn filter_all(
             if verbose {
                 let config = filter.config(family, sigma)?;
                 let (chain, rule) = (config.segments, config.model_discretisation().name());
+                let islands = match pf::islands::island_count(&config) {
+                    1 => String::new(),
+                    n => format!(" in {n} islands"),
+                };
                 eprintln!(
-                    "pf ({} particles, a {chain}-segment transition chain, {rule} rule): observation noise {}",
+                    "pf ({} particles{islands}, a {chain}-segment transition chain, {rule} rule): observation noise {}",
                     options.particles,
                     per_channel(&options.channels, &sigma)
                 );

@@ -24,6 +24,11 @@ pub(crate) fn particles_or_none(text: &str) -> Result<usize, String> {
     count::<0, MAX_PARTICLES>(text)
 }
 
+/// Islands of the particle filter: 1 to 64.
+pub(crate) fn islands(text: &str) -> Result<usize, String> {
+    count::<1, 64>(text)
+}
+
 /// Alternative whiskers: 0 to [`MAX_ALTERNATIVES`].
 pub(crate) fn alternatives(text: &str) -> Result<usize, String> {
     count::<0, MAX_ALTERNATIVES>(text)

@@ -26,6 +26,7 @@ pub mod limits;
 mod linalg;
 pub mod method;
 pub mod methods;
+pub mod mixture;
 pub mod model_error;
 pub mod noise;
 pub mod pf;

@@ -132,6 +132,55 @@ fn same_bits_on_one_and_two_threads() {
     assert_eq!(on(1), on(2));
 }
 
+/// Islands: the filter split into independent filters is the merge of those filters run alone,
+/// its intervals hold every island's mean and its counts add up; too few particles for a second
+/// island leave the filter whole.
+#[test]
+fn islands_are_independent_filters_merged() {
+    let mut obs = run_of(0.02, 0.6);
+    for v in obs.values.iter_mut() {
+        v.truncate(60);
+    }
+    obs.t.truncate(60);
+    let mut config = Config::e2(SIGMA, 2000, 3);
+    config.islands = 2;
+    let parts: Vec<_> = pf::islands::island_configs(&config)
+        .iter()
+        .map(|c| pf::run(c, &obs, &mut |_| {}).unwrap())
+        .collect();
+    assert_eq!(parts.len(), 2);
+    let merged = pf::run(&config, &obs, &mut |_| {}).unwrap();
+    assert_eq!(merged, pf::islands::merge(parts.clone()).unwrap());
+    assert_eq!(merged.steps, parts[0].steps + parts[1].steps);
+    for (k, row) in merged.trace.iter().enumerate() {
+        assert!((row.ess - parts[0].trace[k].ess - parts[1].trace[k].ess).abs() < 1e-9);
+        for (u, e) in row.estimates.iter().enumerate() {
+            for p in &parts {
+                let m = p.trace[k].estimates[u].mean;
+                assert!(
+                    e.ci90[0] <= m && m <= e.ci90[1],
+                    "sample {k}: {e:?} and {m}"
+                );
+            }
+        }
+    }
+    assert_ne!(
+        parts[0].last()[0],
+        parts[1].last()[0],
+        "the islands draw their own streams"
+    );
+    // 1999 particles: one island of them all, the filter itself.
+    config.particles = 1999;
+    let whole = Config {
+        islands: 1,
+        ..config.clone()
+    };
+    assert_eq!(
+        pf::run(&config, &obs, &mut |_| {}).unwrap(),
+        pf::run(&whole, &obs, &mut |_| {}).unwrap()
+    );
+}
+
 #[test]
 fn fed_one_sample_at_a_time_the_filter_gives_the_same_bits_as_on_a_whole_recording() {
     let mut obs = run_of(0.024, 0.9);

@@ -57,8 +57,11 @@ pub struct Injection {
 /// Settings of a filter run.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Config {
-    /// Number of particles (≥ 1).
+    /// Number of particles (≥ 1), over all islands.
     pub particles: usize,
+    /// Independent filters the particles are split among, merged at the end
+    /// ([`super::islands`]; at most one per particle of each whisker entertained).
+    pub islands: usize,
     /// Seed of every random stream.
     pub seed: u64,
     /// The whisker.
@@ -248,6 +251,7 @@ impl Config {
     pub fn e2(sigma: [f64; 5], particles: usize, seed: u64) -> Config {
         Config {
             particles,
+            islands: 1,
             seed,
             whisker: WhiskerParams::w30(),
             alternatives: Vec::new(),
@@ -346,6 +350,9 @@ impl Config {
                 "particles",
                 &format!("1 to {} particles", crate::limits::MAX_PARTICLES),
             );
+        }
+        if self.islands == 0 {
+            return bad("islands", "at least 1 island");
         }
         if self.alternatives.len() >= self.particles.min(u16::MAX as usize) {
             return bad(

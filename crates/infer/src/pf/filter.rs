@@ -1,6 +1,6 @@
 //! The filter: [`Filter`] takes one sample at a time (predict, weight, summarise; when the next
-//! sample arrives, resample and move, and redraw the boxes that have not arrived), and [`run`]
-//! feeds it a whole recording after checking it.
+//! sample arrives, resample and move, and redraw the boxes that have not arrived), and
+//! [`run_one`] feeds it a whole recording after checking it.
 
 use super::config::{Config, PARAMS};
 use super::draws::{draw_initial, redraw_waiting};
@@ -48,8 +48,9 @@ const STREAM_RESAMPLE: u64 = 3 << 40;
 const STREAM_PRIOR: u64 = 4 << 40;
 const STREAM_REDRAW: u64 = 5 << 40;
 
-/// Runs the filter over `obs`, one sample at a time, calling `progress` with the fraction done.
-pub fn run(
+/// Runs one filter over `obs`, one sample at a time, calling `progress` with the fraction done
+/// (whatever [`Config::islands`] says: [`super::run`] splits the particles into islands).
+pub(super) fn run_one(
     config: &Config,
     obs: &Observations,
     progress: &mut dyn FnMut(f64),
@@ -89,7 +90,7 @@ pub struct Particles {
 }
 
 /// The particle filter as a running object, fed one sample at a time (online use: on a robot,
-/// each sample as it arrives). [`run`] feeds it a whole recording.
+/// each sample as it arrives). [`super::run`] feeds it a whole recording.
 pub struct Filter {
     config: Config,
     /// The whiskers entertained: `config.whisker` first, then its alternatives.

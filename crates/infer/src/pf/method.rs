@@ -1,7 +1,7 @@
 //! The particle filter as an estimator ([`crate::Method`]).
 
 use super::config::{Config, Injection, Prior};
-use super::filter::run;
+use super::islands::{run, ISLANDS};
 use super::likelihood::{
     observation_sigma, temper_for, TransitionModel, FINE_TEMPER, MODEL_ERROR, UNKNOWN_START_TEMPER,
 };
@@ -26,8 +26,10 @@ pub const SENSOR_FLOOR: f64 = 0.1;
 /// the last sample.
 #[derive(Debug, Clone)]
 pub struct Pf {
-    /// Particles per run.
+    /// Particles per run, over all islands.
     pub particles: usize,
+    /// Independent filters the particles are split among ([`Config::islands`]).
+    pub islands: usize,
     /// Seed of the filter's streams.
     pub seed: u64,
     /// Likelihood tempering ([`temper_for`], or [`FINE_TEMPER`] for the fine model); times
@@ -223,6 +225,7 @@ impl Pf {
     pub fn new(particles: usize) -> Pf {
         Pf {
             particles,
+            islands: ISLANDS,
             seed: 1,
             temper: temper_for(particles),
             max_delay: 0.0,
@@ -339,6 +342,7 @@ impl Pf {
     /// The filter's settings for one run of `family` with observation noise `sigma`.
     pub fn config(&self, family: &crate::Family, sigma: [f64; 5]) -> Result<Config> {
         let mut c = Config::for_family(family, sigma, self.particles, self.seed)?;
+        c.islands = self.islands;
         c.dt = self.dt;
         c.max_iterations = self.max_iterations;
         c.segments = match self.model {

@@ -34,6 +34,7 @@ mod config;
 mod draws;
 mod filter;
 pub mod gains;
+pub mod islands;
 mod likelihood;
 mod method;
 pub mod pool;
@@ -48,7 +49,8 @@ pub use config::{
     chain_follows, coarse_segments, rough_segments, Config, Injection, Prior, CHAIN_TOLERANCE,
     PARAMS, PRIOR_BOUNDS, ROUGH_SEGMENTS,
 };
-pub use filter::{run, Filter, Particles};
+pub use filter::{Filter, Particles};
+pub use islands::{run, ISLANDS};
 pub use likelihood::{
     noise_from_series, observation_sigma, per_time_factor, temper_for, TransitionModel,
     FINE_TEMPER, MODEL_ERROR, TEMPERED_PERIOD, TRANSITION_MODELS, UNKNOWN_START_TEMPER,

@@ -45,8 +45,10 @@ pub const INTERVAL_QUANTILE: f64 = 0.9;
 /// How the filter is run on a recording.
 #[derive(Debug, Clone)]
 pub struct Options {
-    /// Particles.
+    /// Particles, over all islands.
     pub particles: usize,
+    /// Independent filters the particles are split among ([`super::islands`]).
+    pub islands: usize,
     /// Seed of the filter's random streams.
     pub seed: u64,
     /// The recording may start up to this many seconds before the approach.
@@ -84,6 +86,7 @@ impl Options {
     pub fn new(particles: usize) -> Options {
         Options {
             particles,
+            islands: super::ISLANDS,
             seed: 1,
             max_delay: 0.0,
             model: TransitionModel::Coarse,
@@ -137,6 +140,7 @@ impl Estimate {
         let p = &self.posterior;
         let mut counts = vec![
             ("particles", self.config.particles as f64),
+            ("islands", super::islands::island_count(&self.config) as f64),
             ("resamples", p.resamples as f64),
             ("particle_steps", p.steps as f64),
             ("diverged_steps", p.diverged as f64),
@@ -278,6 +282,7 @@ impl Estimate {
 /// narrowed): entertaining a few dozen whiskers, the filter alone is too sure of itself.
 pub fn fitted(family: &Family, level: &[f64; 5], options: &Options) -> Result<Pf> {
     let mut filter = Pf::new(options.particles);
+    filter.islands = options.islands;
     filter.set_model(options.model);
     filter.seed = options.seed;
     filter.max_delay = options.max_delay;
