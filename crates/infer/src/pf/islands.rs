@@ -63,20 +63,25 @@ pub fn island_configs(config: &Config) -> Vec<Config> {
 }
 
 /// Runs the filter over `obs`, as [`island_count`] islands merged ([`merge`]), calling
-/// `progress` with the fraction done.
+/// `progress` with the fraction done (with several islands, which run side by side, only at the
+/// start and the end).
 pub fn run(
     config: &Config,
     obs: &Observations,
     progress: &mut dyn FnMut(f64),
 ) -> Result<Posterior> {
+    use rayon::prelude::*;
     config.check()?;
     let islands = island_configs(config);
-    let n = islands.len() as f64;
-    let mut parts = Vec::with_capacity(islands.len());
-    for (k, island) in islands.iter().enumerate() {
-        let post = run_one(island, obs, &mut |f| progress((k as f64 + f) / n))?;
-        parts.push(post);
+    if let [one] = &islands[..] {
+        return run_one(one, obs, progress);
     }
+    progress(0.0);
+    let parts = islands
+        .par_iter()
+        .map(|island| run_one(island, obs, &mut |_| {}))
+        .collect::<Result<Vec<_>>>()?;
+    progress(1.0);
     merge(parts)
 }
 
