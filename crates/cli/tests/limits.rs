@@ -76,7 +76,7 @@ fn refused(out: &Output, words: &[&str]) {
 #[test]
 fn counts_beyond_their_limits_are_refused_before_anything_is_made() {
     let s = Scratch::new("counts");
-    let cases: [(&[&str], &[&str]); 6] = [
+    let cases: [(&[&str], &[&str]); 8] = [
         (
             &[
                 "experiment",
@@ -134,6 +134,24 @@ fn counts_beyond_their_limits_are_refused_before_anything_is_made() {
         (
             &["bench", "--pf", "--quick", "--particles", "100,10000000000"],
             &["--particles", "1 to 1000000"],
+        ),
+        (
+            &[
+                "estimate",
+                "--experiment",
+                "e2",
+                "--obs",
+                "x.csv",
+                "--method",
+                "pf",
+                "--islands",
+                "0",
+            ],
+            &["--islands", "1 to 64"],
+        ),
+        (
+            &["bench", "--pf", "--randomise", "--islands", "65"],
+            &["--islands", "1 to 64"],
         ),
     ];
     for (args, words) in cases {

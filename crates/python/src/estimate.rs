@@ -65,7 +65,7 @@ pub(crate) fn recording_pool(
 /// `vibrissa estimate --json` does; returns one estimate object per recording as JSON text,
 /// and the messages the command line prints on standard error (warnings, what is trained).
 #[pyfunction]
-#[pyo3(signature = (scenario, scenario_json, sets, inputs, method, noise, seed, randomise, particles, check, whisker=None, max_delay=0.0, pool=None, pool_rounds=None, pool_search=None, whisker_from=None, pool_gains=true))]
+#[pyo3(signature = (scenario, scenario_json, sets, inputs, method, noise, seed, randomise, particles, islands, check, whisker=None, max_delay=0.0, pool=None, pool_rounds=None, pool_search=None, whisker_from=None, pool_gains=true))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn estimate(
     py: Python<'_>,
@@ -78,6 +78,7 @@ pub(crate) fn estimate(
     seed: u64,
     randomise: Option<bool>,
     particles: Option<usize>,
+    islands: Option<usize>,
     check: bool,
     whisker: Option<&str>,
     max_delay: f64,
@@ -237,6 +238,7 @@ pub(crate) fn estimate(
         };
         let options = recording::Options {
             seed,
+            islands: islands.unwrap_or(vibrissa_infer::pf::ISLANDS),
             // The filter's start delay is unknown up to the lead-in allowed.
             max_delay: leads
                 .iter()

@@ -72,6 +72,20 @@ def test_the_filter_on_a_batch_gives_the_command_line_s_estimates(recordings):
     assert mine[1]["file"] == str(recordings[1])
 
 
+def test_the_filter_split_into_islands_gives_the_command_line_s_estimate(recordings):
+    mine = vibrissa.estimate(recordings[0], "e2", method="pf", particles=2000, islands=2)
+    (theirs,) = cli_estimates(recordings[:1], "--method", "pf", "--particles", "2000",
+                              "--islands", "2")
+    assert same(mine, theirs), (mine, theirs)
+    assert mine["filter"]["islands"] == 2 and mine["filter"]["particles"] == 2000
+    whole = vibrissa.estimate(recordings[0], "e2", method="pf", particles=2000, islands=1)
+    assert whole["filter"]["islands"] == 1 and whole["d"] != mine["d"]
+    with pytest.raises(ValueError, match="islands"):
+        vibrissa.estimate(recordings[0], "e2", method="pf", islands=0)
+    with pytest.raises(ValueError, match="islands"):
+        vibrissa.estimate(recordings[0], "e2", method="pf", islands=65)
+
+
 def test_the_filter_on_a_whisker_known_roughly(recordings):
     mine = vibrissa.estimate(recordings[0], "e2", method="pf", particles=300, randomise=True)
     (theirs,) = cli_estimates(recordings[:1], "--method", "pf", "--particles", "300",

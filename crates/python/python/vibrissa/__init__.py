@@ -245,6 +245,7 @@ def estimate(
     seed=1,
     randomise=None,
     particles=None,
+    islands=None,
     check=False,
     whisker=None,
     max_delay=0.0,
@@ -289,6 +290,10 @@ def estimate(
         its calibration leaves uncertain; otherwise not.
     particles : int, optional
         Particles of ``method="pf"`` (default 1000, or 4000 with ``randomise=True``).
+    islands : int, optional
+        Independent filters the particles of ``method="pf"`` are split among, each with its own
+        random streams, merged so that the intervals hold the spread between them (default 3,
+        each keeping at least 1000 particles: 4000 run as three, 1000 as one).
     check : bool
         Add the model check (``"check"``): does the scenario explain the recording at its estimate?
     whisker : str, optional
@@ -348,6 +353,10 @@ def estimate(
     seed = _count("seed", seed, 0)
     if particles is not None:
         particles = _count("particles", particles, 1)
+    if islands is not None:
+        islands = _count("islands", islands, 1)
+        if islands > 64:
+            raise ValueError(f"islands: expected 1 to 64 islands, not {islands}")
     max_delay = _seconds("max_delay", max_delay)
     if pool_rounds is not None:
         pool_rounds = _count("pool_rounds", pool_rounds, 1)
@@ -364,6 +373,7 @@ def estimate(
         seed,
         None if randomise is None else bool(randomise),
         particles,
+        islands,
         bool(check),
         whisker,
         max_delay,

@@ -53,6 +53,7 @@ def estimate(
     seed: int = 1,
     randomise: bool | None = None,
     particles: int | None = None,
+    islands: int | None = None,
     check: bool = False,
     whisker: str | None = None,
     max_delay: float = 0.0,
