@@ -105,10 +105,10 @@ pub struct Args {
     pub(crate) particles: Option<usize>,
     /// pf: independent filters the particles are split among, each with its own random streams,
     /// merged at the end so that the intervals hold the spread between them (each keeps at
-    /// least 1000 particles: 4000 run as 3 islands, 1000 as one).
-    #[arg(long, default_value_t = vibrissa_infer::pf::ISLANDS, value_name = "N",
-          value_parser = crate::limits::islands)]
-    pub(crate) islands: usize,
+    /// least 1000 particles: 4000 run as 3 islands, 1000 as one) [default: 3, or 1 for a pooled
+    /// batch].
+    #[arg(long, value_name = "N", value_parser = crate::limits::islands)]
+    pub(crate) islands: Option<usize>,
     /// pf with --randomise: whiskers entertained besides the scenario's.
     #[arg(long, default_value_t = vibrissa_infer::pf::ALTERNATIVES, value_name = "N",
           value_parser = crate::limits::alternatives)]

@@ -93,7 +93,6 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
     }
     let mut options = pf::recording::Options::new(particles);
     options.seed = args.seed;
-    options.islands = args.islands;
     // A lead-in that the recordings show, unless one is stated: the start delay is then unknown.
     options.max_delay = leads
         .iter()
@@ -121,6 +120,7 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
             args.obs.len()
         );
     }
+    options.islands = args.islands.unwrap_or(pf::default_islands(pool));
     if args.no_pool_gains && !pool {
         bail!(
             "--no-pool-gains applies to a pooled batch (--pool, or 5 recordings or more of a \

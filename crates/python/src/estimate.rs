@@ -238,7 +238,6 @@ pub(crate) fn estimate(
         };
         let options = recording::Options {
             seed,
-            islands: islands.unwrap_or(vibrissa_infer::pf::ISLANDS),
             // The filter's start delay is unknown up to the lead-in allowed.
             max_delay: leads
                 .iter()
@@ -304,6 +303,7 @@ pub(crate) fn estimate(
             }
             auto
         });
+        options.islands = islands.unwrap_or(vibrissa_infer::pf::default_islands(pool));
         let filtered = if !pf {
             Vec::new()
         } else if pool {
