@@ -168,8 +168,11 @@ impl Filter {
                 .with_timing(rate, (period * rate).round() as usize + 1)
                 .map_err(value_error)?
         };
+        // One filter fed sample by sample: its held-out runs are filtered as one filter too, so
+        // that their widening is the one it needs.
         let options = recording::Options {
             seed,
+            islands: 1,
             ..recording::Options::new(particles)
         };
         let filter = recording::fitted(&timed, &sensor, &options).map_err(value_error)?;
