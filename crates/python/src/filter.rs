@@ -12,7 +12,7 @@ use vibrissa_infer::pf::{self, recording, TraceRow};
 /// The particle filter fed one sample at a time (see `vibrissa.Filter`).
 #[pyclass(name = "Filter", module = "vibrissa._vibrissa")]
 pub(crate) struct Filter {
-    inner: pf::Filter,
+    inner: pf::islands::Islands,
     /// The unknowns of the posterior rows, in order.
     unknowns: Vec<&'static str>,
     /// Sample period, s.
@@ -87,7 +87,7 @@ impl Filter {
     /// `noise` holds each channel's sensor noise (NaN where not given: the scenario's
     /// `[sensor_noise]` must state it then).
     #[new]
-    #[pyo3(signature = (scenario, scenario_json, sets, noise, particles, seed, rate, randomise=None))]
+    #[pyo3(signature = (scenario, scenario_json, sets, noise, particles, seed, rate, randomise=None, islands=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -99,9 +99,13 @@ impl Filter {
         seed: u64,
         rate: Option<f64>,
         randomise: Option<bool>,
+        islands: Option<usize>,
     ) -> PyResult<Self> {
         if let Some(n) = particles {
             check_count("particles", n, 1, MAX_PARTICLES).map_err(value_error)?;
+        }
+        if let Some(n) = islands {
+            check_count("islands", n, 1, 64).map_err(value_error)?;
         }
         let family = family(scenario, scenario_json, &sets)?;
         // As `estimate`: a calibrated file draws what its calibration left uncertain unless told
@@ -168,17 +172,17 @@ impl Filter {
                 .with_timing(rate, (period * rate).round() as usize + 1)
                 .map_err(value_error)?
         };
-        // One filter fed sample by sample: its held-out runs are filtered as one filter too, so
-        // that their widening is the one it needs.
+        // Its held-out runs are filtered on the islands it runs, so that their widening is the
+        // one it needs.
         let options = recording::Options {
             seed,
-            islands: 1,
+            islands: islands.unwrap_or(pf::ISLANDS),
             ..recording::Options::new(particles)
         };
         let filter = recording::fitted(&timed, &sensor, &options).map_err(value_error)?;
         let sigma = filter.sigma().expect("fitted");
         let config = filter.config(&family, sigma).map_err(value_error)?;
-        let inner = pf::Filter::new(&config, 1.0 / rate).map_err(value_error)?;
+        let inner = pf::islands::Islands::new(&config, 1.0 / rate).map_err(value_error)?;
         let unknowns = config.unknowns();
         let widening = filter.widening(&unknowns);
         let support = config.support(&unknowns);
@@ -298,6 +302,7 @@ impl Filter {
         d.set_item("diverged_steps", p.diverged)?;
         d.set_item("refused_moves", p.refused_moves)?;
         d.set_item("resamples", p.resamples)?;
+        d.set_item("islands", self.inner.count())?;
         Ok(d)
     }
 }

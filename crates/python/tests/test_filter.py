@@ -20,16 +20,16 @@ def write_csv(path, run):
             f.write(",".join(repr(float(run[c][k])) for c in vibrissa.COLUMNS) + "\n")
 
 
-def filter_and_command_line(f, run, tmp_path, *args):
+def filter_and_command_line(f, run, tmp_path, *args, particles=300):
     """Feeds `run` to the filter `f` sample by sample; returns its last posterior and the command
-    line's estimate of the same run (300 particles, seed 2, noise NOISE, and `args`)."""
+    line's estimate of the same run (`particles`, seed 2, noise NOISE, and `args`)."""
     for k, t in enumerate(run["t"]):
         post = f.update(t, {c: run[c][k] for c in vibrissa.CHANNELS})
     path = tmp_path / "run.csv"
     write_csv(path, run)
     noise = ",".join(f"{c}={x!r}" for c, x in NOISE.items())
     out = subprocess.run(
-        [cli(), "estimate", "--experiment", "e2", "--method", "pf", "--particles", "300",
+        [cli(), "estimate", "--experiment", "e2", "--method", "pf", "--particles", str(particles),
          "--seed", "2", "--noise", noise, *args, "--json", "--obs", path],
         check=True, capture_output=True, text=True,
     )
@@ -50,6 +50,20 @@ def test_sample_by_sample_it_gives_the_command_line_s_posterior_to_the_last_bit(
     assert len(trace["t"]) == len(run["t"]) and trace["d_mean"][-1] == post["d"]["mean"]
     assert f.counts["diverged_steps"] == 0
     assert f.posterior == post
+
+
+def test_islands_sample_by_sample_give_the_command_line_s_posterior_to_the_last_bit(tmp_path):
+    run = vibrissa.simulate("e2", d=0.019, v=1.1)
+    f = vibrissa.Filter("e2", particles=2000, islands=2, noise=NOISE, seed=2)
+    post, theirs = filter_and_command_line(f, run, tmp_path, "--islands", "2", particles=2000)
+    for name in ("d", "v"):
+        assert post[name]["mean"] == theirs[name]["mean"]
+        assert list(post[name]["ci90"]) == theirs[name]["ci90"]
+    assert f.counts["islands"] == 2 and theirs["filter"]["islands"] == 2
+    # 1000 particles are one filter whatever is asked.
+    assert vibrissa.Filter("e2", particles=1000, islands=3, noise=NOISE).counts["islands"] == 1
+    with pytest.raises(ValueError, match="islands"):
+        vibrissa.Filter("e2", noise=NOISE, islands=0)
 
 
 def test_samples_as_sequences_and_missing_channels():

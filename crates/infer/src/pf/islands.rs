@@ -11,7 +11,7 @@
 //! read it to 0.202 mm, holding 92.2% (80–100%), for the same particle steps.
 
 use super::config::Config;
-use super::filter::run_one;
+use super::filter::{run_one, Filter, Particles};
 use super::gains::AngleGains;
 use super::posterior::{Observations, Posterior, SensorPosterior, TraceRow};
 use crate::error::{Error, Result};
@@ -104,64 +104,80 @@ pub fn run(
 /// an estimate of the same marginal likelihood); the sensors' and the whisker's summaries are
 /// mixed like the unknowns'; the joint angles' gains matched to one normal each.
 pub fn merge(parts: Vec<Posterior>) -> Result<Posterior> {
-    let mismatch = |what: &str| {
-        Err(Error::Observation(format!(
-            "merging the filter's islands: they differ in {what}"
-        )))
-    };
-    let mut iter = parts.into_iter();
-    let Some(first) = iter.next() else {
+    let Some(first) = parts.first() else {
         return mismatch("number (none to merge)");
     };
-    let rest: Vec<Posterior> = iter.collect();
-    if rest.is_empty() {
-        return Ok(first);
+    if parts.len() == 1 {
+        return Ok(parts.into_iter().next().expect("one part"));
     }
-    for p in &rest {
-        if p.unknowns != first.unknowns {
-            return mismatch("unknowns");
-        }
+    for p in &parts[1..] {
         if p.trace.len() != first.trace.len() {
             return mismatch("samples");
+        }
+    }
+    let mut merged = merge_counts(&parts)?;
+    merged.trace = (0..first.trace.len())
+        .map(|k| merge_rows(&parts.iter().map(|p| &p.trace[k]).collect::<Vec<_>>()))
+        .collect::<Result<_>>()?;
+    merged.sensors = merge_sensors(&parts.iter().map(|p| p.sensors.clone()).collect::<Vec<_>>());
+    Ok(merged)
+}
+
+fn mismatch<T>(what: &str) -> Result<T> {
+    Err(Error::Observation(format!(
+        "merging the filter's islands: they differ in {what}"
+    )))
+}
+
+/// One sample's rows of the islands merged: each unknown's mixture, the effective sample sizes
+/// summed.
+fn merge_rows(rows: &[&TraceRow]) -> Result<TraceRow> {
+    let first = rows.first().copied().map_or_else(|| mismatch("number"), Ok)?;
+    if rows.iter().any(|r| r.estimates.len() != first.estimates.len()) {
+        return mismatch("unknowns");
+    }
+    let estimates = (0..first.estimates.len())
+        .map(|u| {
+            let parts: Vec<Estimate> = rows.iter().map(|r| r.estimates[u]).collect();
+            mixture(&parts).expect("at least one island")
+        })
+        .collect();
+    Ok(TraceRow {
+        t: first.t,
+        ess: rows.iter().map(|r| r.ess).sum(),
+        estimates,
+    })
+}
+
+/// The islands' sensor posteriors mixed channel by channel; `None` where any has none.
+fn merge_sensors(parts: &[Option<SensorPosterior>]) -> Option<SensorPosterior> {
+    let parts: Vec<&SensorPosterior> = parts.iter().map(Option::as_ref).collect::<Option<_>>()?;
+    let per = |pick: &dyn Fn(&SensorPosterior) -> Estimate| {
+        mixture(&parts.iter().map(|s| pick(s)).collect::<Vec<_>>())
+    };
+    let gain: Option<Vec<Estimate>> = (0..5).map(|c| per(&|s| s.gain[c])).collect();
+    let offset: Option<Vec<Estimate>> = (0..5).map(|c| per(&|s| s.offset[c])).collect();
+    Some(SensorPosterior {
+        gain: gain?.try_into().ok()?,
+        offset: offset?.try_into().ok()?,
+    })
+}
+
+/// Everything of the islands' posteriors but their trace and sensors, merged: the counts
+/// summed, the evidence averaged, the whisker's summaries mixed, the joint angles' gains matched
+/// to one normal each.
+fn merge_counts(parts: &[Posterior]) -> Result<Posterior> {
+    let first = parts.first().map_or_else(|| mismatch("number"), Ok)?;
+    for p in &parts[1..] {
+        if p.unknowns != first.unknowns {
+            return mismatch("unknowns");
         }
         if p.whisker_log_evidence.len() != first.whisker_log_evidence.len() {
             return mismatch("whiskers");
         }
     }
-    let all: Vec<&Posterior> = std::iter::once(&first).chain(&rest).collect();
-    let n = all.len() as f64;
-    let mix = |pick: &dyn Fn(&Posterior) -> Option<Estimate>| -> Option<Estimate> {
-        let parts: Option<Vec<Estimate>> = all.iter().map(|p| pick(p)).collect();
-        mixture(&parts?)
-    };
-    let trace = (0..first.trace.len())
-        .map(|k| {
-            let row = &first.trace[k];
-            TraceRow {
-                t: row.t,
-                ess: all.iter().map(|p| p.trace[k].ess).sum(),
-                estimates: (0..row.estimates.len())
-                    .map(|u| mix(&|p| p.trace[k].estimates.get(u).copied()).expect("parts"))
-                    .collect(),
-            }
-        })
-        .collect();
-    let sensors = first.sensors.as_ref().and_then(|_| {
-        let per = |gain: bool, c: usize| {
-            mix(&|p| {
-                p.sensors
-                    .as_ref()
-                    .map(|s| if gain { s.gain[c] } else { s.offset[c] })
-            })
-        };
-        let gain: Option<Vec<Estimate>> = (0..5).map(|c| per(true, c)).collect();
-        let offset: Option<Vec<Estimate>> = (0..5).map(|c| per(false, c)).collect();
-        Some(SensorPosterior {
-            gain: gain?.try_into().ok()?,
-            offset: offset?.try_into().ok()?,
-        })
-    });
-    let angle_gains = all
+    let n = parts.len() as f64;
+    let angle_gains = parts
         .iter()
         .map(|p| p.angle_gains)
         .collect::<Option<Vec<AngleGains>>>()
@@ -180,29 +196,108 @@ pub fn merge(parts: Vec<Posterior>) -> Result<Posterior> {
         .whisker
         .iter()
         .filter_map(|(key, _)| {
-            let e = mix(&|p| p.whisker.iter().find(|(k, _)| k == key).map(|(_, e)| *e))?;
-            Some((*key, e))
+            let each: Option<Vec<Estimate>> = parts
+                .iter()
+                .map(|p| p.whisker.iter().find(|(k, _)| k == key).map(|(_, e)| *e))
+                .collect();
+            Some((*key, mixture(&each?)?))
         })
         .collect();
     let whisker_log_evidence = (0..first.whisker_log_evidence.len())
-        .map(|h| log_mean_exp(all.iter().map(|p| p.whisker_log_evidence[h])))
+        .map(|h| log_mean_exp(parts.iter().map(|p| p.whisker_log_evidence[h])))
         .collect();
     Ok(Posterior {
         unknowns: first.unknowns.clone(),
-        trace,
+        trace: Vec::new(),
         skipped: first.skipped,
-        resamples: all.iter().map(|p| p.resamples).sum(),
-        diverged: all.iter().map(|p| p.diverged).sum(),
-        refused_moves: all.iter().map(|p| p.refused_moves).sum(),
-        steps: all.iter().map(|p| p.steps).sum(),
-        ringing_share: all.iter().map(|p| p.ringing_share).sum::<f64>() / n,
-        log_evidence: log_mean_exp(all.iter().map(|p| p.log_evidence)),
+        resamples: parts.iter().map(|p| p.resamples).sum(),
+        diverged: parts.iter().map(|p| p.diverged).sum(),
+        refused_moves: parts.iter().map(|p| p.refused_moves).sum(),
+        steps: parts.iter().map(|p| p.steps).sum(),
+        ringing_share: parts.iter().map(|p| p.ringing_share).sum::<f64>() / n,
+        log_evidence: log_mean_exp(parts.iter().map(|p| p.log_evidence)),
         rate_widening: first.rate_widening,
-        sensors,
+        sensors: None,
         angle_gains,
         whisker,
         whisker_log_evidence,
     })
+}
+
+/// The filter fed one sample at a time as [`island_count`] islands (online use): each sample
+/// goes to every island, side by side, and the posterior row is their merge ([`merge`]). Fed a
+/// whole recording it gives [`run`]'s posterior, bit for bit.
+pub struct Islands {
+    filters: Vec<Filter>,
+    /// The merged rows so far, and the rest of the islands' posteriors merged after the last
+    /// sample.
+    merged: Posterior,
+}
+
+impl Islands {
+    /// The islands of `config`, for samples `period` seconds apart.
+    pub fn new(config: &Config, period: f64) -> Result<Islands> {
+        config.check()?;
+        let filters = island_configs(config)
+            .iter()
+            .map(|c| Filter::new(c, period))
+            .collect::<Result<Vec<_>>>()?;
+        let merged = filters[0].posterior().clone();
+        Ok(Islands { filters, merged })
+    }
+
+    /// The number of islands.
+    pub fn count(&self) -> usize {
+        self.filters.len()
+    }
+
+    /// Takes the sample `y` at time `t` on every island ([`Filter::update`]) and returns the
+    /// merged posterior row. A sample that one island refuses, all refuse, and none takes it.
+    pub fn update(&mut self, t: f64, y: &[f64; 5]) -> Result<&TraceRow> {
+        use rayon::prelude::*;
+        let (first, rest) = self.filters.split_first_mut().expect("an island");
+        // The samples' times are checked by the first island before any other moves.
+        first.update(t, y)?;
+        rest.par_iter_mut()
+            .map(|f| f.update(t, y).map(|_| ()))
+            .collect::<Result<Vec<()>>>()?;
+        let rows: Vec<&TraceRow> = self
+            .filters
+            .iter()
+            .map(|f| f.posterior().trace.last().expect("a row"))
+            .collect();
+        let row = merge_rows(&rows)?;
+        let parts: Vec<Posterior> = self
+            .filters
+            .iter()
+            .map(|f| f.posterior().clone_without_trace())
+            .collect();
+        let trace = std::mem::take(&mut self.merged.trace);
+        self.merged = merge_counts(&parts)?;
+        self.merged.trace = trace;
+        self.merged.trace.push(row);
+        Ok(self.merged.trace.last().expect("a row"))
+    }
+
+    /// The merged posterior so far (its sensors are formed by [`Islands::sensors`]).
+    pub fn posterior(&self) -> &Posterior {
+        &self.merged
+    }
+
+    /// The sensors' gains and offsets after the last sample, the islands' mixed.
+    pub fn sensors(&self) -> Option<SensorPosterior> {
+        merge_sensors(&self.filters.iter().map(Filter::sensors).collect::<Vec<_>>())
+    }
+
+    /// Each island's particles after the last sample ([`Filter::particles`]).
+    pub fn particles(&self) -> Vec<Particles> {
+        self.filters.iter().map(Filter::particles).collect()
+    }
+
+    /// The merged posterior after the last sample, with the sensors, as [`run`] returns it.
+    pub fn finish(self) -> Result<Posterior> {
+        merge(self.filters.into_iter().map(Filter::finish).collect())
+    }
 }
 
 /// `ln(mean(exp(x)))`, `-inf` when every term is.

@@ -162,6 +162,26 @@ impl Posterior {
         }
     }
 
+    /// This posterior without its rows (every count and summary but the trace).
+    pub fn clone_without_trace(&self) -> Posterior {
+        Posterior {
+            unknowns: self.unknowns.clone(),
+            trace: Vec::new(),
+            skipped: self.skipped,
+            resamples: self.resamples,
+            diverged: self.diverged,
+            refused_moves: self.refused_moves,
+            steps: self.steps,
+            ringing_share: self.ringing_share,
+            log_evidence: self.log_evidence,
+            rate_widening: self.rate_widening,
+            sensors: self.sensors.clone(),
+            angle_gains: self.angle_gains,
+            whisker: self.whisker.clone(),
+            whisker_log_evidence: self.whisker_log_evidence.clone(),
+        }
+    }
+
     /// The posterior at the last sample.
     pub fn last(&self) -> &[Estimate] {
         self.trace.last().map(|r| &r.estimates[..]).unwrap_or(&[])

@@ -96,6 +96,7 @@ class Filter:
         seed: int = 1,
         rate: float | None = None,
         randomise: bool | None = None,
+        islands: int | None = None,
         overrides: Mapping[str, Value] | None = None,
         **keys: Value,
     ) -> None: ...
