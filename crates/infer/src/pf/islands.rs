@@ -132,8 +132,14 @@ fn mismatch<T>(what: &str) -> Result<T> {
 /// One sample's rows of the islands merged: each unknown's mixture, the effective sample sizes
 /// summed.
 fn merge_rows(rows: &[&TraceRow]) -> Result<TraceRow> {
-    let first = rows.first().copied().map_or_else(|| mismatch("number"), Ok)?;
-    if rows.iter().any(|r| r.estimates.len() != first.estimates.len()) {
+    let first = rows
+        .first()
+        .copied()
+        .map_or_else(|| mismatch("number"), Ok)?;
+    if rows
+        .iter()
+        .any(|r| r.estimates.len() != first.estimates.len())
+    {
         return mismatch("unknowns");
     }
     let estimates = (0..first.estimates.len())
