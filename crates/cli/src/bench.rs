@@ -65,10 +65,10 @@ pub struct Args {
     /// --randomise`): 63 alternative whiskers, the sensors' gains and offsets as unknowns.
     #[arg(long, requires = "pf")]
     randomise: bool,
-    /// With --pf --randomise: islands the particles are split among, as `estimate --islands`
-    /// (each keeps at least 1000 particles).
+    /// With --pf: islands the particles are split among, as `estimate --islands` (each keeps
+    /// at least 1000 particles).
     #[arg(long, value_name = "N", default_value_t = vibrissa_infer::pf::ISLANDS,
-          value_parser = crate::limits::islands, requires = "randomise")]
+          value_parser = crate::limits::islands, requires = "pf")]
     islands: usize,
 }
 
@@ -246,7 +246,8 @@ pub fn run(args: &Args) -> Result<()> {
         return crate::bench_pf::run(
             &args.particles,
             args.quick,
-            args.randomise.then_some(args.islands),
+            args.randomise,
+            args.islands,
             &args.format,
         );
     }

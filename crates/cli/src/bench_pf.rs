@@ -133,12 +133,13 @@ impl Render for Report {
     }
 }
 
-/// Measures and prints; `randomise` holds the islands of the randomised filter, `None` times the
-/// filter of the known whisker.
+/// Measures and prints: the filter of a whisker known only roughly with `randomise`, else that
+/// of the known whisker, its particles split among `islands`.
 pub fn run(
     particles: &[usize],
     quick: bool,
-    randomise: Option<usize>,
+    randomise: bool,
+    islands: usize,
     format: &FormatArgs,
 ) -> Result<()> {
     if particles.is_empty() || particles.contains(&0) {
@@ -153,7 +154,7 @@ pub fn run(
     let mut rows = Vec::new();
     let mut model = None;
     for &n in particles {
-        let config = if let Some(islands) = randomise {
+        let config = if randomise {
             // As `estimate --method pf --randomise` sets the filter up.
             let family = e2.clone().randomised_if(true)?;
             let mut filter = Pf::new(n);
@@ -175,7 +176,10 @@ pub fn run(
                 std::array::from_fn(|c| MODEL_ERROR[c] * noise.sensor[c]),
                 temper,
             );
-            Config::e2(sigma, n, 1)
+            Config {
+                islands,
+                ..Config::e2(sigma, n, 1)
+            }
         };
         model.get_or_insert_with(|| TransitionModel {
             segments: config.segments,
