@@ -40,6 +40,15 @@ fn every_other(obs: &Observations) -> Observations {
     }
 }
 
+/// The first `n` samples of `obs`.
+fn first_samples(mut obs: Observations, n: usize) -> Observations {
+    for v in obs.values.iter_mut() {
+        v.truncate(n);
+    }
+    obs.t.truncate(n);
+    obs
+}
+
 fn run_of(d: f64, v: f64) -> Observations {
     let e2 = Family::builtin("e2").unwrap();
     let s = e2.simulate(&[d, v], &Noise::NONE, 3).unwrap();
@@ -116,11 +125,7 @@ fn recovers_distance_on_a_scenario_with_sensor_gains_offsets_and_a_follicle_spri
 
 #[test]
 fn same_bits_on_one_and_two_threads() {
-    let mut obs = run_of(0.018, 1.2);
-    for v in obs.values.iter_mut() {
-        v.truncate(30);
-    }
-    obs.t.truncate(30);
+    let obs = first_samples(run_of(0.018, 1.2), 30);
     let config = Config::e2(SIGMA, 64, 9);
     let on = |threads: usize| {
         rayon::ThreadPoolBuilder::new()
@@ -137,11 +142,7 @@ fn same_bits_on_one_and_two_threads() {
 /// island leave the filter whole.
 #[test]
 fn islands_are_independent_filters_merged() {
-    let mut obs = run_of(0.02, 0.6);
-    for v in obs.values.iter_mut() {
-        v.truncate(60);
-    }
-    obs.t.truncate(60);
+    let obs = first_samples(run_of(0.02, 0.6), 60);
     let mut config = Config::e2(SIGMA, 2000, 3);
     config.islands = 2;
     let parts: Vec<_> = pf::islands::island_configs(&config)
@@ -183,11 +184,7 @@ fn islands_are_independent_filters_merged() {
 
 #[test]
 fn islands_fed_one_sample_at_a_time_give_the_same_bits_as_on_a_whole_recording() {
-    let mut obs = run_of(0.024, 0.9);
-    for v in obs.values.iter_mut() {
-        v.truncate(50);
-    }
-    obs.t.truncate(50);
+    let obs = first_samples(run_of(0.024, 0.9), 50);
     let mut config = Config::e2(SIGMA, 2000, 4);
     config.islands = 2;
     let whole = pf::run(&config, &obs, &mut |_| {}).unwrap();
@@ -210,11 +207,7 @@ fn islands_fed_one_sample_at_a_time_give_the_same_bits_as_on_a_whole_recording()
 
 #[test]
 fn fed_one_sample_at_a_time_the_filter_gives_the_same_bits_as_on_a_whole_recording() {
-    let mut obs = run_of(0.024, 0.9);
-    for v in obs.values.iter_mut() {
-        v.truncate(60);
-    }
-    obs.t.truncate(60);
+    let obs = first_samples(run_of(0.024, 0.9), 60);
     let config = Config::e2(SIGMA, 200, 4);
     let whole = pf::run(&config, &obs, &mut |_| {}).unwrap();
     let mut online = pf::Filter::new(&config, 1e-3).unwrap();
@@ -275,11 +268,7 @@ fn unknown_start_is_estimated() {
 
 #[test]
 fn missing_values_are_skipped_and_gaps_predicted_across() {
-    let mut obs = run_of(0.02, 0.6);
-    for v in obs.values.iter_mut() {
-        v.truncate(40);
-    }
-    obs.t.truncate(40);
+    let mut obs = first_samples(run_of(0.02, 0.6), 40);
     obs.values[1][10] = f64::NAN;
     obs.values[3][11] = f64::NAN;
     // Samples 20..25 missing altogether: a gap of six periods.
