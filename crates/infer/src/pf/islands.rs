@@ -8,7 +8,8 @@
 //! cannot show that; the spread between islands does. On the calibrated files of sixteen
 //! stand-in whiskers (20 noisy strikes each), one filter of 4000 particles read the distance to
 //! 0.211 mm with its 90% intervals holding 90.0% (70–100% by whisker); three islands of 1333
-//! read it to 0.202 mm, holding 92.2% (80–100%), for the same particle steps.
+//! read it to 0.205 mm, holding 91.9% (75–100%), for the same particle steps (docs/filter.md,
+//! "Islands").
 
 use super::config::Config;
 use super::filter::{run_one, Filter, Particles};
