@@ -64,20 +64,24 @@ fn quantile(parts: &[Estimate], q: f64, end: impl Fn(&Estimate) -> f64) -> f64 {
     0.5 * (a + b)
 }
 
+/// The standard normal distribution function.
+pub(crate) fn normal_cdf(z: f64) -> f64 {
+    0.5 * libm::erfc(-z / std::f64::consts::SQRT_2)
+}
+
 /// The distribution function at `x` of part `e` read as a two-piece normal (a step where a side
 /// has no width).
 fn part_cdf(e: &Estimate, x: f64) -> f64 {
     let below = (e.mean - e.ci90[0]).max(0.0) / Z90;
     let above = (e.ci90[1] - e.mean).max(0.0) / Z90;
-    let phi = |z: f64| 0.5 * libm::erfc(-z / std::f64::consts::SQRT_2);
     if x < e.mean {
         if below > 0.0 {
-            phi((x - e.mean) / below)
+            normal_cdf((x - e.mean) / below)
         } else {
             0.0
         }
     } else if above > 0.0 {
-        phi((x - e.mean) / above)
+        normal_cdf((x - e.mean) / above)
     } else {
         1.0
     }

@@ -133,10 +133,9 @@ fn mismatch<T>(what: &str) -> Result<T> {
 /// One sample's rows of the islands merged: each unknown's mixture, the effective sample sizes
 /// summed.
 fn merge_rows(rows: &[&TraceRow]) -> Result<TraceRow> {
-    let first = rows
-        .first()
-        .copied()
-        .map_or_else(|| mismatch("number"), Ok)?;
+    let Some(&first) = rows.first() else {
+        return mismatch("number");
+    };
     if rows
         .iter()
         .any(|r| r.estimates.len() != first.estimates.len())
@@ -174,7 +173,9 @@ fn merge_sensors(parts: &[Option<SensorPosterior>]) -> Option<SensorPosterior> {
 /// summed, the evidence averaged, the whisker's summaries mixed, the joint angles' gains matched
 /// to one normal each.
 fn merge_counts(parts: &[Posterior]) -> Result<Posterior> {
-    let first = parts.first().map_or_else(|| mismatch("number"), Ok)?;
+    let Some(first) = parts.first() else {
+        return mismatch("number");
+    };
     for p in &parts[1..] {
         if p.unknowns != first.unknowns {
             return mismatch("unknowns");

@@ -3,12 +3,8 @@
 
 use super::config::{Config, Prior};
 use super::transition::{param, start_delay, ObjState, Y};
+use crate::mixture::normal_cdf;
 use vibrissa_core::rng::Rng;
-
-/// The standard normal distribution function.
-fn normal_cdf(z: f64) -> f64 {
-    0.5 * libm::erfc(-z / std::f64::consts::SQRT_2)
-}
 
 /// Density at `x` of a normal truncated to the prior's range.
 pub(super) fn truncated_density(x: f64, mean: f64, std: f64, p: &Prior) -> f64 {
