@@ -4,7 +4,7 @@
 //! cargo run --release -p vibrissa-infer --example standin -- --seed 3 --out DIR \
 //!     [--nominal e2|FILE.toml] [--segments 50] [--discretisation seed] [--off-grid 20] \
 //!     [--calib-noise 0] [--eval-noise 0.03] [--nominal-whisker] [--max-lead 0.04] \
-//!     [--compliance 6]
+//!     [--compliance 6] [--dt 1e-5]
 //! ```
 //!
 //! DIR receives `calib/` (9 template strikes, clean unless `--calib-noise`), `eval/` (off-grid
@@ -12,7 +12,7 @@
 //! `--max-lead S` records each off-grid strike from a random time up to S before its approach
 //! (every file S longer; `leads.csv` gives each one's lead-in). `--compliance X` gives every
 //! stand-in a follicle X times as compliant as the nominal chain's base joint (drawn in 0.3–3,
-//! or clamped, otherwise). `--nominal-whisker` leaves the whisker and sensors as the nominal says (with `--segments 20
+//! or clamped, otherwise). `--dt S` records the strikes at a time step of S seconds instead of the scenario's 0.1 ms (1e-5: as a converged integration would). `--nominal-whisker` leaves the whisker and sensors as the nominal says (with `--segments 20
 //! --discretisation gregory`: recordings of our own simulator, the reference to compare with).
 
 use std::path::PathBuf;
@@ -45,6 +45,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
             "--nominal-whisker" => options.perturb = false,
             "--max-lead" => options.max_lead = value()?.parse()?,
             "--compliance" => options.compliance = Some(value()?.parse()?),
+            "--dt" => options.dt = Some(value()?.parse()?),
             _ => return Err(format!("unknown option {flag}").into()),
         }
     }

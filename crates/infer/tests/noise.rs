@@ -55,6 +55,7 @@ fn check(name: &str, perturb: bool, segments: usize, discretisation: Discretisat
             perturb,
             max_lead: 0.0,
             compliance: None,
+            dt: None,
         };
         let dir = temp(&format!("{name}-{level}"));
         make(&nominal, 11, &options)
