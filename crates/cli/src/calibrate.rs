@@ -94,6 +94,9 @@ struct Report {
     correlation: vibrissa_io::scenario::Correlation,
     /// Channels left out of the fit: one value in every strike (channel, value).
     left_out: Vec<(&'static str, f64)>,
+    /// Substeps near contact that the fit simulated with and wrote into the fitted file, where
+    /// the nominal left them to their default (`None`: as the nominal says).
+    contact_substeps: Option<usize>,
     /// Wall-clock time of the fit, s.
     seconds: f64,
 }
@@ -195,6 +198,11 @@ pub fn run(args: &Args) -> Result<()> {
         other_minima: fit.other_minima,
         correlation: fit.correlation.clone(),
         left_out: fit.left_out.clone(),
+        contact_substeps: fit
+            .overrides
+            .iter()
+            .find_map(|o| o.strip_prefix("contact_substeps="))
+            .and_then(|m| m.parse().ok()),
         seconds,
     };
     args.format.format().print(&report)?;
@@ -208,6 +216,14 @@ impl Render for Report {
             "calibrated {} on {} recordings in {} ({:.1} s, {} simulations)",
             self.nominal, self.recordings, self.labelled, self.seconds, self.simulations
         )?;
+        if let Some(m) = self.contact_substeps {
+            writeln!(
+                out,
+                "contact simulated in {m} substeps of each step near the object \
+                 (contact_substeps = {m}, written to the fitted file, so that what is trained on \
+                 it simulates as the fit did)"
+            )?;
+        }
         writeln!(out, "\nparameters:")?;
         let mut table = Table::new(&[
             ("key", Align::Left),
@@ -436,6 +452,7 @@ mod tests {
                 ],
                 matrix,
             },
+            contact_substeps: Some(5),
             seconds: 1.0,
         }
     }
@@ -466,5 +483,12 @@ mod tests {
             vec![0.99, 0.0, 1.0],
         ]);
         assert!(!text(&weak).contains("errors correlated"));
+        // The contact stepping the fit used is said, and nothing when the nominal set it.
+        assert!(text(&weak).contains("contact_substeps = 5"));
+        let named = Report {
+            contact_substeps: None,
+            ..weak
+        };
+        assert!(!text(&named).contains("contact_substeps"));
     }
 }

@@ -136,6 +136,8 @@ fn a_perturbed_whisker_is_fitted_and_its_scenario_written() {
     // The search's other minima (at most three besides the best of four finalists).
     let others = report["other_minima"].as_u64().expect("other_minima");
     assert!(others <= 3, "{others}");
+    // Contact was stepped at 20 µs (the nominal leaves the setting to its default).
+    assert_eq!(report["contact_substeps"].as_u64(), Some(5), "{report}");
     // The correlations of the determined parameters: over the same keys, ones on the diagonal.
     let determined: Vec<&str> = report["parameters"]
         .as_array()
@@ -161,6 +163,7 @@ fn a_perturbed_whisker_is_fitted_and_its_scenario_written() {
     let text = fs::read_to_string(&fitted).unwrap();
     assert!(text.contains("[calibration]") || text.contains("[[calibration.parameters]]"));
     assert!(text.contains("[sensors.theta01]"), "{text}");
+    assert!(text.contains("contact_substeps = 5"), "{text}");
     assert!(text.contains("[calibration.correlation]"), "{text}");
     let run = vibrissa(&[
         "simulate",

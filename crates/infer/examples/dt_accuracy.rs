@@ -8,13 +8,15 @@
 //!
 //! ```sh
 //! cargo run --release -p vibrissa-infer --example dt_accuracy -- [--quick] [--ref DT]
-//!     [--dt DT,DT,...] [--set key=value]...
+//!     [--dt DT,DT,...] [--set key=value]... [--scenario FILE.toml] [--both key=value]...
 //! ```
 //!
 //! `--quick` runs a 4 × 3 subset of the grid (d = 15, 20, 25, 30 mm; v = 0.3, 0.9, 1.5 m/s).
 //! `--ref` is the reference step (default 1e-5 s), `--dt` the steps compared (default 1e-4,
 //! 2.5e-4, 5e-4, 1e-3 s). Every `--set` is applied to the compared runs (not to the reference),
-//! as `vibrissa simulate --set` would, e.g. `--set contact_substeps=10`.
+//! as `vibrissa simulate --set` would, e.g. `--set contact_substeps=10`. `--scenario` replaces
+//! the `e2` scenario by a file of the `e2` family (another whisker), and every `--both` is applied
+//! to the reference and the compared runs alike (another chain: `--both segments=50`).
 
 use std::time::Instant;
 use vibrissa_core::sim;
@@ -29,10 +31,16 @@ struct Run {
     duration: f64,
 }
 
-fn simulate(d: f64, v: f64, dt: f64, sets: &[String]) -> Result<Run, Box<dyn std::error::Error>> {
+fn simulate(
+    scenario: &str,
+    d: f64,
+    v: f64,
+    dt: f64,
+    sets: &[String],
+) -> Result<Run, Box<dyn std::error::Error>> {
     let mut all = vec![format!("d={d}"), format!("v={v}"), format!("dt={dt}")];
     all.extend(sets.iter().cloned());
-    let scenario = vibrissa_io::scenario::load("e2", &all)?;
+    let scenario = vibrissa_io::scenario::load(scenario, &all)?;
     let start = Instant::now();
     let out = sim::run(&scenario, &mut |_| {})?;
     let wall = start.elapsed().as_secs_f64();
@@ -75,6 +83,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut reference_dt = 1e-5;
     let mut dts = vec![1e-4, 2.5e-4, 5e-4, 1e-3];
     let mut sets = Vec::new();
+    let mut both = Vec::new();
+    let mut scenario = "e2".to_string();
     let mut k = 0;
     while k < args.len() {
         match args[k].as_str() {
@@ -96,6 +106,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 k += 1;
                 sets.push(args.get(k).ok_or("--set needs key=value")?.clone());
             }
+            "--both" => {
+                k += 1;
+                both.push(args.get(k).ok_or("--both needs key=value")?.clone());
+            }
+            "--scenario" => {
+                k += 1;
+                scenario = args.get(k).ok_or("--scenario needs a file")?.clone();
+            }
             other => return Err(format!("unknown argument {other}").into()),
         }
         k += 1;
@@ -113,15 +131,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .flat_map(|&d| vs.iter().map(move |&v| (d, v)))
         .collect();
     eprintln!(
-        "{} runs; reference dt = {reference_dt} s; compared runs with {:?}",
+        "{} runs of {scenario} with {both:?}; reference dt = {reference_dt} s; compared runs with {:?}",
         grid.len(),
         sets
     );
+    // The compared runs take the settings of both, then their own.
+    let sets: Vec<String> = both.iter().chain(&sets).cloned().collect();
 
     let mut references = Vec::with_capacity(grid.len());
     let (mut ref_wall, mut ref_sim, mut ref_steps) = (0.0, 0.0, 0usize);
     for &(d, v) in &grid {
-        let r = simulate(d, v, reference_dt, &[])?;
+        let r = simulate(&scenario, d, v, reference_dt, &both)?;
         ref_wall += r.wall;
         ref_sim += r.duration;
         ref_steps += r.steps;
@@ -151,7 +171,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let (mut wall, mut simulated, mut steps) = (0.0, 0.0, 0usize);
         let mut worst = [(0.0, 0.0); 5];
         for (&(d, v), reference) in grid.iter().zip(&references) {
-            let r = simulate(d, v, dt, &sets)?;
+            let r = simulate(&scenario, d, v, dt, &sets)?;
             wall += r.wall;
             simulated += r.duration;
             steps += r.steps;

@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 use vibrissa_core::sim::{self, COLUMNS};
-use vibrissa_infer::calibrate::{calibrate, Settings};
+use vibrissa_infer::calibrate::{calibrate, contact_resolution, Settings};
 use vibrissa_io::labelled::{read_labelled, Options};
 use vibrissa_io::scenario::Document;
 use vibrissa_io::series::{self, Series};
@@ -19,8 +19,9 @@ fn folder(name: &str) -> PathBuf {
 }
 
 /// Writes strikes of `truth` (e2 with these overrides) at the labels into `dir`, with truth.csv.
+/// Contact is stepped as calibration steps it (a recording resolves it finely).
 fn strikes(dir: &Path, truth: &[&str], labels: &[(f64, f64)]) {
-    let doc = Document::load("e2", &[]).unwrap();
+    let doc = Document::load("e2", &["contact_substeps=5".to_string()]).unwrap();
     let mut listing = String::from("file,d,v\n");
     for (k, (d, v)) in labels.iter().enumerate() {
         let mut sets: Vec<String> = truth.iter().map(|s| s.to_string()).collect();
@@ -88,9 +89,12 @@ fn a_stiffer_lighter_whisker_with_a_sensor_gain_draws_the_fit_towards_it() {
         "density {rho}"
     );
 
-    // The fitted scenario loads, carries the record and reproduces a strike.
+    // The fitted scenario loads, carries the record and reproduces a strike, with contact
+    // stepped as the fit stepped it.
+    assert_eq!(fit.overrides[0], "contact_substeps=5");
     let fitted = fit.document(&nominal, "strikes").unwrap();
     let loaded = fitted.loaded().unwrap();
+    assert_eq!(loaded.scenario.integrator.contact_substeps, 5);
     let record = loaded.calibration.expect("a [calibration] table");
     assert_eq!(record.recordings, Some(labels.len()));
     assert!(record
@@ -207,12 +211,13 @@ fn bad_settings_are_refused_before_any_simulation() {
 }
 
 /// A calibrated scenario file beside `dir` that names it as its labelled strikes (by its name
-/// alone, so that it is found from the file's directory), with the short strikes' timing.
+/// alone, so that it is found from the file's directory), with the short strikes' timing and
+/// contact stepped as calibration writes it.
 fn calibrated_file(dir: &Path) -> PathBuf {
     let name = dir.file_name().unwrap().to_str().unwrap();
     let path = dir.with_extension("toml");
     let text = format!(
-        "experiment = \"e2\"\nduration = 0.08\n\n[calibration]\nlabelled = \"{name}\"\n\
+        "experiment = \"e2\"\nduration = 0.08\ncontact_substeps = 5\n\n[calibration]\nlabelled = \"{name}\"\n\
          recordings = 1\nrms_before = {{}}\nrms_after = {{}}\nnoise = {{}}\nparameters = []\n"
     );
     std::fs::write(&path, text).unwrap();
@@ -273,4 +278,49 @@ fn the_fit_s_residuals_are_what_its_strikes_differ_by_and_runs_carry_them() {
         let _ = std::fs::remove_file(dir.with_extension("toml"));
         let _ = std::fs::remove_dir_all(&dir);
     }
+}
+
+#[test]
+fn contact_is_stepped_at_twenty_microseconds_unless_the_file_says_how() {
+    let resolution = |sets: &[&str]| {
+        let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+        contact_resolution(&Document::load("e2", &sets).unwrap()).unwrap()
+    };
+    // The default 0.1 ms step: five substeps near contact.
+    assert_eq!(resolution(&[]), ["contact_substeps=5"]);
+    // A long step takes as many as 20 µs needs; a step already that fine none.
+    assert_eq!(resolution(&["dt=1e-3"]), ["contact_substeps=50"]);
+    assert!(resolution(&["dt=1e-5"]).is_empty());
+    assert!(resolution(&["dt=2e-5"]).is_empty());
+    // A file (or override) that names the setting is left as it says, even at 1.
+    assert!(resolution(&["contact_substeps=1"]).is_empty());
+    assert!(resolution(&["contact_substeps=3"]).is_empty());
+}
+
+#[test]
+fn a_file_that_names_its_contact_substeps_is_fitted_with_them() {
+    let dir = folder("named-substeps");
+    strikes(&dir, &[SHORT], &[(0.017, 0.6), (0.026, 1.2)]);
+    let nominal =
+        Document::load("e2", &[SHORT.to_string(), "contact_substeps=1".to_string()]).unwrap();
+    let set = read_labelled(&dir, &nominal, &Options::default()).unwrap();
+    let fit = calibrate(&nominal, &set, &Settings::default(), &mut |_| {}).unwrap();
+    assert!(
+        fit.overrides
+            .iter()
+            .all(|o| !o.starts_with("contact_substeps")),
+        "{:?}",
+        fit.overrides
+    );
+    let fitted = fit.document(&nominal, "strikes").unwrap();
+    assert_eq!(
+        fitted
+            .loaded()
+            .unwrap()
+            .scenario
+            .integrator
+            .contact_substeps,
+        1
+    );
+    let _ = std::fs::remove_dir_all(&dir);
 }

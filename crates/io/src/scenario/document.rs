@@ -97,6 +97,12 @@ impl Document {
         Ok(())
     }
 
+    /// Whether the document (as edited) gives the top-level key `key` itself, rather than
+    /// leaving it to its default.
+    pub fn names(&self, key: &str) -> bool {
+        self.table.contains_key(key)
+    }
+
     /// The document as edited.
     pub(super) fn table(&self) -> &toml::Table {
         &self.table
