@@ -309,8 +309,8 @@ pub const CONTACT_STEP: f64 = 2e-5;
 /// integration by up to 3% of their range on a uniform whisker and 9% on one tapered to half
 /// its radius (`docs/contact.md`), while the recordings of a real whisker, or of another engine
 /// that resolves contact finely, are not: the fit would put that difference into the whisker's
-/// parameters. On the other engine's development set the fitted residuals fall two- to
-/// threefold in the base's moment and forces with contact at 20 µs.
+/// parameters. On the other engine's development set the fitted residuals fall 1.8–3.6-fold
+/// in the base's moment and forces with contact at 20 µs.
 pub fn contact_resolution(nominal: &Document) -> Result<Vec<String>> {
     if nominal.names("contact_substeps") {
         return Ok(Vec::new());
