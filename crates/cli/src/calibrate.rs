@@ -198,11 +198,7 @@ pub fn run(args: &Args) -> Result<()> {
         other_minima: fit.other_minima,
         correlation: fit.correlation.clone(),
         left_out: fit.left_out.clone(),
-        contact_substeps: fit
-            .overrides
-            .iter()
-            .find_map(|o| o.strip_prefix("contact_substeps="))
-            .and_then(|m| m.parse().ok()),
+        contact_substeps: fit.contact_substeps,
         seconds,
     };
     args.format.format().print(&report)?;

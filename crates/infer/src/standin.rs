@@ -120,12 +120,12 @@ pub fn make(nominal: &Document, seed: u64, options: &Options) -> Result<Standin>
     }
     let mut rng = Rng::stream(seed, 0x57A4D);
     let mut truth = base.clone();
+    if let Some(dt) = options.dt {
+        truth.integrator.dt = dt;
+    }
     if !options.perturb {
         truth.segments = options.segments;
         truth.discretisation = options.discretisation;
-        if let Some(dt) = options.dt {
-            truth.integrator.dt = dt;
-        }
         return Ok(Standin {
             seed,
             nominal: nominal.clone(),
@@ -195,9 +195,6 @@ pub fn make(nominal: &Document, seed: u64, options: &Options) -> Result<Standin>
     }));
     truth.segments = options.segments;
     truth.discretisation = options.discretisation;
-    if let Some(dt) = options.dt {
-        truth.integrator.dt = dt;
-    }
     truth.check().map_err(|e| standin_error(&e.to_string()))?;
     Ok(Standin {
         seed,

@@ -6,6 +6,12 @@ use crate::error::{Error, Result};
 /// Largest time step accepted, s.
 pub const MAX_DT: f64 = 1.0e-3;
 
+/// The fewest equal steps into which `span` divides so that none is longer than `longest` (at
+/// least one; a span a rounding error longer than a whole number of steps takes no extra step).
+pub fn equal_steps(span: f64, longest: f64) -> usize {
+    ((span / longest) * (1.0 - 1e-9)).ceil().max(1.0) as usize
+}
+
 /// Generalized-α settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Integrator {

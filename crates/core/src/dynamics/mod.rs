@@ -62,7 +62,7 @@ mod workspace;
 pub use energy::{kinetic_energy, momentum, potential_energy};
 pub use inputs::{check_loads, BaseMotion, Inputs, PointLoad};
 pub use integrator::{
-    Integrator, Stepper, DEFAULT_MAX_ITERATIONS, DEFAULT_RHO_INF, DEFAULT_TOLERANCE,
+    equal_steps, Integrator, Stepper, DEFAULT_MAX_ITERATIONS, DEFAULT_RHO_INF, DEFAULT_TOLERANCE,
     MAX_CONTACT_SUBSTEPS, MAX_DT,
 };
 pub use lanes::{lanes_apply, step_group, step_group_each, LaneWorkspace, LANES};

@@ -250,6 +250,9 @@ pub struct Fit {
     /// Channels left out of the fit because they hold one value (given) in every strike: a
     /// sensor that recorded nothing.
     pub left_out: Vec<(&'static str, f64)>,
+    /// Substeps near contact that the fit simulated with and [`Fit::overrides`] writes into the
+    /// fitted scenario ([`contact_resolution`]; `None`: the nominal's own setting).
+    pub contact_substeps: Option<usize>,
 }
 
 impl Fit {
@@ -299,11 +302,11 @@ impl Fit {
 /// [`contact_resolution`]).
 pub const CONTACT_STEP: f64 = 2e-5;
 
-/// The overrides with which calibration simulates `nominal`: where the file leaves
-/// `contact_substeps` to its default, enough substeps near contact that contact is stepped at
-/// [`CONTACT_STEP`] or finer (`contact_substeps=5` at the default 0.1 ms step; none when the
-/// step is already that fine). They are written into the fitted file, so that what is trained
-/// on it simulates as the fit did.
+/// The substeps near contact with which calibration simulates `nominal`, where the file leaves
+/// `contact_substeps` to its default: enough that contact is stepped at [`CONTACT_STEP`] or
+/// finer (5 at the default 0.1 ms step; `None` when the step is already that fine, or the file
+/// names the setting). They are written into the fitted file, so that what is trained on it
+/// simulates as the fit did.
 ///
 /// At the default step alone the simulated channels of fast strikes are off a converged
 /// integration by up to 3% of their range on a uniform whisker and 9% on one tapered to half
@@ -311,19 +314,14 @@ pub const CONTACT_STEP: f64 = 2e-5;
 /// that resolves contact finely, are not: the fit would put that difference into the whisker's
 /// parameters. On the other engine's development set the fitted residuals fall 1.8–3.6-fold
 /// in the base's moment and forces with contact at 20 µs.
-pub fn contact_resolution(nominal: &Document) -> Result<Vec<String>> {
+pub fn contact_resolution(nominal: &Document) -> Result<Option<usize>> {
     if nominal.names("contact_substeps") {
-        return Ok(Vec::new());
+        return Ok(None);
     }
     let integrator = nominal.loaded()?.scenario.integrator;
-    let wanted = ((integrator.dt / CONTACT_STEP) * (1.0 - 1e-9))
-        .ceil()
-        .max(1.0) as usize;
+    let wanted = vibrissa_core::dynamics::equal_steps(integrator.dt, CONTACT_STEP);
     let substeps = wanted.min(vibrissa_core::dynamics::MAX_CONTACT_SUBSTEPS);
-    if substeps <= integrator.contact_substeps {
-        return Ok(Vec::new());
-    }
-    Ok(vec![format!("contact_substeps={substeps}")])
+    Ok((substeps > integrator.contact_substeps).then_some(substeps))
 }
 
 /// Calibrates `nominal` on the labelled recordings `set`; `progress` hears of every residual
@@ -336,14 +334,15 @@ pub fn calibrate(
     progress: &mut dyn FnMut(&Progress),
 ) -> Result<Fit> {
     check_settings(settings)?;
-    let resolution = contact_resolution(nominal)?;
+    let Some(substeps) = contact_resolution(nominal)? else {
+        return fit_resolved(nominal, set, settings, progress);
+    };
+    let setting = format!("contact_substeps={substeps}");
     let mut resolved = nominal.clone();
-    for key_value in &resolution {
-        resolved.set(key_value)?;
-    }
-    let nominal = &resolved;
-    let mut fit = fit_resolved(nominal, set, settings, progress)?;
-    fit.overrides.splice(0..0, resolution);
+    resolved.set(&setting)?;
+    let mut fit = fit_resolved(&resolved, set, settings, progress)?;
+    fit.overrides.insert(0, setting);
+    fit.contact_substeps = Some(substeps);
     Ok(fit)
 }
 

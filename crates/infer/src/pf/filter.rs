@@ -153,7 +153,7 @@ impl Filter {
         config.sigma = config.sigma.map(|s| s * widening);
         let config = &config;
         let np = config.particles;
-        let per_sample = ((period / config.dt) * (1.0 - 1e-9)).ceil().max(1.0) as usize;
+        let per_sample = vibrissa_core::dynamics::equal_steps(period, config.dt);
         let stepper = Integrator {
             dt: period / per_sample as f64,
             max_iterations: config.max_iterations,

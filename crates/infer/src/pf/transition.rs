@@ -79,7 +79,7 @@ impl FreeModel {
             .modes()
             .map_err(|e| Error::Observation(format!("filter free model: {e}")))?
             .frequencies[0];
-        let substeps = ((period / MAX_DT) * (1.0 - 1e-9)).ceil().max(1.0) as usize;
+        let substeps = vibrissa_core::dynamics::equal_steps(period, MAX_DT);
         let h = period / substeps as f64;
         let omega_h = 2.0 * std::f64::consts::PI * f1 * h;
         let warp = ((0.5 * omega_h).tan() / (0.5 * omega_h)).powi(2);
