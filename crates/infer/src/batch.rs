@@ -168,7 +168,7 @@ fn trusted_or_drawn(
         switches.randomise,
         switches.keep
     ));
-    let randomised = family.clone().randomised_if(true)?;
+    let randomised = family.clone().for_recordings(true)?;
     let mut again = Trained::default();
     let estimates = estimate_each(
         &randomised,
@@ -328,7 +328,7 @@ pub fn filter_family(
         switches.randomise,
         switches.keep
     ));
-    family.clone().randomised_if(true)
+    family.clone().for_recordings(true)
 }
 
 #[cfg(test)]

@@ -465,6 +465,30 @@ impl Family {
         }
     }
 
+    /// The family that reads recordings made elsewhere: [`Family::randomised_if`], and where
+    /// that randomises around a nominal file (not one calibration wrote) which leaves
+    /// `contact_substeps` to its default, contact stepped at
+    /// [`crate::resolution::CONTACT_STEP`] or finer in every run it simulates
+    /// ([`crate::resolution`]): a whisker known only roughly is another's, recorded by a real
+    /// sensor or another engine, whose strikes are nearer a converged integration than to the
+    /// default step. A calibrated file carries the setting its fit used.
+    pub fn for_recordings(self, randomise: bool) -> Result<Family> {
+        let mut f = self.randomised_if(randomise)?;
+        if !randomise || f.calibrated {
+            return Ok(f);
+        }
+        if let Some(substeps) = crate::resolution::contact_resolution(&f.doc)? {
+            f.doc.set(&format!("contact_substeps={substeps}"))?;
+            f.base.integrator.contact_substeps = substeps;
+        }
+        Ok(f)
+    }
+
+    /// Steps per step near contact in the family's runs (`contact_substeps`; 1: none).
+    pub fn contact_substeps(&self) -> usize {
+        self.base.integrator.contact_substeps
+    }
+
     /// The same family with the scenario's own whisker in every run.
     pub fn nominal(&self) -> Family {
         Family {
@@ -1160,5 +1184,48 @@ mod tests {
         let long = e2.with_timing(1000.0, 2001).unwrap();
         assert!(long.with_timing(50.0, 101).is_err());
         assert!(long.check_sample_rate(1000.0).is_ok());
+    }
+
+    #[test]
+    fn recordings_made_elsewhere_are_read_with_contact_resolved() {
+        let e2 = Family::builtin("e2").unwrap();
+        assert_eq!(e2.contact_substeps(), 1);
+        // Told the whisker exactly: the file's step.
+        let exact = e2.clone().for_recordings(false).unwrap();
+        assert_eq!(exact.contact_substeps(), 1);
+        assert_eq!(exact.digest(), e2.digest());
+        // Known only roughly: contact at 20 µs (5 substeps of the 0.1 ms step), in the runs too.
+        let rough = e2.clone().for_recordings(true).unwrap();
+        assert_eq!(rough.contact_substeps(), 5);
+        assert_eq!(
+            rough
+                .scenario(&[0.02, 0.6])
+                .unwrap()
+                .integrator
+                .contact_substeps,
+            5
+        );
+        assert_ne!(
+            rough.digest(),
+            e2.clone().randomised_if(true).unwrap().digest()
+        );
+        // The same strike simulated both ways differs (the default step is not converged).
+        let fine = rough
+            .nominal()
+            .simulate(&[0.02, 0.9], &Noise::NONE, 1)
+            .unwrap();
+        let coarse = e2.simulate(&[0.02, 0.9], &Noise::NONE, 1).unwrap();
+        let gap = fine.series[0]
+            .iter()
+            .zip(&coarse.series[0])
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(gap > 1e-6, "{gap}");
+        // A file that names the setting, or a step already fine, is read as it says.
+        for set in ["contact_substeps=1", "dt=1e-5"] {
+            let named = Family::open("e2", &[set.to_string()]).unwrap();
+            let kept = named.clone().for_recordings(true).unwrap();
+            assert_eq!(kept.contact_substeps(), 1, "{set}");
+        }
     }
 }

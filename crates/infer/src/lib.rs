@@ -33,6 +33,7 @@ pub mod pf;
 pub mod randomise;
 pub mod recording;
 mod reference;
+pub mod resolution;
 pub mod shapes;
 pub mod signs;
 pub mod standin;

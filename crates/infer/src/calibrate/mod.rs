@@ -96,6 +96,8 @@ mod report;
 mod search;
 mod starts;
 
+pub use crate::resolution::{contact_resolution, CONTACT_STEP};
+
 use crate::error::{Error, Result};
 use fit::{Covariance, Run, Setup, Solution, CHANNELS};
 use params::{Kind, Param, Reference};
@@ -296,32 +298,6 @@ impl Fit {
         doc.loaded()?;
         Ok(doc)
     }
-}
-
-/// Longest substep, s, at which calibration steps a whisker in contact (see
-/// [`contact_resolution`]).
-pub const CONTACT_STEP: f64 = 2e-5;
-
-/// The substeps near contact with which calibration simulates `nominal`, where the file leaves
-/// `contact_substeps` to its default: enough that contact is stepped at [`CONTACT_STEP`] or
-/// finer (5 at the default 0.1 ms step; `None` when the step is already that fine, or the file
-/// names the setting). They are written into the fitted file, so that what is trained on it
-/// simulates as the fit did.
-///
-/// At the default step alone the simulated channels of fast strikes are off a converged
-/// integration by up to 3% of their range on a uniform whisker and 9% on one tapered to half
-/// its radius (`docs/contact.md`), while the recordings of a real whisker, or of another engine
-/// that resolves contact finely, are not: the fit would put that difference into the whisker's
-/// parameters. On the other engine's development set the fitted residuals fall 1.8–3.6-fold
-/// in the base's moment and forces with contact at 20 µs.
-pub fn contact_resolution(nominal: &Document) -> Result<Option<usize>> {
-    if nominal.names("contact_substeps") {
-        return Ok(None);
-    }
-    let integrator = nominal.loaded()?.scenario.integrator;
-    let wanted = vibrissa_core::dynamics::equal_steps(integrator.dt, CONTACT_STEP);
-    let substeps = wanted.min(vibrissa_core::dynamics::MAX_CONTACT_SUBSTEPS);
-    Ok((substeps > integrator.contact_substeps).then_some(substeps))
 }
 
 /// Calibrates `nominal` on the labelled recordings `set`; `progress` hears of every residual

@@ -1,0 +1,36 @@
+//! How finely contact is stepped where the simulator stands in for recordings it did not make.
+//!
+//! At the simulator's default 0.1 ms step the channels of a fast strike are off a converged
+//! integration by up to 3% of their range on a uniform whisker and 9% on one tapered to half its
+//! radius (`docs/contact.md`). A real whisker's recordings, or another engine's that resolves
+//! contact finely, are not. Two places therefore simulate contact at [`CONTACT_STEP`] or finer
+//! where the scenario file leaves `contact_substeps` to its default:
+//!
+//! - calibration (`crate::calibrate`), which writes the setting into the fitted file, so that
+//!   every estimator trained on that file simulates as the fit did;
+//! - the training runs of a whisker known only roughly ([`crate::family::Family::for_recordings`]:
+//!   `estimate --randomise` on a nominal file), whose recordings come from elsewhere by
+//!   definition.
+//!
+//! Runs of the scenario itself (an experiment, `simulate`) keep the file's step.
+
+use crate::error::Result;
+use vibrissa_io::scenario::Document;
+
+/// Longest substep, s, at which contact is stepped for recordings made elsewhere (see
+/// [`contact_resolution`]).
+pub const CONTACT_STEP: f64 = 2e-5;
+
+/// The substeps near contact with which `doc` is simulated for recordings made elsewhere,
+/// where the file leaves `contact_substeps` to its default: enough that contact is stepped at
+/// [`CONTACT_STEP`] or finer (5 at the default 0.1 ms step; `None` when the step is already
+/// that fine, or the file names the setting, even as 1).
+pub fn contact_resolution(doc: &Document) -> Result<Option<usize>> {
+    if doc.names("contact_substeps") {
+        return Ok(None);
+    }
+    let integrator = doc.loaded()?.scenario.integrator;
+    let wanted = vibrissa_core::dynamics::equal_steps(integrator.dt, CONTACT_STEP);
+    let substeps = wanted.min(vibrissa_core::dynamics::MAX_CONTACT_SUBSTEPS);
+    Ok((substeps > integrator.contact_substeps).then_some(substeps))
+}
