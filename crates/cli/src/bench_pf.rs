@@ -156,7 +156,7 @@ pub fn run(
     for &n in particles {
         let config = if randomise {
             // As `estimate --method pf --randomise` sets the filter up.
-            let family = e2.clone().for_recordings(true)?;
+            let family = e2.clone().randomised_if(true)?;
             let mut filter = Pf::new(n);
             filter.islands = islands;
             filter.fit(&Training {

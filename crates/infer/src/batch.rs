@@ -328,7 +328,7 @@ pub fn filter_family(
         switches.randomise,
         switches.keep
     ));
-    family.clone().for_recordings(true)
+    family.clone().randomised_if(true)
 }
 
 #[cfg(test)]

@@ -465,7 +465,8 @@ impl Family {
         }
     }
 
-    /// The family that reads recordings made elsewhere: [`Family::randomised_if`], and where
+    /// The family whose runs train a discriminative method to read recordings made elsewhere:
+    /// [`Family::randomised_if`], and where
     /// that randomises around a nominal file (not one calibration wrote) which leaves
     /// `contact_substeps` to its default, contact stepped at
     /// [`crate::resolution::CONTACT_STEP`] or finer in every run it simulates

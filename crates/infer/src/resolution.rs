@@ -8,11 +8,14 @@
 //!
 //! - calibration (`crate::calibrate`), which writes the setting into the fitted file, so that
 //!   every estimator trained on that file simulates as the fit did;
-//! - the training runs of a whisker known only roughly ([`crate::family::Family::for_recordings`]:
-//!   `estimate --randomise` on a nominal file), whose recordings come from elsewhere by
-//!   definition.
+//! - the discriminative methods' training runs of a whisker known only roughly
+//!   ([`crate::family::Family::for_recordings`]: `estimate --randomise` on a nominal file),
+//!   whose recordings come from elsewhere by definition.
 //!
-//! Runs of the scenario itself (an experiment, `simulate`) keep the file's step.
+//! Runs of the scenario itself (an experiment, `simulate`) keep the file's step, and so does the
+//! particle filter, whose transitions are its own coarse chain: there the file's runs set only
+//! the noise's scale, and resolving them moved the pooled filter's error on nine sets both ways
+//! (0.37 → 0.42 mm on average) without a cause in its physics.
 
 use crate::error::Result;
 use vibrissa_io::scenario::Document;

@@ -111,7 +111,7 @@ impl Filter {
         // As `estimate`: a calibrated file draws what its calibration left uncertain unless told
         // otherwise.
         let randomise = randomise.unwrap_or(family.is_calibrated());
-        let family = family.for_recordings(randomise).map_err(value_error)?;
+        let family = family.randomised_if(randomise).map_err(value_error)?;
         // A whisker file of the user's own, neither calibrated nor randomised: the filter takes
         // its whisker as exact, which a real whisker never is. `estimate` checks the recordings
         // against it first; a filter fed sample by sample has none to check yet.
