@@ -70,8 +70,10 @@ pub struct Args {
     /// Train on runs whose whisker, sensor gains and chain are drawn around the scenario's
     /// (modulus, density and damping within a factor 0.74–1.35, half of them with a compliant
     /// follicle, half tapered, gains within 5%, half with 0.5–3 times the segments, half with
-    /// the seed paper's stiffness rule; three times the training runs): estimates that hold,
-    /// with wider intervals, on a whisker known only roughly, recorded by another chain. On a
+    /// the seed paper's stiffness rule; three times the training runs; contact stepped at 20 µs
+    /// unless the file names `contact_substeps`, as a real whisker's or another engine's strikes
+    /// are converged): estimates that hold, with wider intervals, on a whisker known only
+    /// roughly, recorded by another chain. On a
     /// calibrated scenario (the output of `calibrate`) the draws are narrow instead: modulus,
     /// density, damping and follicle within a factor e^±0.1, gains within 2%, the chain as fitted
     /// (what calibration leaves uncertain: intervals that hold after calibration; the filter
