@@ -65,6 +65,8 @@ pub(super) struct Setup<'a> {
     pub ys: Vec<[Option<Vec<f64>>; CHANNELS]>,
     /// Robust weights of the samples, `[run][channel][sample]` (empty: every weight 1).
     pub weights: Vec<[Vec<f64>; CHANNELS]>,
+    /// Contact substeps of the starting scan's simulations (`None`: the runs' own).
+    pub scan_substeps: Option<usize>,
 }
 
 /// Tukey's biweight constant, in standard deviations: 95% efficiency for Gaussian noise.
@@ -234,6 +236,22 @@ impl Setup<'_> {
                     &apply(&run.scenario, self.params, x, self.reference),
                     count,
                 )
+            })
+            .collect()
+    }
+
+    /// [`Setup::simulate`] with contact stepped as the starting scan steps it
+    /// ([`Setup::scan_substeps`]).
+    pub fn simulate_scan(&self, x: &[Option<f64>], count: &AtomicUsize) -> Option<Sims> {
+        let Some(substeps) = self.scan_substeps else {
+            return self.simulate(x, count);
+        };
+        self.runs
+            .par_iter()
+            .map(|run| {
+                let mut scenario = apply(&run.scenario, self.params, x, self.reference);
+                scenario.integrator.contact_substeps = substeps;
+                simulate_run(run, &scenario, count)
             })
             .collect()
     }

@@ -326,6 +326,7 @@ mod tests {
             smooth: 1,
             ys: Vec::new(),
             weights: Vec::new(),
+            scan_substeps: None,
         };
         setup.set_smoothing(1);
         // Started with a follicle as compliant as the base joint (the clamped bound is a
@@ -383,6 +384,60 @@ mod tests {
                 .contains("did not converge within 1 iterations"),
             "{err}"
         );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn the_starting_scan_simulates_contact_as_it_is_told() {
+        let dir = std::env::temp_dir().join(format!("vibrissa-scan-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        strikes(&dir);
+        let sets = |more: &[&str]| {
+            let mut v = vec!["duration=0.08".to_string()];
+            v.extend(more.iter().map(|s| s.to_string()));
+            v
+        };
+        let fine = Document::load("e2", &sets(&["contact_substeps=5"])).unwrap();
+        let plain = Document::load("e2", &sets(&[])).unwrap();
+        let set = read_labelled(&dir, &fine, &Options::default()).unwrap();
+        let base = fine.loaded().unwrap().scenario;
+        let reference = params::Reference::of(&base).unwrap();
+        let params = params::parameters(&base, &reference, &set.keys, 0.03, 2.5e-4);
+        let (fine_runs, plain_runs) = (
+            prepare(&fine, &set).unwrap(),
+            prepare(&plain, &set).unwrap(),
+        );
+        let setup = |runs, scan_substeps| Setup {
+            runs,
+            params: &params,
+            reference: &reference,
+            free: vec![true; params.len()],
+            held: params.iter().map(|p| p.x_nominal).collect(),
+            channels: (0..CHANNELS).collect(),
+            sigma: [1.0; CHANNELS],
+            gain_free: [true; CHANNELS],
+            nominal: base.sensor_response.to_array(),
+            handling: GainHandling::Projected,
+            gain_prior: 0.0,
+            smooth: 1,
+            ys: Vec::new(),
+            weights: Vec::new(),
+            scan_substeps,
+        };
+        let x: Vec<Option<f64>> = params.iter().map(|p| p.x_nominal).collect();
+        let count = AtomicUsize::new(0);
+        let fit_sims = setup(&fine_runs, None).simulate(&x, &count).unwrap();
+        // Not told: the scan simulates as the fit does.
+        let same = setup(&fine_runs, None).simulate_scan(&x, &count).unwrap();
+        assert_eq!(same, fit_sims);
+        // Told one substep: the fit's runs as the plain file simulates them, and they differ.
+        let scan = setup(&fine_runs, Some(1))
+            .simulate_scan(&x, &count)
+            .unwrap();
+        let plain_sims = setup(&plain_runs, None).simulate(&x, &count).unwrap();
+        assert_eq!(scan, plain_sims);
+        assert_ne!(scan, fit_sims);
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

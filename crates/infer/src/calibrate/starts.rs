@@ -69,7 +69,8 @@ fn scan_tapers(z0: f64) -> Vec<f64> {
 /// than about half a period over the ringing, a local fit locks onto the wrong number of
 /// periods, and a taper, a compliant follicle and a time offset can trade off against each
 /// other into a false minimum. So the cost (with the gains and offsets solved) is scanned over
-/// a grid of density × follicle compliance × taper, the other parameters at their starts, and a
+/// a grid of density × follicle compliance × taper, the other parameters at their starts (with
+/// contact stepped as [`Setup::scan_substeps`] says: the grid's points lie far apart), and a
 /// Levenberg–Marquardt fit runs from the plain start and from the [`STARTS`] best grid points.
 /// Each is taken [`SHORT_ITERATIONS`] iterations first; the [`FINALISTS`] lowest are then
 /// carried on (from where they stopped, so on the path a whole fit would take) and the lowest
@@ -137,7 +138,7 @@ pub(super) fn best_start(
             }
         }
     }
-    let cost_at = |p: &Vec<f64>| match setup.simulate(&setup.full_x(p), count) {
+    let cost_at = |p: &Vec<f64>| match setup.simulate_scan(&setup.full_x(p), count) {
         Some(sims) => setup
             .residual(&sims, &setup.solve_linear(&sims))
             .norm_squared(),
