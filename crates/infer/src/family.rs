@@ -466,9 +466,8 @@ impl Family {
     }
 
     /// The family whose runs train a discriminative method to read recordings made elsewhere:
-    /// [`Family::randomised_if`], and where
-    /// that randomises around a nominal file (not one calibration wrote) which leaves
-    /// `contact_substeps` to its default, contact stepped at
+    /// [`Family::randomised_if`], and where that randomises around a nominal file (not one
+    /// calibration wrote) which leaves `contact_substeps` to its default, contact stepped at
     /// [`crate::resolution::CONTACT_STEP`] or finer in every run it simulates
     /// ([`crate::resolution`]): a whisker known only roughly is another's, recorded by a real
     /// sensor or another engine, whose strikes are nearer a converged integration than to the

@@ -304,7 +304,7 @@ impl Fit {
 /// evaluation. The simulations step contact as [`contact_resolution`] says, and the fit's
 /// overrides carry that setting into the fitted scenario; the starting scan, which only ranks
 /// points of a coarse grid, simulates at the nominal's own step (on two sets the same fit in
-/// about 40% less computing time).
+/// about 40% less processor time).
 pub fn calibrate(
     nominal: &Document,
     set: &Labelled,
