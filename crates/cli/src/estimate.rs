@@ -325,13 +325,7 @@ pub fn run(args: &Args) -> Result<()> {
     // A fitted whisker is known only as well as its fit: on a calibrated scenario every method
     // trains over what the calibration leaves uncertain, unless told not to.
     let randomise = args.randomise || (family.is_calibrated() && !args.no_randomise);
-    // The discriminative methods' training runs resolve contact as the recordings do; the
-    // filter steps its own coarse chain, and the file's step only sets its noise scale there.
-    let family = if args.method.as_deref() == Some("pf") {
-        family.randomised_if(randomise)?
-    } else {
-        family.for_recordings(randomise)?
-    };
+    let family = family.for_method(randomise, args.method.as_deref().unwrap_or_default())?;
     if family.is_calibrated() && randomise && !args.randomise {
         let fitted = family.around().is_some_and(|a| a.is_fitted());
         let how = if args.method.as_deref() == Some("pf") {

@@ -484,6 +484,19 @@ impl Family {
         Ok(f)
     }
 
+    /// The family that `method` (a name of [`crate::methods::NAMES`]) trains on to read
+    /// recordings: [`Family::for_recordings`] for the discriminative methods; the particle
+    /// filter steps its own coarse chain whatever the file says, where the file's runs only set
+    /// the scale of its noise model, so it takes [`Family::randomised_if`] (resolving those runs
+    /// moved its pooled error on nine sets both ways, by less than its own seed does).
+    pub fn for_method(self, randomise: bool, method: &str) -> Result<Family> {
+        if method == "pf" {
+            self.randomised_if(randomise)
+        } else {
+            self.for_recordings(randomise)
+        }
+    }
+
     /// Steps per step near contact in the family's runs (`contact_substeps`; 1: none).
     pub fn contact_substeps(&self) -> usize {
         self.base.integrator.contact_substeps
@@ -1221,6 +1234,12 @@ mod tests {
             .map(|(a, b)| (a - b).abs())
             .fold(0.0, f64::max);
         assert!(gap > 1e-6, "{gap}");
+        // The filter keeps the file's step; the other methods take the resolved family.
+        let for_pf = e2.clone().for_method(true, "pf").unwrap();
+        assert_eq!(for_pf.contact_substeps(), 1);
+        assert!(for_pf.randomisation().is_some());
+        let for_krr = e2.clone().for_method(true, "krr-invariant").unwrap();
+        assert_eq!(for_krr.digest(), rough.digest());
         // A file that names the setting, or a step already fine, is read as it says.
         for set in ["contact_substeps=1", "dt=1e-5"] {
             let named = Family::open("e2", &[set.to_string()]).unwrap();

@@ -185,14 +185,7 @@ pub(crate) fn estimate(
     // A calibrated scenario trains over what its calibration leaves uncertain unless told not to.
     let auto = randomise.is_none();
     let randomise = randomise.unwrap_or(family.is_calibrated());
-    // As `estimate`: the filter steps its own chain, the other methods' training runs resolve
-    // contact as recordings made elsewhere do.
-    let family = if pf {
-        family.randomised_if(randomise)
-    } else {
-        family.for_recordings(randomise)
-    }
-    .map_err(value_error)?;
+    let family = family.for_method(randomise, method).map_err(value_error)?;
     if auto && family.is_calibrated() {
         let how = if pf {
             "the filter's alternative whiskers from a narrow prior around the fitted one"

@@ -271,6 +271,15 @@ mod tests {
     use vibrissa_io::scenario::Document;
     use vibrissa_io::series::{self, Series};
 
+    /// A fresh folder `vibrissa-<name>-<pid>` in the temporary directory holding [`strikes`].
+    fn strike_folder(name: &str) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("vibrissa-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        strikes(&dir);
+        dir
+    }
+
     /// Three short strikes of a whisker stiffer than the nominal `e2`, with their labels.
     fn strikes(dir: &std::path::Path) {
         let doc = Document::load("e2", &[]).unwrap();
@@ -300,10 +309,7 @@ mod tests {
 
     #[test]
     fn a_search_stopped_and_carried_on_ends_where_a_whole_fit_ends() {
-        let dir = std::env::temp_dir().join(format!("vibrissa-search-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        strikes(&dir);
+        let dir = strike_folder("search");
         let nominal = Document::load("e2", &["duration=0.08".to_string()]).unwrap();
         let set = read_labelled(&dir, &nominal, &Options::default()).unwrap();
         let base = nominal.loaded().unwrap().scenario;
@@ -389,17 +395,10 @@ mod tests {
 
     #[test]
     fn the_starting_scan_simulates_contact_as_it_is_told() {
-        let dir = std::env::temp_dir().join(format!("vibrissa-scan-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        strikes(&dir);
-        let sets = |more: &[&str]| {
-            let mut v = vec!["duration=0.08".to_string()];
-            v.extend(more.iter().map(|s| s.to_string()));
-            v
-        };
-        let fine = Document::load("e2", &sets(&["contact_substeps=5"])).unwrap();
-        let plain = Document::load("e2", &sets(&[])).unwrap();
+        let dir = strike_folder("scan");
+        let short = "duration=0.08".to_string();
+        let fine = Document::load("e2", &[short.clone(), "contact_substeps=5".into()]).unwrap();
+        let plain = Document::load("e2", &[short]).unwrap();
         let set = read_labelled(&dir, &fine, &Options::default()).unwrap();
         let base = fine.loaded().unwrap().scenario;
         let reference = params::Reference::of(&base).unwrap();
