@@ -3,11 +3,12 @@
 
     python3 examples/score_labelled.py --labelled DIR --scenario FILE.toml [--method knn ...]
         [--vibrissa target/release/vibrissa] [--noise auto|none|CHANNEL=SIGMA,...]
-        [--randomise] [--seed N] [--arg=--particles --arg=2000 ...]
+        [--randomise] [--seed N] [--width] [--arg=--particles --arg=2000 ...]
 
 Prints, per method and per labelled unknown, the mean absolute error, the share of files
 whose 90% interval holds the truth and the bias (mean of estimate minus truth: an error that
-leans one way, as a whisker described slightly wrong gives). Needs only the Python standard
+leans one way, as a whisker described slightly wrong gives); with --width also how wide the
+intervals are and how much of that width the errors use. Needs only the Python standard
 library.
 """
 import argparse
@@ -29,6 +30,10 @@ def main():
     ap.add_argument("--randomise", action="store_true",
                     help="train on randomised whiskers (estimate --randomise)")
     ap.add_argument("--seed", help="seed of the training runs (estimate --seed)")
+    ap.add_argument("--width", action="store_true",
+                    help="also print, per unknown, the median width of the 90%% intervals and the "
+                         "90th percentile of |error| over the interval's half-width (about 1 for "
+                         "intervals as wide as they need be; below 1, wider)")
     ap.add_argument("--arg", action="append", default=[],
                     help="one more argument for estimate, e.g. --arg=--channels --arg=m0,fx,fy")
     a = ap.parse_args()
@@ -46,7 +51,8 @@ def main():
 
     print(f"{len(files)} recordings in {a.labelled}, scenario {a.scenario}")
     print(f"{'method':10}" + "".join(f"{'MAE ' + k:>14}{'cover ' + k:>12}" for k in keys)
-          + "".join(f"{'bias ' + k:>14}" for k in keys))
+          + "".join(f"{'bias ' + k:>14}" for k in keys)
+          + ("".join(f"{'width ' + k:>14}{'err/half ' + k:>14}" for k in keys) if a.width else ""))
     for m in methods:
         cmd = [a.vibrissa, "estimate", "--scenario", a.scenario, "--method", m, "--json"]
         if a.noise:
@@ -64,18 +70,25 @@ def main():
             continue
         text = out.stdout.strip()
         ests = [json.loads(line) for line in text.splitlines()] if len(files) > 1 else [json.loads(text)]
-        line, biases = f"{m:10}", ""
+        line, biases, widths = f"{m:10}", "", ""
         for k in keys:
-            errs, cover = [], []
+            errs, cover, width, ratio = [], [], [], []
             for r, e in zip(rows, ests):
                 truth = float(r[k])
                 errs.append(e[k]["mean"] - truth)
                 lo, hi = e[k]["ci90"]
                 cover.append(lo <= truth <= hi)
+                width.append(hi - lo)
+                if hi > lo:
+                    ratio.append(abs(e[k]["mean"] - truth) / (0.5 * (hi - lo)))
             mae = sum(abs(x) for x in errs) / len(errs)
             line += f"{mae:14.4g}{100 * sum(cover) / len(cover):11.0f}%"
             biases += f"{sum(errs) / len(errs):+14.3g}"
-        print(line + biases)
+            width.sort()
+            ratio.sort()
+            p90 = ratio[min(len(ratio) - 1, int(0.9 * len(ratio)))] if ratio else float("nan")
+            widths += f"{width[len(width) // 2]:14.4g}{p90:14.3g}"
+        print(line + biases + (widths if a.width else ""))
 
 
 if __name__ == "__main__":
