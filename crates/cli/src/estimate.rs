@@ -54,6 +54,8 @@ pub struct Args {
     /// this scenario file of one whisker (one that `vibrissa calibrate` fitted to labelled
     /// strikes of your whisker, say), with its calibration record, so that the estimators train
     /// on your whisker in this experiment: calibrated on the `e2` box, read pegs or shapes.
+    /// Contact is stepped as finely as in the file (`contact_substeps`: calibration fits at
+    /// 20 µs), at the scenario's own time step.
     #[arg(long, value_name = "FILE.toml")]
     pub(crate) whisker_from: Option<String>,
     /// Time-series CSV files in the contract's columns (t, theta01, theta12 required).

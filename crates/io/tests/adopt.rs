@@ -92,6 +92,8 @@ fn every_whisker_of_an_array_gets_the_whisker_chain_and_sensors_and_nothing_else
     assert_eq!(s.duration, 0.05);
     assert_eq!(s.objects.len(), 1);
     assert!(loaded.family.is_some());
+    // A source that does not name contact_substeps leaves the array's own.
+    assert_eq!(s.integrator.contact_substeps, 1);
     // Overrides apply after the whisker is given.
     let (_, edited) = open_adopting(
         origin.to_str().unwrap(),
@@ -139,4 +141,29 @@ fn an_array_is_no_source_and_whiskers_of_their_own_cannot_be_replaced() {
         .unwrap_err()
         .to_string();
     assert!(err.contains("youngs_modulus"), "{err}");
+}
+
+#[test]
+fn contact_is_stepped_as_finely_as_the_source_was_fitted() {
+    let dir = temp_dir("contact");
+    // Calibrated at 0.1 ms with five substeps near contact: contact at 20 µs.
+    let fitted = dir.join("fitted.toml");
+    fs::write(&fitted, format!("contact_substeps = 5\n{FITTED}")).unwrap();
+    let source = WhiskerSource::read(fitted.to_str().unwrap()).unwrap();
+    let substeps = |array: &str| {
+        let (_, loaded) = open_adopting("array.toml", Some(array), &[], Some(&source)).unwrap();
+        (
+            loaded.scenario.integrator.dt,
+            loaded.scenario.integrator.contact_substeps,
+        )
+    };
+    // At the array's own step: 0.1 ms in five, 50 µs in three (ceil 2.5), 10 µs needs none.
+    assert_eq!(substeps(ARRAY), (1e-4, 5));
+    assert_eq!(substeps(&format!("dt = 5e-5\n{ARRAY}")), (5e-5, 3));
+    assert_eq!(substeps(&format!("dt = 1e-5\n{ARRAY}")), (1e-5, 1));
+    // An array that already steps contact more finely keeps its own count.
+    assert_eq!(
+        substeps(&format!("contact_substeps = 8\n{ARRAY}")),
+        (1e-4, 8)
+    );
 }

@@ -9,7 +9,8 @@ use toml::Value;
 /// The top-level keys that describe the whisker and how it is recorded: its parameters, the
 /// chain it is simulated on (a calibrated whisker is fitted on its chain, and its angle gains
 /// absorb that chain's joint spacing), the sensors' gains and offsets, and calibration's record
-/// (so that what the fit left uncertain travels with it).
+/// (so that what the fit left uncertain travels with it). How finely contact is stepped
+/// (`contact_substeps`) travels too, as a substep rather than a count ([`Document::adopt`]).
 pub const WHISKER_KEYS: [&str; 5] = [
     "whisker",
     "segments",
@@ -25,6 +26,10 @@ pub struct WhiskerSource {
     origin: String,
     /// The tables and values of [`WHISKER_KEYS`] the file has.
     entries: Vec<(String, Value)>,
+    /// The longest substep near contact, s, where the file names `contact_substeps` (its time
+    /// step over that count): calibration fits the whisker with contact stepped so, and a
+    /// whisker fitted so responds otherwise when stepped more coarsely.
+    contact_step: Option<f64>,
 }
 
 impl WhiskerSource {
@@ -33,7 +38,10 @@ impl WhiskerSource {
     /// give would be a guess.
     pub fn read(spec: &str) -> Result<WhiskerSource> {
         let doc = Document::load(spec, &[])?;
-        doc.loaded()?;
+        let integrator = doc.loaded()?.scenario.integrator;
+        let contact_step = doc
+            .names("contact_substeps")
+            .then(|| integrator.dt / integrator.contact_substeps as f64);
         let table = doc.table();
         if table.get("whiskers").is_some() {
             return Err(Error::Field {
@@ -51,6 +59,7 @@ impl WhiskerSource {
         Ok(WhiskerSource {
             origin: doc.origin().to_string(),
             entries,
+            contact_step,
         })
     }
 
@@ -70,6 +79,11 @@ impl Document {
     /// `discretisation`), `[sensors]` and `[calibration]` replace this file's (a key `source`
     /// does not set is removed, so that it takes the default as in `source`). Every whisker of
     /// an array gets it; a `[[whiskers]]` entry with a `whisker` table of its own is refused.
+    ///
+    /// Where `source` names `contact_substeps`, this scenario steps contact at least as finely:
+    /// its own time step (which stays its own) over as many substeps as that takes (5 at 0.1 ms
+    /// for a file calibrated at 20 µs), or its own count where that is finer. A time step set
+    /// afterwards (`--set dt=...`) keeps the count.
     pub fn adopt(&mut self, source: &WhiskerSource) -> Result<()> {
         if let Some(Value::Array(mounts)) = self.table().get("whiskers") {
             for m in mounts {
@@ -91,8 +105,21 @@ impl Document {
                 }
             }
         }
+        let substeps = match source.contact_step {
+            Some(step) => {
+                let own = self.loaded()?.scenario.integrator;
+                let wanted = vibrissa_core::dynamics::equal_steps(own.dt, step)
+                    .min(vibrissa_core::dynamics::MAX_CONTACT_SUBSTEPS);
+                Some(wanted.max(own.contact_substeps))
+            }
+            None => None,
+        };
         for key in WHISKER_KEYS {
             self.table_mut().remove(key);
+        }
+        if let Some(m) = substeps {
+            self.table_mut()
+                .insert("contact_substeps".to_string(), Value::Integer(m as i64));
         }
         for (key, value) in &source.entries {
             self.table_mut().insert(key.clone(), value.clone());

@@ -331,7 +331,8 @@ def estimate(
     whisker_from : str or os.PathLike, optional
         A scenario file of one whisker, typically the one :func:`calibrate` fitted to labelled
         strikes: the scenario is given its whisker, chain, sensors and calibration record (as
-        ``--whisker-from``), so that a whisker calibrated on one experiment serves another.
+        ``--whisker-from``), so that a whisker calibrated on one experiment serves another;
+        contact is stepped as finely as in that file (``contact_substeps``).
     overrides, **keys
         Scenario overrides, as for :func:`simulate` (applied after ``whisker_from``).
 
@@ -448,7 +449,8 @@ def estimate_shapes(
     whisker_from : str or os.PathLike, optional
         A scenario file of one whisker, typically the one :func:`calibrate` fitted to labelled
         strikes of your whisker: every whisker of the family is given its whisker, chain and
-        sensors (and its calibration record), so that the estimators train on your whisker.
+        sensors (and its calibration record), so that the estimators train on your whisker,
+        with contact stepped as finely as in that file (``contact_substeps``).
 
     Returns
     -------
