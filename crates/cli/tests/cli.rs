@@ -830,14 +830,15 @@ fn estimate_trains_on_the_chain_a_recording_names() {
 
 #[test]
 fn estimate_takes_the_whisker_of_another_scenario() {
-    // A stiffer whisker in a compliant follicle with a sensor's gain off, written as a file of
-    // its own (as calibration writes one for the `e2` box) and given to the built-in `e2` by
-    // --whisker-from: the same estimate as the file itself, and not the nominal's.
+    // A stiffer whisker in a compliant follicle with a sensor's gain off, with contact stepped
+    // at 20 µs, written as a file of its own (as calibration writes one for the `e2` box) and
+    // given to the built-in `e2` by --whisker-from: the same estimate as the file itself (its
+    // training runs step contact alike), and not the nominal's.
     let dir = Scratch::new("whisker-from");
     let own = dir.path().join("own.toml");
     fs::write(
         &own,
-        "experiment = \"e2\"\nsegments = 16\n[whisker]\npreset = \"w30\"\nyoungs_modulus = 4.2e9\n\
+        "experiment = \"e2\"\nsegments = 16\ncontact_substeps = 5\n[whisker]\npreset = \"w30\"\nyoungs_modulus = 4.2e9\n\
          follicle = { kind = \"spring\", stiffness = 3e-4, damping = 1e-8 }\n\
          [sensors]\ntheta12 = { gain = 0.8 }\n",
     )
