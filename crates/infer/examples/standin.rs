@@ -20,6 +20,22 @@ use vibrissa_core::chain::Discretisation;
 use vibrissa_infer::standin::{make, Options};
 use vibrissa_io::scenario::Document;
 
+/// The options, as `--help` prints them.
+const USAGE: &str = "\
+Writes a stand-in foreign whisker's labelled recordings into DIR.
+
+usage: standin --seed N --out DIR [options]
+  --nominal e2|FILE.toml  the nominal scenario the stand-in is drawn around (default e2)
+  --segments N            the stand-in's chain (default 50)
+  --discretisation RULE   its stiffness rule (default seed)
+  --off-grid N            noisy off-grid strikes in eval/ (default 20)
+  --calib-noise F         noise of the 9 labelled strikes in calib/, share of range (default 0)
+  --eval-noise F          noise of the eval/ strikes, share of range (default 0.03)
+  --nominal-whisker       keep the nominal whisker and sensors (our own simulator's recordings)
+  --max-lead S            record each eval/ strike from up to S seconds before its approach
+  --compliance X          a follicle X times as compliant as the nominal chain's base joint
+  --dt S                  record at a time step of S seconds (1e-5: as a converged integration)";
+
 fn main() {
     if let Err(e) = run() {
         eprintln!("error: {e}");
@@ -46,7 +62,11 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
             "--max-lead" => options.max_lead = value()?.parse()?,
             "--compliance" => options.compliance = Some(value()?.parse()?),
             "--dt" => options.dt = Some(value()?.parse()?),
-            _ => return Err(format!("unknown option {flag}").into()),
+            "--help" | "-h" => {
+                println!("{USAGE}");
+                return Ok(());
+            }
+            _ => return Err(format!("unknown option {flag} (see --help)").into()),
         }
     }
     let seed = seed.ok_or("--seed N is required")?;
