@@ -7,7 +7,8 @@
 //! where the scenario file leaves `contact_substeps` to its default:
 //!
 //! - calibration (`crate::calibrate`), which writes the setting into the fitted file, so that
-//!   every estimator trained on that file simulates as the fit did;
+//!   every estimator trained on that file simulates as the fit did (and so does a scenario given
+//!   that file's whisker, `--whisker-from`: `vibrissa_io::scenario::Document::adopt`);
 //! - the discriminative methods' training runs of a whisker known only roughly
 //!   ([`crate::family::Family::for_recordings`]: `estimate --randomise` on a nominal file),
 //!   whose recordings come from elsewhere by definition.
