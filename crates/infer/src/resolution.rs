@@ -34,7 +34,6 @@ pub fn contact_resolution(doc: &Document) -> Result<Option<usize>> {
         return Ok(None);
     }
     let integrator = doc.loaded()?.scenario.integrator;
-    let wanted = vibrissa_core::dynamics::equal_steps(integrator.dt, CONTACT_STEP);
-    let substeps = wanted.min(vibrissa_core::dynamics::MAX_CONTACT_SUBSTEPS);
+    let substeps = integrator.contact_substeps_within(CONTACT_STEP);
     Ok((substeps > integrator.contact_substeps).then_some(substeps))
 }

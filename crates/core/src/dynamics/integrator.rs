@@ -62,6 +62,14 @@ impl Default for Integrator {
 }
 
 impl Integrator {
+    /// Substeps near contact that step contact no longer than `longest` seconds at this time
+    /// step (at most [`MAX_CONTACT_SUBSTEPS`]), or this integrator's own count where that is
+    /// finer.
+    pub fn contact_substeps_within(&self, longest: f64) -> usize {
+        let wanted = equal_steps(self.dt, longest).min(MAX_CONTACT_SUBSTEPS);
+        wanted.max(self.contact_substeps)
+    }
+
     /// Default settings with time step `dt`.
     pub fn with_dt(dt: f64) -> Self {
         Integrator {

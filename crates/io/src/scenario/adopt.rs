@@ -106,12 +106,12 @@ impl Document {
             }
         }
         let substeps = match source.contact_step {
-            Some(step) => {
-                let own = self.loaded()?.scenario.integrator;
-                let wanted = vibrissa_core::dynamics::equal_steps(own.dt, step)
-                    .min(vibrissa_core::dynamics::MAX_CONTACT_SUBSTEPS);
-                Some(wanted.max(own.contact_substeps))
-            }
+            Some(step) => Some(
+                self.loaded()?
+                    .scenario
+                    .integrator
+                    .contact_substeps_within(step),
+            ),
             None => None,
         };
         for key in WHISKER_KEYS {
