@@ -8,7 +8,7 @@ use crate::dynamics::{
 };
 use crate::error::{check_finite, check_non_negative, check_positive, Error, Result};
 use crate::objects::{bounds, closest};
-use crate::objects::{Motion, Object};
+use crate::objects::{Motion, Object, Vertical};
 use crate::rng::Rng;
 use crate::sensors::Sensors;
 use crate::whisker::WhiskerParams;
@@ -207,6 +207,26 @@ impl Default for Scenario {
 }
 
 impl BaseDrive {
+    /// The fastest the base turns, rad/s, over the whole drive: a sinusoid's amplitude times its
+    /// angular frequency, a ramp's rate, and a trajectory's spline's fastest, read at nine points
+    /// of each interval (its rate is quadratic there, so this misses its peak by little).
+    pub fn fastest_rate(&self) -> f64 {
+        match self {
+            BaseDrive::Fixed => 0.0,
+            BaseDrive::Sinusoid {
+                amplitude,
+                frequency,
+                ..
+            } => (amplitude * 2.0 * std::f64::consts::PI * frequency).abs(),
+            BaseDrive::Ramp { rate, .. } => rate.abs(),
+            BaseDrive::Trajectory { t, .. } => t
+                .windows(2)
+                .flat_map(|w| (0..=8).map(move |k| w[0] + (w[1] - w[0]) * k as f64 / 8.0))
+                .map(|x| self.at(x).rate.abs())
+                .fold(0.0, f64::max),
+        }
+    }
+
     /// Angle, rate and acceleration at time `t`.
     pub fn at(&self, t: f64) -> BaseMotion {
         match self {
@@ -441,6 +461,86 @@ impl Scenario {
                 format!(
                     "at most {MAX_STEPS:e} steps in all (duration / dt = {steps:.3e}; a run that \
                      long would take many minutes): shorten the duration or lengthen the step"
+                ),
+            ));
+        }
+        self.check_contact_step()
+    }
+
+    /// Refuses a time step at which an object moves farther in one contact step
+    /// (`dt / contact_substeps`, `dt` shortened to divide the sample period) than its own least
+    /// width, or farther across the whisker's plane than its vertical extent
+    /// ([`Object::longest_contact_step`], with the whisker's tip sweeping at the base drive's
+    /// fastest rate times its length): contact with it would last less than a step. The error
+    /// names the largest `dt` that resolves it.
+    fn check_contact_step(&self) -> Result<()> {
+        let (stepper, _, _) = timing(self)?;
+        let substeps = self.integrator.contact_substeps;
+        let step = stepper.dt / substeps as f64;
+        // The whisker's tip sweeps at the base's fastest rate times its length.
+        let sweep = self.base.fastest_rate() * self.whisker.length;
+        for (k, o) in self.objects.iter().enumerate() {
+            let Some(longest) = o.longest_contact_step(sweep) else {
+                continue;
+            };
+            if step <= longest * (1.0 + 1e-9) {
+                continue;
+            }
+            // What binds: its width against its speed in the plane, or its height across it.
+            let in_plane = o
+                .shape
+                .least_width()
+                .zip(o.fastest_outline_speed())
+                .filter(|&(w, v)| (v + sweep) * step > w);
+            let (size, speed, what) = match in_plane {
+                Some((w, v)) => (
+                    w,
+                    v + sweep,
+                    if sweep > 0.0 {
+                        format!(
+                            "{:.3} mm across at its narrowest, and it and the whisker's tip (the \
+                             base turning at up to {:.3} rad/s) close at up to",
+                            w * 1e3,
+                            self.base.fastest_rate()
+                        )
+                    } else {
+                        format!(
+                            "{:.3} mm across at its narrowest, its outline moving at up to",
+                            w * 1e3
+                        )
+                    },
+                ),
+                None => {
+                    let v = o.vertical.unwrap_or(Vertical {
+                        bottom: 0.0,
+                        top: 0.0,
+                        velocity: 0.0,
+                    });
+                    let h = v.top - v.bottom;
+                    (
+                        h,
+                        v.velocity.abs(),
+                        format!("{:.3} mm tall, crossing the whisker's plane at", h * 1e3),
+                    )
+                }
+            };
+            return Err(Error::invalid(
+                "dt",
+                self.integrator.dt,
+                format!(
+                    "a step at which objects[{k}] is resolved: it is {what} {speed:.3} m/s, so in \
+                     one contact step of {step:.3e} s it moves {:.3} mm, more than its own {:.3} \
+                     mm: contact with it would last less than a step and not be resolved. The \
+                     largest dt that resolves it is {:.3e} s with contact_substeps = {substeps}{}",
+                    speed * step * 1e3,
+                    size * 1e3,
+                    longest * substeps as f64,
+                    match crate::dynamics::equal_steps(stepper.dt, longest) {
+                        n if n <= crate::dynamics::MAX_CONTACT_SUBSTEPS => {
+                            format!("; or keep dt and set contact_substeps = {n}")
+                        }
+                        _ => String::new(),
+                    },
                 ),
             ));
         }

@@ -87,9 +87,16 @@ fn objects_overlapping_the_whisker_at_the_start_are_refused() {
 
 #[test]
 fn a_divergence_names_its_likely_cause_in_readable_numbers() {
-    // An object at 500 m/s.
+    // A 60 mm block at 500 m/s (50 mm per step: not refused as a thin object passing within a
+    // step, see `long_steps`).
     let mut sc = Scenario::default();
-    sc.objects.push(vibrissa_core::scenes::e2_box(0.02, 500.0));
+    let mut block = vibrissa_core::scenes::e2_box(0.02, 500.0);
+    block.shape = vibrissa_core::objects::Shape::Box {
+        width: 0.06,
+        height: 0.06,
+    };
+    block.position = [0.05, -0.031];
+    sc.objects.push(block);
     let e = sim::run(&sc, &mut |_| {}).unwrap_err().to_string();
     assert!(e.contains("diverged"), "{e}");
     assert!(e.contains("likely cause: objects[0] moves at 500"), "{e}");

@@ -406,6 +406,92 @@ impl Shape {
             Shape::Circle { .. } | Shape::Wall => None,
         }
     }
+
+    /// The shape's least width: the narrowest strip between two parallel lines that holds it
+    /// (a circle's diameter, a box's shorter side, a convex polygon's least height over its
+    /// edges); `None` for a wall, which no strip holds.
+    pub fn least_width(&self) -> Option<f64> {
+        match self {
+            Shape::Circle { radius } => Some(2.0 * radius),
+            Shape::Wall => None,
+            Shape::Box { .. } | Shape::Polygon { .. } => {
+                let v = self.vertices()?;
+                let n = v.len();
+                // For a convex polygon the narrowest strip lies along one of its edges.
+                (0..n)
+                    .map(|i| {
+                        let (a, b) = (v[i], v[(i + 1) % n]);
+                        let (ex, ey) = (b[0] - a[0], b[1] - a[1]);
+                        let len = ex.hypot(ey);
+                        v.iter()
+                            .map(|p| ((p[0] - a[0]) * ey - (p[1] - a[1]) * ex).abs() / len)
+                            .fold(0.0, f64::max)
+                    })
+                    .reduce(f64::min)
+            }
+        }
+    }
+
+    /// How far the outline reaches from the shape's own origin, m: what a turn of the shape
+    /// about its origin moves its outline by per radian. 0 for a circle (turning about its
+    /// centre leaves its outline in place) and for a wall (`None`: a turning half-plane moves
+    /// its far points without bound).
+    fn turning_reach(&self) -> Option<f64> {
+        match self {
+            Shape::Circle { .. } => Some(0.0),
+            Shape::Wall => None,
+            Shape::Box { .. } | Shape::Polygon { .. } => self
+                .vertices()
+                .map(|v| v.iter().map(|p| p[0].hypot(p[1])).fold(0.0, f64::max)),
+        }
+    }
+}
+
+impl Object {
+    /// The fastest that any point of the object's outline moves in the whisker's plane, m/s:
+    /// its translation's speed plus its turning rate times its farthest vertex from its origin,
+    /// taken over the whole prescribed motion (each leg of a waypoint path); `None` for a wall.
+    pub fn fastest_outline_speed(&self) -> Option<f64> {
+        let reach = self.shape.turning_reach()?;
+        Some(match &self.motion {
+            Motion::Constant {
+                velocity,
+                angular_velocity,
+            } => velocity[0].hypot(velocity[1]) + angular_velocity.abs() * reach,
+            Motion::Waypoints { points } => points
+                .windows(2)
+                .map(|w| {
+                    let dt = w[1][0] - w[0][0];
+                    ((w[1][1] - w[0][1]).hypot(w[1][2] - w[0][2])
+                        + (w[1][3] - w[0][3]).abs() * reach)
+                        / dt
+                })
+                .fold(0.0, f64::max),
+        })
+    }
+
+    /// The longest contact step, s, at which the object and a whisker whose points move at up
+    /// to `whisker_speed` (m/s) close by no more than the object's least width in the plane,
+    /// and the object moves no farther across the plane than its vertical extent: a step at
+    /// which contact with it is resolved. `None` when nothing bounds it (a wall, or an object
+    /// at rest against a whisker at rest).
+    pub fn longest_contact_step(&self, whisker_speed: f64) -> Option<f64> {
+        let in_plane = self
+            .shape
+            .least_width()
+            .zip(self.fastest_outline_speed())
+            .map(|(width, speed)| (width, speed + whisker_speed))
+            .filter(|&(_, speed)| speed > 0.0)
+            .map(|(width, speed)| width / speed);
+        let across = self
+            .vertical
+            .filter(|v| v.velocity != 0.0)
+            .map(|v| (v.top - v.bottom) / v.velocity.abs());
+        match (in_plane, across) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
+    }
 }
 
 #[cfg(test)]
@@ -551,5 +637,76 @@ mod tests {
             },
         );
         assert_eq!(error_name(&o), "objects[0].motion.velocity[1]");
+    }
+
+    #[test]
+    fn least_widths_of_the_shapes() {
+        let close = |a: Option<f64>, b: f64| (a.unwrap() - b).abs() < 1e-12;
+        assert!(close(Shape::Circle { radius: 0.003 }.least_width(), 0.006));
+        let plate = Shape::Box {
+            width: 0.01,
+            height: 0.002,
+        };
+        assert!(close(plate.least_width(), 0.002));
+        // An equilateral triangle of side 2: its height, √3.
+        let tri = Shape::Polygon {
+            vertices: vec![[0.0, 0.0], [2.0, 0.0], [1.0, 3f64.sqrt()]],
+        };
+        assert!(close(tri.least_width(), 3f64.sqrt()));
+        assert_eq!(Shape::Wall.least_width(), None);
+    }
+
+    #[test]
+    fn the_outline_s_fastest_speed_counts_turning_and_every_leg() {
+        let turning_box = object(
+            Shape::Box {
+                width: 0.006,
+                height: 0.008,
+            },
+            Motion::Constant {
+                velocity: [0.3, 0.4],
+                angular_velocity: -2.0,
+            },
+        );
+        // 0.5 m/s, plus 2 rad/s times the half-diagonal 5 mm.
+        let v = turning_box.fastest_outline_speed().unwrap();
+        assert!((v - 0.51).abs() < 1e-12, "{v}");
+        // A disc turning about its centre moves its outline only by its translation.
+        let disc = object(
+            Shape::Circle { radius: 0.004 },
+            Motion::Constant {
+                velocity: [0.0, 1.0],
+                angular_velocity: 50.0,
+            },
+        );
+        assert_eq!(disc.fastest_outline_speed(), Some(1.0));
+        // The fastest leg of a path: 3 mm in 1 ms.
+        let path = object(
+            Shape::Circle { radius: 0.004 },
+            Motion::Waypoints {
+                points: vec![
+                    [0.0, 0.0, 0.0, 0.0],
+                    [0.01, 0.001, 0.0, 0.0],
+                    [0.011, 0.001, 0.003, 0.0],
+                ],
+            },
+        );
+        assert!((path.fastest_outline_speed().unwrap() - 3.0).abs() < 1e-9);
+        // Its longest contact step: 8 mm at 3 m/s; at rest, or a wall, nothing bounds it.
+        assert!((path.longest_contact_step(0.0).unwrap() - 0.008 / 3.0).abs() < 1e-12);
+        let still = object(Shape::Circle { radius: 0.004 }, Motion::default());
+        assert_eq!(still.longest_contact_step(0.0), None);
+        // The same peg against a whisker sweeping at 2 m/s: 8 mm at 2 m/s.
+        assert!((still.longest_contact_step(2.0).unwrap() - 4e-3).abs() < 1e-15);
+        let wall = object(Shape::Wall, Motion::default());
+        assert_eq!(wall.longest_contact_step(1.0), None);
+        // An object 2 mm tall crossing the plane at 4 m/s: 0.5 ms, whatever its width.
+        let mut lifting = wall;
+        lifting.vertical = Some(Vertical {
+            bottom: -0.001,
+            top: 0.001,
+            velocity: 4.0,
+        });
+        assert!((lifting.longest_contact_step(0.0).unwrap() - 5e-4).abs() < 1e-15);
     }
 }
