@@ -8,12 +8,10 @@
 //! ([`Family::with_timing`]), so nothing assumes 1 kHz or 151 samples.
 
 use crate::error::{Error, Result};
-use crate::experiment::{Noise, Sample, Variant, CHANNELS, SENSOR_NOISE_FRACTION};
+use crate::experiment::{Noise, Sample, CHANNELS};
 use crate::model_error::ModelError;
 use crate::randomise::{Around, FittedSpread, Randomisation};
 use rayon::prelude::*;
-use std::collections::HashMap;
-use std::sync::{Mutex, OnceLock};
 use vibrissa_core::array::Mount;
 use vibrissa_core::dynamics::LANES;
 use vibrissa_core::objects::Motion;
@@ -21,6 +19,10 @@ use vibrissa_core::rng::Rng;
 use vibrissa_core::sim::{self, Output, Scenario, SensorNoise};
 use vibrissa_core::whisker::WhiskerParams;
 use vibrissa_io::scenario::{self, Document, ExperimentRun, FamilySpec};
+
+mod arrays;
+mod noise;
+pub use arrays::ArrayRun;
 
 /// A scenario family, checked: every unknown's key makes a valid scenario.
 #[derive(Debug, Clone)]
@@ -86,18 +88,6 @@ pub fn too_slow(rate: f64, duration: f64) -> Option<String> {
 
 /// Stream of a run's random start (see the field `start_jitter`), apart from its other streams.
 const STREAM_JITTER: u64 = 0x5717_0000;
-
-/// A small cache of values computed once per family (by digest): the noisy variant's levels.
-fn noise_cache() -> &'static Mutex<HashMap<u64, [f64; 5]>> {
-    static CACHE: OnceLock<Mutex<HashMap<u64, [f64; 5]>>> = OnceLock::new();
-    CACHE.get_or_init(|| Mutex::new(HashMap::new()))
-}
-
-/// [`Family::clean_ranges`] by the family's digest.
-fn ranges_cache() -> &'static Mutex<HashMap<u64, [f64; 5]>> {
-    static CACHE: OnceLock<Mutex<HashMap<u64, [f64; 5]>>> = OnceLock::new();
-    CACHE.get_or_init(|| Mutex::new(HashMap::new()))
-}
 
 impl Family {
     /// Opens a family: `spec` is a built-in name (`e1`, `e2`) or the path of a scenario file,
@@ -276,67 +266,6 @@ impl Family {
     /// The file's own scenario (the unknowns at the file's values), timing applied.
     pub fn base(&self) -> &Scenario {
         &self.base
-    }
-
-    /// The sensor noise the scenario states per channel of [`CHANNELS`] (the channels its
-    /// `[sensor_noise]` table names), SI; estimators estimate the others from the recordings.
-    pub fn stated_noise(&self) -> [Option<f64>; 5] {
-        self.stated_noise
-    }
-
-    /// The noise of training runs for recordings whose sensor noise is `sensor` (per channel of
-    /// [`CHANNELS`], SI): that sensor noise and the scenario's own process noise (`process_noise`,
-    /// 0 unless the file sets it).
-    pub fn training_noise(&self, sensor: [f64; 5]) -> Noise {
-        Noise {
-            sensor,
-            process: self.base.process_noise,
-        }
-    }
-
-    /// The noise to simulate training runs with, for recordings whose noise was measured as
-    /// `measured`: the scenario's random forces (`process_noise`) shake the whisker fast enough
-    /// that part of what a noise estimate measures on a recording is their response, and training
-    /// runs simulated with the same random forces carry that part already. Each channel's sensor
-    /// noise is therefore what the measured level leaves above the level the random forces alone
-    /// show to the same estimator (on the scenario's templates, clean sensors), in quadrature;
-    /// without random forces it is the measured level itself.
-    pub fn training_sensor_noise(&self, measured: &Noise) -> Result<Noise> {
-        if measured.process <= 0.0 {
-            return Ok(*measured);
-        }
-        let response = self.process_response(measured.process)?;
-        Ok(Noise {
-            sensor: std::array::from_fn(|c| {
-                (measured.sensor[c].powi(2) - response[c].powi(2))
-                    .max(0.0)
-                    .sqrt()
-            }),
-            process: measured.process,
-        })
-    }
-
-    /// The noise level each channel shows to [`crate::noise::estimate_pooled`] on the templates
-    /// simulated with random forces of intensity `process` and clean sensors (cached per family).
-    fn process_response(&self, process: f64) -> Result<[f64; 5]> {
-        let key = (self.nominal().digest() ^ process.to_bits()).wrapping_mul(0x9e37_79b9_7f4a_7c15);
-        if let Some(r) = noise_cache().lock().ok().and_then(|c| c.get(&key).copied()) {
-            return Ok(r);
-        }
-        let noise = Noise {
-            sensor: [0.0; 5],
-            process,
-        };
-        let runs = self
-            .nominal()
-            .simulate_all(&self.templates(), &noise, 0x9e0c, &|| {})?;
-        let series: Vec<&[Vec<f64>]> = runs.iter().map(|s| &s.series[..]).collect();
-        let all: Vec<usize> = (0..CHANNELS.len()).collect();
-        let response = crate::noise::estimate_pooled(&series, &all)?;
-        if let Ok(mut c) = noise_cache().lock() {
-            c.insert(key, response);
-        }
-        Ok(response)
     }
 
     /// The whisker (for a family that keeps one whisker of an array, that whisker's).
@@ -678,137 +607,6 @@ impl Family {
         }
     }
 
-    /// How many whiskers a run of the family records (1 for a scenario of one whisker).
-    pub fn whisker_count(&self) -> usize {
-        self.mounts.len().max(1)
-    }
-
-    /// The names of the array's whiskers kept, in order (empty for a single whisker).
-    pub fn whisker_names(&self) -> Vec<String> {
-        self.mounts.iter().map(|(_, m)| m.name.clone()).collect()
-    }
-
-    /// The same family with only the array's whiskers named in `names` (in the array's order),
-    /// or an error naming the whiskers it has.
-    pub fn with_whiskers(&self, names: &[&str]) -> Result<Family> {
-        let have: Vec<&str> = self.mounts.iter().map(|(_, m)| m.name.as_str()).collect();
-        if let Some(n) = names.iter().find(|n| !have.contains(n)) {
-            return Err(Error::Setting(format!(
-                "{}: no whisker named `{n}` (its whiskers: {})",
-                self.name,
-                if have.is_empty() {
-                    "one, without a name".to_string()
-                } else {
-                    have.join(", ")
-                }
-            )));
-        }
-        if names.is_empty() {
-            return Err(Error::Setting(format!(
-                "{}: at least one whisker must be kept",
-                self.name
-            )));
-        }
-        let mut f = self.clone();
-        f.mounts.retain(|(_, m)| names.contains(&m.name.as_str()));
-        Ok(f)
-    }
-
-    /// The family that estimates from one whisker's recording: for a scenario with an array of
-    /// whiskers, the array's whisker `whisker` (required), simulated at its place; for a scenario
-    /// of one whisker, the family itself (`whisker` names the recording's columns only).
-    /// `filter`: the particle filter models one whisker at the origin, so a whisker mounted
-    /// elsewhere (moved, turned, or with a whisker or base motion of its own) is refused.
-    pub fn for_whisker(&self, whisker: Option<&str>, filter: bool) -> Result<Family> {
-        if self.mounts.is_empty() {
-            return Ok(self.clone());
-        }
-        let names = self.whisker_names();
-        let Some(name) = whisker else {
-            return Err(Error::Setting(format!(
-                "{} holds an array of whiskers ({}): name the one whose recording is read",
-                self.name,
-                names.join(", ")
-            )));
-        };
-        let f = self.with_whiskers(&[name])?;
-        if filter {
-            let (_, m) = &f.mounts[0];
-            if m.position != [0.0, 0.0] || m.angle != 0.0 || m.whisker.is_some() || m.base.is_some()
-            {
-                return Err(Error::Setting(format!(
-                    "{}: the particle filter models one whisker at the origin pointing along +x \
-                     with the scenario's whisker and base motion; `{name}` is mounted otherwise \
-                     (use another method, or a scenario of that whisker alone)",
-                    self.name
-                )));
-            }
-        }
-        Ok(f)
-    }
-
-    /// Simulates the run at `p` on every whisker of the array (one whisker if the scenario has
-    /// no `[[whiskers]]`) with `noise`, seeded by `seed`: the observed channels of each whisker
-    /// in the array's order, whisker `k`'s random forces and sensor noise drawn from streams of
-    /// `seed` and `k` as `vibrissa simulate` draws them. Each whisker of a randomised family
-    /// gets its own draw of whisker and sensors.
-    pub fn simulate_array(&self, p: &[f64], noise: &Noise, seed: u64) -> Result<Vec<Sample>> {
-        let runs = self.array_runs(p, noise, seed)?;
-        let scenarios: Vec<Scenario> = runs.iter().map(|r| r.scenario.clone()).collect();
-        self.array_samples(p, &runs, sim::run_together(&scenarios))
-    }
-
-    /// The runs that [`Family::simulate_array`] makes at `p`: one scenario per whisker, in the
-    /// array's order (to be run, for instance with other runs' in lanes, by
-    /// [`sim::run_together`], and made samples by [`Family::array_samples`]).
-    pub fn array_runs(&self, p: &[f64], noise: &Noise, seed: u64) -> Result<Vec<ArrayRun>> {
-        if self.mounts.is_empty() {
-            let (scenario, lead) = self.delayed_scenario(p, 0.0, noise, seed)?;
-            return Ok(vec![ArrayRun {
-                scenario,
-                lead: Some(lead),
-                seed,
-            }]);
-        }
-        let s = self.plain_recording(p, 0.0, noise, seed)?;
-        // Whisker k's streams (and draws) follow its place in the file's array, whichever are
-        // kept.
-        Ok(self
-            .mounts
-            .iter()
-            .map(|(k, m)| ArrayRun {
-                scenario: self.mounted(&s, *k, m, seed),
-                lead: None,
-                seed,
-            })
-            .collect())
-    }
-
-    /// The samples of [`Family::simulate_array`] at `p` from the outputs `outs` of its `runs`
-    /// ([`Family::array_runs`]), or the error of the first that failed.
-    pub fn array_samples(
-        &self,
-        p: &[f64],
-        runs: &[ArrayRun],
-        outs: Vec<vibrissa_core::Result<Output>>,
-    ) -> Result<Vec<Sample>> {
-        runs.iter()
-            .zip(outs)
-            .map(|(run, out)| {
-                let out = out.map_err(|source| self.run_error(p, source))?;
-                Ok(match run.lead {
-                    Some(lead) => self.delayed_sample(p, 0.0, lead, run.seed, out),
-                    None => Sample {
-                        series: (0..CHANNELS.len())
-                            .map(|c| out.rows.iter().map(|r| r[c + 1]).collect())
-                            .collect(),
-                        params: p.to_vec(),
-                    },
-                })
-            })
-            .collect()
-    }
-
     /// The error of a failed run at `p`, naming its parameters.
     pub fn run_error(&self, p: &[f64], source: vibrissa_core::Error) -> Error {
         Error::Run {
@@ -942,79 +740,6 @@ impl Family {
             .collect::<Vec<_>>()
             .join(", ")
     }
-
-    /// The noise of `variant` on this family: what `vibrissa experiment` makes its recordings
-    /// with (no estimator is told it). `noisy` is a sensor noise of 5% of each channel's
-    /// peak-to-peak range over the clean reference runs, plus [`crate::experiment::PROCESS_NOISE`].
-    /// The reference runs are the family's grid; for a family built on the experiment box they
-    /// are the `e2` grid of its own scenario (docs/experiments.md defines `noisy` by the `e2` runs).
-    pub fn noise(&self, variant: Variant) -> Result<Noise> {
-        match variant {
-            Variant::Clean => Ok(Noise::NONE),
-            Variant::Noisy => {
-                let key = self.doc.digest();
-                let cached = noise_cache().lock().ok().and_then(|c| c.get(&key).copied());
-                let sensor = match cached {
-                    Some(l) => l,
-                    None => {
-                        let l = self.clean_ranges()?.map(|r| SENSOR_NOISE_FRACTION * r);
-                        if let Ok(mut c) = noise_cache().lock() {
-                            c.insert(key, l);
-                        }
-                        l
-                    }
-                };
-                Ok(Noise {
-                    sensor,
-                    process: crate::experiment::PROCESS_NOISE,
-                })
-            }
-        }
-    }
-
-    /// Peak-to-peak range of each channel over the clean reference runs (see
-    /// [`Family::noise`]), `[CHANNELS]`, SI.
-    pub fn clean_ranges(&self) -> Result<[f64; 5]> {
-        // Computed once per family and timing: every estimate's check of units asks for them.
-        let key = self.digest();
-        if let Some(r) = ranges_cache()
-            .lock()
-            .ok()
-            .and_then(|c| c.get(&key).copied())
-        {
-            return Ok(r);
-        }
-        let runs = match self.experiment {
-            Some(_) => {
-                let e2 = Family::builtin("e2")?;
-                let reference = Family {
-                    spec: e2.spec,
-                    experiment: self.experiment,
-                    randomised: None,
-                    ..self.clone()
-                };
-                reference.simulate_all(&reference.grid(), &Noise::NONE, 0, &|| {})?
-            }
-            None => self
-                .nominal()
-                .simulate_all(&self.grid(), &Noise::NONE, 0, &|| {})?,
-        };
-        let mut lo = [f64::INFINITY; 5];
-        let mut hi = [f64::NEG_INFINITY; 5];
-        for s in &runs {
-            for (c, ch) in s.series.iter().enumerate() {
-                for &x in ch {
-                    lo[c] = lo[c].min(x);
-                    hi[c] = hi[c].max(x);
-                }
-            }
-        }
-        let ranges = std::array::from_fn(|c| hi[c] - lo[c]);
-        if let Ok(mut c) = ranges_cache().lock() {
-            c.insert(key, ranges);
-        }
-        Ok(ranges)
-    }
 }
 
 /// Samples of a run of `s`: t = 0, 1/rate, … up to its duration.
@@ -1074,18 +799,6 @@ fn fit_residual(record: &vibrissa_io::scenario::Calibration) -> Option<[f64; 5]>
         }
     }
     named.then_some(out)
-}
-
-/// One whisker's run of [`Family::simulate_array`] (see [`Family::array_runs`]).
-#[derive(Debug, Clone)]
-pub struct ArrayRun {
-    /// Its scenario.
-    pub scenario: Scenario,
-    /// For a family of one whisker, how far before the run's t = 0 it starts (its series is then
-    /// cut to the family's length and given its model error); `None` for a whisker of an array.
-    lead: Option<f64>,
-    /// The run's seed.
-    seed: u64,
 }
 
 #[cfg(test)]
