@@ -1141,3 +1141,45 @@ fn a_narrow_prior_keeps_the_widened_interval_of_the_filter_within_it() {
     );
     assert!(std <= 0.002 / 12f64.sqrt(), "{d}");
 }
+
+#[test]
+fn simulate_refuses_a_step_that_a_thin_object_passes_within() {
+    // The e2 box (10 mm) at 30 m/s moves 30 mm in a 1 ms step: refused, naming dt, the object
+    // and the steps that resolve it, and nothing is written.
+    let dir = Scratch::new("thin-step");
+    let csv = dir.path().join("run.csv");
+    let out = vibrissa(&[
+        "simulate",
+        "e2",
+        "--set",
+        "v=30",
+        "--set",
+        "d=0.015",
+        "--set",
+        "dt=0.001",
+        "--out",
+        csv.to_str().unwrap(),
+    ]);
+    assert_refused(&out);
+    let err = stderr(&out);
+    assert!(
+        err.contains("dt") && err.contains("objects[0]") && err.contains("3.333e-4 s"),
+        "{err}"
+    );
+    assert!(err.contains("contact_substeps = 3"), "{err}");
+    assert!(!csv.exists() && !dir.path().join("run.json").exists());
+    // The largest step it names runs.
+    let ok = vibrissa(&[
+        "simulate",
+        "e2",
+        "--set",
+        "v=30",
+        "--set",
+        "d=0.015",
+        "--set",
+        "dt=3.333e-4",
+        "--out",
+        csv.to_str().unwrap(),
+    ]);
+    assert!(ok.status.success(), "{}", stderr(&ok));
+}
