@@ -8,7 +8,7 @@ use crate::dynamics::{
 };
 use crate::error::{check_finite, check_non_negative, check_positive, Error, Result};
 use crate::objects::{bounds, closest};
-use crate::objects::{Motion, Object, Vertical};
+use crate::objects::{Motion, Object};
 use crate::rng::Rng;
 use crate::sensors::Sensors;
 use crate::whisker::WhiskerParams;
@@ -480,49 +480,28 @@ impl Scenario {
         // The whisker's tip sweeps at the base's fastest rate times its length.
         let sweep = self.base.fastest_rate() * self.whisker.length;
         for (k, o) in self.objects.iter().enumerate() {
-            let Some(longest) = o.longest_contact_step(sweep) else {
+            let Some(limit) = o.step_limit(sweep) else {
                 continue;
             };
+            let longest = limit.longest();
             if step <= longest * (1.0 + 1e-9) {
                 continue;
             }
-            // What binds: its width against its speed in the plane, or its height across it.
-            let in_plane = o
-                .shape
-                .least_width()
-                .zip(o.fastest_outline_speed())
-                .filter(|&(w, v)| (v + sweep) * step > w);
-            let (size, speed, what) = match in_plane {
-                Some((w, v)) => (
-                    w,
-                    v + sweep,
-                    if sweep > 0.0 {
-                        format!(
-                            "{:.3} mm across at its narrowest, and it and the whisker's tip (the \
-                             base turning at up to {:.3} rad/s) close at up to",
-                            w * 1e3,
-                            self.base.fastest_rate()
-                        )
-                    } else {
-                        format!(
-                            "{:.3} mm across at its narrowest, its outline moving at up to",
-                            w * 1e3
-                        )
-                    },
-                ),
-                None => {
-                    let v = o.vertical.unwrap_or(Vertical {
-                        bottom: 0.0,
-                        top: 0.0,
-                        velocity: 0.0,
-                    });
-                    let h = v.top - v.bottom;
-                    (
-                        h,
-                        v.velocity.abs(),
-                        format!("{:.3} mm tall, crossing the whisker's plane at", h * 1e3),
-                    )
-                }
+            let (size, speed) = (limit.size, limit.speed);
+            let what = if limit.across_plane {
+                format!("{:.3} mm tall, crossing the whisker's plane at", size * 1e3)
+            } else if sweep > 0.0 {
+                format!(
+                    "{:.3} mm across at its narrowest, and it and the whisker's tip (the base \
+                     turning at up to {:.3} rad/s) close at up to",
+                    size * 1e3,
+                    self.base.fastest_rate()
+                )
+            } else {
+                format!(
+                    "{:.3} mm across at its narrowest, its outline moving at up to",
+                    size * 1e3
+                )
             };
             return Err(Error::invalid(
                 "dt",

@@ -470,27 +470,56 @@ impl Object {
         })
     }
 
-    /// The longest contact step, s, at which the object and a whisker whose points move at up
-    /// to `whisker_speed` (m/s) close by no more than the object's least width in the plane,
-    /// and the object moves no farther across the plane than its vertical extent: a step at
-    /// which contact with it is resolved. `None` when nothing bounds it (a wall, or an object
-    /// at rest against a whisker at rest).
-    pub fn longest_contact_step(&self, whisker_speed: f64) -> Option<f64> {
+    /// What bounds the object's contact step against a whisker whose points move at up to
+    /// `whisker_speed` (m/s): in the plane, its least width against its outline's speed plus the
+    /// whisker's; across the plane, its vertical extent against its vertical speed. The binding
+    /// one (the shorter step), or `None` when nothing bounds it (a wall, or an object at rest
+    /// against a whisker at rest).
+    pub fn step_limit(&self, whisker_speed: f64) -> Option<StepLimit> {
         let in_plane = self
             .shape
             .least_width()
             .zip(self.fastest_outline_speed())
-            .map(|(width, speed)| (width, speed + whisker_speed))
-            .filter(|&(_, speed)| speed > 0.0)
-            .map(|(width, speed)| width / speed);
-        let across = self
-            .vertical
-            .filter(|v| v.velocity != 0.0)
-            .map(|v| (v.top - v.bottom) / v.velocity.abs());
-        match (in_plane, across) {
-            (Some(a), Some(b)) => Some(a.min(b)),
-            (a, b) => a.or(b),
-        }
+            .map(|(size, speed)| StepLimit {
+                size,
+                speed: speed + whisker_speed,
+                across_plane: false,
+            });
+        let across = self.vertical.map(|v| StepLimit {
+            size: v.top - v.bottom,
+            speed: v.velocity.abs(),
+            across_plane: true,
+        });
+        [in_plane, across]
+            .into_iter()
+            .flatten()
+            .filter(|l| l.speed > 0.0)
+            .min_by(|a, b| a.longest().total_cmp(&b.longest()))
+    }
+
+    /// The longest contact step, s, at which contact with the object is resolved
+    /// ([`Object::step_limit`]'s [`StepLimit::longest`]).
+    pub fn longest_contact_step(&self, whisker_speed: f64) -> Option<f64> {
+        self.step_limit(whisker_speed).map(|l| l.longest())
+    }
+}
+
+/// What bounds an object's contact step ([`Object::step_limit`]): contact with it is resolved
+/// while it and the whisker close by no more than `size` per step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepLimit {
+    /// The object's least width in the plane, or its height across it, m.
+    pub size: f64,
+    /// How fast it and the whisker close over that size, m/s (> 0).
+    pub speed: f64,
+    /// Whether the bound is its crossing of the whisker's plane (its `vertical` motion).
+    pub across_plane: bool,
+}
+
+impl StepLimit {
+    /// The longest contact step that keeps within the bound, s.
+    pub fn longest(&self) -> f64 {
+        self.size / self.speed
     }
 }
 
