@@ -1148,18 +1148,21 @@ fn simulate_refuses_a_step_that_a_thin_object_passes_within() {
     // and the steps that resolve it, and nothing is written.
     let dir = Scratch::new("thin-step");
     let csv = dir.path().join("run.csv");
-    let out = vibrissa(&[
-        "simulate",
-        "e2",
-        "--set",
-        "v=30",
-        "--set",
-        "d=0.015",
-        "--set",
-        "dt=0.001",
-        "--out",
-        csv.to_str().unwrap(),
-    ]);
+    let at_step = |dt: &str| {
+        vibrissa(&[
+            "simulate",
+            "e2",
+            "--set",
+            "v=30",
+            "--set",
+            "d=0.015",
+            "--set",
+            &format!("dt={dt}"),
+            "--out",
+            csv.to_str().unwrap(),
+        ])
+    };
+    let out = at_step("0.001");
     assert_refused(&out);
     let err = stderr(&out);
     assert!(
@@ -1169,17 +1172,6 @@ fn simulate_refuses_a_step_that_a_thin_object_passes_within() {
     assert!(err.contains("contact_substeps = 3"), "{err}");
     assert!(!csv.exists() && !dir.path().join("run.json").exists());
     // The largest step it names runs.
-    let ok = vibrissa(&[
-        "simulate",
-        "e2",
-        "--set",
-        "v=30",
-        "--set",
-        "d=0.015",
-        "--set",
-        "dt=3.333e-4",
-        "--out",
-        csv.to_str().unwrap(),
-    ]);
+    let ok = at_step("3.333e-4");
     assert!(ok.status.success(), "{}", stderr(&ok));
 }
