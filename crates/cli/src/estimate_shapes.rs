@@ -19,7 +19,7 @@ use std::io::{self, Write};
 use std::path::Path;
 use vibrissa_infer::shapes::{
     check_shape_method, estimate_batch, BatchOptions, ShapeBank, ShapeEsn, ShapeFamily, ShapeKrr,
-    DEFAULT_TRAINING, SHAPE_METHODS,
+    ShapePf, DEFAULT_TRAINING, SHAPE_METHODS,
 };
 use vibrissa_infer::{Reader, CHANNELS};
 
@@ -77,11 +77,11 @@ pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
     if args.particles.is_some() || args.check || !args.prior.is_empty() {
         bail!("--particles, --check and --prior do not apply to shape families");
     }
-    if args.trace.is_some() && method != ShapeEsn::NAME && method != ShapeBank::NAME {
+    let online = [ShapeEsn::NAME, ShapeBank::NAME, ShapePf::NAME];
+    if args.trace.is_some() && !online.contains(&method) {
         bail!(
-            "--trace with a shape family needs --method {} or {} (the online estimators)",
-            ShapeEsn::NAME,
-            ShapeBank::NAME
+            "--trace with a shape family needs --method {} (the online estimators)",
+            online.join(", ")
         );
     }
     crate::estimate::check_trace_file(args)?;

@@ -47,9 +47,11 @@ pub struct Args {
     #[arg(long, value_name = "SETS")]
     whiskers: Option<String>,
     /// Shape experiments: the estimators to score (repeatable, or joined by commas): shape-krr
-    /// (reads the recording whole), shape-esn (online: a class posterior after every sample)
-    /// and shape-bank (the likelihood under a bank of noise-free runs, also online; simulates
-    /// its bank, about 4 minutes on 2 cores). Default: shape-krr and shape-esn.
+    /// (reads the recording whole), shape-esn (online: a class posterior after every sample),
+    /// shape-bank (the likelihood under a bank of noise-free runs, also online; simulates its
+    /// bank, about 4 minutes on 2 cores) and shape-pf (a particle filter over each class's pose,
+    /// the class by marginal likelihood, also online; about half a second per recording and
+    /// whisker). Default: shape-krr and shape-esn.
     #[arg(long = "method", value_name = "NAME", value_delimiter = ',')]
     methods: Vec<String>,
     /// Shape experiments: train on whiskers and sensors drawn around the scenario's (for

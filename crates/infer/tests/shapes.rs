@@ -342,3 +342,110 @@ fn the_bank_tells_a_wall_from_a_peg_through_noise_and_says_how_sure_it_is() {
         "{peg:?}"
     );
 }
+
+#[test]
+fn the_filter_over_each_class_tells_a_wall_from_a_peg_by_marginal_likelihood() {
+    // The wall and the peg of e3, read by the middle whisker through the noisy variant's noise
+    // (chance: 50%, log loss ln 2 = 0.69): a filter per class over its pose, the class by the
+    // recording's marginal likelihood under each.
+    let e3 = ShapeFamily::builtin("e3").unwrap().unwrap();
+    let pair = ShapeFamily::new(
+        "wall or peg",
+        vec![e3.classes()[0].clone(), e3.classes()[2].clone()],
+    )
+    .unwrap()
+    .with_whiskers(&["c3"])
+    .unwrap();
+    let settings = ShapeSettings {
+        train_per_class: 24,
+        eval_per_class: 20,
+        bank_per_class: 0,
+        variant: Variant::Noisy,
+        seed: 4,
+        randomise: false,
+        subsets: vec![vec!["c3".into()]],
+        methods: vec!["shape-pf".into()],
+    };
+    let ev = evaluate_shapes(&pair, &settings, &|_, _| {}).unwrap();
+    let s = &ev.subsets[0];
+    assert_eq!(s.method, "shape-pf");
+    eprintln!(
+        "shape-pf, wall or peg: accuracy {}, log loss {}, ECE {}",
+        s.accuracy, s.log_loss, s.ece
+    );
+    let n: usize = s.confusion.iter().flatten().sum();
+    assert_eq!(n + ev.failed.len(), 40);
+    assert!(
+        s.accuracy >= 0.7,
+        "accuracy {} {:?}",
+        s.accuracy,
+        s.confusion
+    );
+    assert!(s.log_loss < 0.6, "log loss {}", s.log_loss);
+    for r in &s.runs {
+        assert!((r.probabilities.iter().sum::<f64>() - 1.0).abs() < 1e-9);
+        assert!(r.pose.iter().flatten().all(|x| x.is_finite()));
+    }
+    // Its likelihood's spread is the residual of its own model on training runs: at least the
+    // sensor noise those runs show.
+    let fitted: std::collections::HashMap<String, f64> = s.settings.iter().cloned().collect();
+    for (c, m) in ["theta01", "theta12", "m0", "fx", "fy"]
+        .iter()
+        .zip(ev.measured_noise)
+    {
+        let got = fitted[&format!("sigma_{c}")];
+        assert!(got >= 0.99 * m, "{c}: {got} against {m}");
+    }
+    // Online: even before the object arrives (every particle at rest), the whole recording's
+    // posterior at the end.
+    let over_time = &s.accuracy_over_time;
+    assert_eq!(over_time.len(), 201);
+    for t in &s.traces {
+        let first = &t.probabilities[0];
+        assert!(first.iter().all(|p| (p - 0.5).abs() < 1e-9), "{first:?}");
+        let last = t.probabilities.last().unwrap();
+        for (a, b) in last.iter().zip(&s.runs[t.run].probabilities) {
+            assert!((a - b).abs() < 1e-12);
+        }
+    }
+    // A peg classified right is placed within a few millimetres.
+    let peg = &s.poses[1];
+    assert!(peg.right > 0 && peg.unknowns[0].mae < 3e-3, "{peg:?}");
+}
+
+#[test]
+fn the_filter_over_each_class_refuses_whisked_whiskers_and_a_recording_of_other_whiskers() {
+    let active = ShapeFamily::builtin("e3-active").unwrap().unwrap();
+    let one = active.with_whiskers(&["c3"]).unwrap();
+    let draws = one.draws(4, false, 1);
+    let (runs, _) = one
+        .simulate_completed(&draws, &Noise::NONE, 1, &|| {})
+        .unwrap();
+    let e = vibrissa_infer::shapes::ShapePf::fit(&one, &runs)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(e.contains("bases move"), "{e}");
+
+    let e3 = ShapeFamily::builtin("e3").unwrap().unwrap();
+    let pair = ShapeFamily::new(
+        "wall or peg",
+        vec![e3.classes()[0].clone(), e3.classes()[2].clone()],
+    )
+    .unwrap()
+    .with_whiskers(&["c3"])
+    .unwrap();
+    let draws = pair.draws(4, false, 2);
+    let (runs, _) = pair
+        .simulate_completed(&draws, &Noise::NONE, 2, &|| {})
+        .unwrap();
+    let e = vibrissa_infer::shapes::ShapePf::fit(&pair, &runs[..5])
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(e.contains("training runs"), "{e}");
+    let pf = vibrissa_infer::shapes::ShapePf::fit_with(&pair, &runs, 50).unwrap();
+    let two = vec![runs[0].whiskers[0].clone(), runs[0].whiskers[0].clone()];
+    let e = pf.predict(&two).unwrap_err().to_string();
+    assert!(e.contains("2 whiskers recorded where 1 are read"), "{e}");
+}

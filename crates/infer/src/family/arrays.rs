@@ -12,6 +12,11 @@ impl Family {
         self.mounts.len().max(1)
     }
 
+    /// The array's whiskers kept, in order (empty for a single whisker).
+    pub(crate) fn mounts(&self) -> Vec<vibrissa_core::array::Mount> {
+        self.mounts.iter().map(|(_, m)| m.clone()).collect()
+    }
+
     /// The names of the array's whiskers kept, in order (empty for a single whisker).
     pub fn whisker_names(&self) -> Vec<String> {
         self.mounts.iter().map(|(_, m)| m.name.clone()).collect()

@@ -62,3 +62,4 @@ pub use method::{
 pub use posterior::{Observations, Posterior, SensorPosterior, TraceRow};
 pub use sensors::SensorSpread;
 pub use transition::map_joints;
+pub(crate) use transition::JointMap;

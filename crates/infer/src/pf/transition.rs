@@ -161,7 +161,7 @@ pub fn map_joints(model: &Model, observed: &Model, q: &[f64]) -> [f64; 2] {
 /// for each observed joint, the model's joint below it, the share of the way to the next, and
 /// the springs and rest angles the moments are read and mapped with.
 #[derive(Debug, Clone, PartialEq)]
-pub(super) enum JointMap {
+pub(crate) enum JointMap {
     /// Identical chains: the model's first two angles.
     Same,
     /// Per observed joint: `(i, u, [k_i, rest_i, k_i+1, rest_i+1], [observed rest, observed k])`.
@@ -170,7 +170,7 @@ pub(super) enum JointMap {
 
 impl JointMap {
     /// The map for angle vectors of `joints` values of `model`.
-    pub(super) fn new(model: &Model, observed: &Model, joints: usize) -> JointMap {
+    pub(crate) fn new(model: &Model, observed: &Model, joints: usize) -> JointMap {
         if model.n == observed.n && model.stiffness == observed.stiffness {
             return JointMap::Same;
         }
@@ -189,7 +189,7 @@ impl JointMap {
     }
 
     /// The observed chain's `theta01`, `theta12` from the model's joint angles `q`.
-    pub(super) fn apply(&self, q: &[f64]) -> [f64; 2] {
+    pub(crate) fn apply(&self, q: &[f64]) -> [f64; 2] {
         match self {
             JointMap::Same => [q[0], q[1]],
             JointMap::Between(at) => at.map(|(i, u, [k0, r0, k1, r1], [rest, k])| {

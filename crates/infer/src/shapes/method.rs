@@ -3,13 +3,21 @@
 use super::bank::{CleanRuns, ShapeBank};
 use super::estimator::{ShapeEstimate, ShapeKrr};
 use super::family::{ShapeFamily, ShapeSample};
+use super::filter::ShapePf;
 use super::online::ShapeEsn;
 use crate::error::{Error, Result};
 
 /// The shape estimators, by name: `shape-krr` reads the whole recording at once, `shape-esn`
 /// reads it one sample at a time (a class posterior after every sample), `shape-bank` weighs
-/// the recording's likelihood under a bank of noise-free runs of every class.
-pub const SHAPE_METHODS: [&str; 3] = [ShapeKrr::NAME, ShapeEsn::NAME, ShapeBank::NAME];
+/// the recording's likelihood under a bank of noise-free runs of every class, `shape-pf` runs a
+/// particle filter over each class's pose and weighs the classes by their marginal likelihoods
+/// (also online).
+pub const SHAPE_METHODS: [&str; 4] = [
+    ShapeKrr::NAME,
+    ShapeEsn::NAME,
+    ShapeBank::NAME,
+    ShapePf::NAME,
+];
 
 /// The estimators an experiment scores when none is named (`shape-bank` simulates a bank of
 /// its own, several times the training runs, so it is scored when asked for).
@@ -64,6 +72,21 @@ impl ShapeMethod for ShapeBank {
     }
 }
 
+impl ShapeMethod for ShapePf {
+    fn name(&self) -> &'static str {
+        Self::NAME
+    }
+    fn predict(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<ShapeEstimate> {
+        ShapePf::predict(self, whiskers)
+    }
+    fn trace(&self, whiskers: &[Vec<Vec<f64>>]) -> Option<Result<Vec<Vec<f64>>>> {
+        Some(ShapePf::trace(self, whiskers))
+    }
+    fn settings(&self) -> Vec<(String, f64)> {
+        ShapePf::settings(self)
+    }
+}
+
 impl ShapeMethod for ShapeEsn {
     fn name(&self) -> &'static str {
         Self::NAME
@@ -102,6 +125,8 @@ pub fn fit_shape_method(
     check_shape_method(name)?;
     Ok(if name == ShapeEsn::NAME {
         Box::new(ShapeEsn::fit(family, training)?)
+    } else if name == ShapePf::NAME {
+        Box::new(ShapePf::fit(family, training)?)
     } else if name == ShapeBank::NAME {
         let clean = clean.ok_or_else(|| Error::Fit {
             method: name.into(),

@@ -1,0 +1,515 @@
+//! `shape-pf`: a particle filter per object class, the class chosen by marginal likelihood.
+//!
+//! Each class gets a filter whose particles carry that class's pose unknowns (position,
+//! rotation, size, speed: static, moved at each resampling) and every read whisker's chain
+//! state, stepped by the physics (a coarse chain, as the distance filter `pf`
+//! steps) against the object its pose implies. One particle holds all the whiskers, so their
+//! fusion is the joint posterior. The recording's marginal likelihood under each class (the
+//! product over samples of the particles' mean weight) gives the class posterior after every
+//! sample; the most probable class's particles give its pose.
+//!
+//! Nothing in the likelihood is a constant chosen on our own runs: its standard deviation per
+//! channel is the residual of the filter's own model, run at the true poses of training runs,
+//! against their recordings (sensor noise, random forces and the coarse chain's error together);
+//! the factor it is widened by (one of [`TEMPERINGS`]), the temperature of the class posterior
+//! and the widening of each class's pose intervals are fitted on other training runs, held out.
+
+mod cloud;
+mod pose;
+
+use super::estimator::{softmax, ShapeEstimate};
+use super::family::{ShapeFamily, ShapeSample};
+use cloud::{filter, replay, ClassModel, ClassRun, Settings, WhiskerModel};
+use pose::PoseObjects;
+
+use crate::error::{Error, Result};
+use crate::experiment::{Noise, CHANNELS};
+use crate::Estimate;
+use rayon::prelude::*;
+use std::collections::HashMap;
+use std::sync::Mutex;
+use vibrissa_core::dynamics::Integrator;
+use vibrissa_core::sim::BaseDrive;
+
+/// Particles per class.
+pub const SHAPE_PF_PARTICLES: usize = 1000;
+/// Training runs per class whose residuals set the likelihood's spread.
+const RESIDUAL_RUNS: usize = 8;
+/// Training runs per class held out to fit the class posterior's temperature and the pose
+/// intervals' widening.
+const HELD_OUT: usize = 10;
+/// Longest step of the filter's chain, s (three per millisecond, as `pf`'s coarse model).
+const MODEL_DT: f64 = 1e-3 / 3.0;
+/// Factors the likelihood's spread may be widened by ([`ShapePf::fit`] chooses one on held-out
+/// runs).
+const TEMPERINGS: [f64; 3] = [1.0, 2.0, 4.0];
+/// Largest correlation of neighbouring residuals the likelihood's spread is widened for.
+const MAX_CORRELATION: f64 = 0.99;
+
+/// The particle filter over every class's pose, the class by marginal likelihood.
+pub struct ShapePf {
+    classes: Vec<ClassModel>,
+    set: Settings,
+    whiskers: usize,
+    samples: usize,
+    /// The class posterior's temperature (log marginal likelihoods are multiplied by it).
+    temperature: f64,
+    /// The factor of [`TEMPERINGS`] the likelihood's spread was widened by.
+    tempering: f64,
+    /// The residuals' correlation from one sample to the next, per channel.
+    correlation: [f64; 5],
+    /// Per class, the factor its pose's standard deviations are widened by.
+    widening: Vec<f64>,
+    seed: u64,
+    /// Class posteriors after every sample of recordings already read, by their bits.
+    traces: Mutex<HashMap<u64, Vec<Vec<f64>>>>,
+}
+
+impl ShapePf {
+    /// The estimator's name.
+    pub const NAME: &'static str = "shape-pf";
+
+    /// Fits on `training` runs of `family` (its whiskers those the recordings hold): the
+    /// likelihood's spread from the residuals of [`RESIDUAL_RUNS`] runs per class, the
+    /// temperature and the widening from [`HELD_OUT`] others.
+    pub fn fit(family: &ShapeFamily, training: &[ShapeSample]) -> Result<ShapePf> {
+        Self::fit_with(family, training, SHAPE_PF_PARTICLES)
+    }
+
+    /// [`ShapePf::fit`] with `particles` per class.
+    pub fn fit_with(
+        family: &ShapeFamily,
+        training: &[ShapeSample],
+        particles: usize,
+    ) -> Result<ShapePf> {
+        let refuse = |detail: String| Error::Fit {
+            method: Self::NAME.into(),
+            detail,
+        };
+        if particles < 2 {
+            return Err(refuse(format!(
+                "needs at least 2 particles per class, not {particles}"
+            )));
+        }
+        let rate = family.sample_rate();
+        let period = 1.0 / rate;
+        let substeps = (period / MODEL_DT - 1e-9).ceil().max(1.0) as usize;
+        let stepper = Integrator {
+            dt: period / substeps as f64,
+            max_iterations: 1,
+            ..Integrator::default()
+        }
+        .check()
+        .map_err(|e| refuse(format!("integrator: {e}")))?;
+        let mut classes = Vec::new();
+        for class in family.classes() {
+            let f = class.family.nominal();
+            let pose = PoseObjects::new(&f, Self::NAME)?;
+            let p0: Vec<f64> = f.ranges().iter().map(|[lo, hi]| 0.5 * (lo + hi)).collect();
+            let scene = f.scenario(&p0)?;
+            let mounts = f.mounts();
+            let frames: Vec<_> = if mounts.is_empty() {
+                vec![(scene.clone(), None)]
+            } else {
+                mounts
+                    .into_iter()
+                    .enumerate()
+                    .map(|(k, m)| (m.scenario(&scene, k), Some(m)))
+                    .collect()
+            };
+            let mut whiskers = Vec::new();
+            for (s, mount) in frames {
+                if !matches!(s.base, BaseDrive::Fixed) {
+                    return Err(refuse(format!(
+                        "class `{}`: its whiskers' bases move; the filter models whiskers whose \
+                         bases stay still (read a whisked run with shape-bank or shape-esn)",
+                        class.name
+                    )));
+                }
+                let segments = crate::pf::coarse_segments(&s.whisker).min(s.segments);
+                whiskers.push(WhiskerModel::new(&s, mount, segments, Self::NAME)?);
+            }
+            classes.push(ClassModel {
+                name: class.name.clone(),
+                unknowns: f.unknowns().iter().map(|s| s.to_string()).collect(),
+                // The training runs' ranges (each widened by its margin), as `pf`'s prior.
+                ranges: f
+                    .ranges()
+                    .iter()
+                    .zip(f.margins())
+                    .map(|([lo, hi], [below, above])| [lo - below, hi + above])
+                    .collect(),
+                pose,
+                whiskers,
+            });
+        }
+        let whiskers = classes[0].whiskers.len();
+        let samples = family.samples();
+        for (i, s) in training.iter().enumerate() {
+            check_shape(&s.whiskers, whiskers, samples)
+                .map_err(|e| refuse(format!("training run {i}: {e}")))?;
+        }
+        // Runs of each class: the first for the residuals, the next held out.
+        let mut by_class: Vec<Vec<&ShapeSample>> = vec![Vec::new(); classes.len()];
+        for s in training {
+            by_class[s.class].push(s);
+        }
+        if let Some((c, runs)) = by_class.iter().enumerate().find(|(_, r)| r.len() < 4) {
+            return Err(refuse(format!(
+                "class `{}` has {} training runs; at least 4 are needed",
+                classes[c].name,
+                runs.len()
+            )));
+        }
+        let split: Vec<usize> = by_class
+            .iter()
+            .map(|r| RESIDUAL_RUNS.min(r.len() / 2))
+            .collect();
+        let mut set = Settings {
+            particles,
+            stepper,
+            substeps,
+            period,
+            sigma: [1.0; 5],
+            ess_fraction: 0.5,
+        };
+        let (sigma, correlation) =
+            residual_sigma(&classes, &set, &by_class, &split, training, samples)?;
+        set.sigma = sigma;
+        let mut m = ShapePf {
+            classes,
+            set,
+            whiskers,
+            samples,
+            temperature: 1.0,
+            tempering: 1.0,
+            correlation,
+            widening: Vec::new(),
+            seed: 0x7368_6170,
+            traces: Mutex::new(HashMap::new()),
+        };
+        m.widening = vec![1.0; m.classes.len()];
+        let held: Vec<&ShapeSample> = by_class
+            .iter()
+            .zip(&split)
+            .flat_map(|(runs, &k)| runs[k..].iter().take(HELD_OUT).copied())
+            .collect();
+        // The likelihood's spread treats the model's error as independent from sample to sample
+        // and its clouds degenerate under a likelihood that is too sharp: it is widened by the
+        // factor of [`TEMPERINGS`] under which the held-out runs' classes are read with the
+        // least log loss.
+        let sigma = m.set.sigma;
+        let mut best: Option<(f64, f64, f64, Vec<f64>)> = None;
+        for &t in &TEMPERINGS {
+            m.set.sigma = sigma.map(|s| s * t);
+            let loss = m.calibrate(&held)?;
+            if best.as_ref().is_none_or(|b| loss < b.1) {
+                best = Some((t, loss, m.temperature, m.widening.clone()));
+            }
+        }
+        if let Some((t, _, temperature, widening)) = best {
+            m.tempering = t;
+            m.set.sigma = sigma.map(|s| s * t);
+            m.temperature = temperature;
+            m.widening = widening;
+        }
+        Ok(m)
+    }
+
+    /// Fits the class posterior's temperature and each class's widening on the runs `held`;
+    /// returns their classes' mean log loss.
+    fn calibrate(&mut self, held: &[&ShapeSample]) -> Result<f64> {
+        let m = &*self;
+        let runs: Vec<Vec<ClassRun>> = held
+            .par_iter()
+            .map(|s| m.run_all(&s.whiskers))
+            .collect::<Result<_>>()?;
+        let scores: Vec<Vec<f64>> = runs.iter().map(|r| last_log_z(r)).collect();
+        let labels: Vec<usize> = held.iter().map(|s| s.class).collect();
+        let (temperature, loss) = class_temperature(&scores, &labels);
+        let widening = (0..m.classes.len())
+            .map(|c| {
+                let mut z: Vec<f64> = held
+                    .iter()
+                    .zip(&runs)
+                    .filter(|(s, _)| s.class == c)
+                    .flat_map(|(s, r)| {
+                        let run = &r[c];
+                        s.params
+                            .iter()
+                            .zip(run.mean.iter().zip(&run.std))
+                            .filter(|(_, (m, sd))| m.is_finite() && **sd > 0.0)
+                            .map(|(t, (m, sd))| ((t - m) / sd).abs())
+                            .collect::<Vec<_>>()
+                    })
+                    .collect();
+                z.sort_by(f64::total_cmp);
+                // The factor that makes 90% of the held-out intervals hold.
+                match z.get(((0.9 * z.len() as f64).ceil() as usize).saturating_sub(1)) {
+                    Some(q) => (q / crate::method::Z90).max(1.0),
+                    None => 1.0,
+                }
+            })
+            .collect();
+        self.temperature = temperature;
+        self.widening = widening;
+        Ok(loss)
+    }
+
+    /// Every class's filter over one recording, the classes side by side.
+    fn run_all(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<Vec<ClassRun>> {
+        check_shape(whiskers, self.whiskers, self.samples)
+            .map_err(|e| Error::Observation(format!("{}: {e}", Self::NAME)))?;
+        self.classes
+            .par_iter()
+            .enumerate()
+            .map(|(c, class)| {
+                filter(
+                    class,
+                    &self.set,
+                    whiskers,
+                    vibrissa_core::rng::Rng::stream(self.seed, c as u64).next_u64(),
+                )
+            })
+            .collect()
+    }
+
+    /// The class posterior and the most probable class's pose from one recording
+    /// (`[whiskers][CHANNELS][samples]`).
+    pub fn predict(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<ShapeEstimate> {
+        let runs = self.run_all(whiskers)?;
+        let trace: Vec<Vec<f64>> = (0..self.samples)
+            .map(|k| {
+                let scores: Vec<f64> = runs.iter().map(|r| r.log_z[k]).collect();
+                posterior(&scores, self.temperature)
+            })
+            .collect();
+        let probabilities = trace.last().cloned().unwrap_or_default();
+        self.traces
+            .lock()
+            .map_err(|_| Error::Observation(format!("{}: a reading failed", Self::NAME)))?
+            .insert(digest(whiskers), trace);
+        let best = (0..probabilities.len())
+            .max_by(|&a, &b| probabilities[a].total_cmp(&probabilities[b]))
+            .unwrap_or(0);
+        let class = &self.classes[best];
+        let run = &runs[best];
+        let pose = class
+            .unknowns
+            .iter()
+            .enumerate()
+            .map(|(j, name)| {
+                let [lo, hi] = class.ranges[j];
+                let (mean, std) = if run.mean[j].is_finite() {
+                    (run.mean[j], run.std[j] * self.widening[best])
+                } else {
+                    // No particle of the class survived: its prior.
+                    (0.5 * (lo + hi), (hi - lo) / 12f64.sqrt())
+                };
+                (name.clone(), Estimate::normal(mean, std))
+            })
+            .collect();
+        Ok(ShapeEstimate {
+            class: self
+                .classes
+                .iter()
+                .zip(&probabilities)
+                .map(|(c, p)| (c.name.clone(), *p))
+                .collect(),
+            best,
+            pose,
+            misfit: None,
+        })
+    }
+
+    /// The class posterior after every sample (`[samples][classes]`).
+    pub fn trace(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<Vec<Vec<f64>>> {
+        let key = digest(whiskers);
+        let known = self
+            .traces
+            .lock()
+            .map_err(|_| Error::Observation(format!("{}: a reading failed", Self::NAME)))?
+            .get(&key)
+            .cloned();
+        match known {
+            Some(t) => Ok(t),
+            None => {
+                self.predict(whiskers)?;
+                self.trace(whiskers)
+            }
+        }
+    }
+
+    /// Fitted settings worth reporting.
+    pub fn settings(&self) -> Vec<(String, f64)> {
+        let mut s = vec![
+            ("particles".to_string(), self.set.particles as f64),
+            ("temperature".to_string(), self.temperature),
+            ("tempering".to_string(), self.tempering),
+        ];
+        for (c, x) in self.set.sigma.iter().enumerate() {
+            s.push((format!("sigma_{}", CHANNELS[c]), *x));
+        }
+        for (c, x) in self.correlation.iter().enumerate() {
+            s.push((format!("correlation_{}", CHANNELS[c]), *x));
+        }
+        for (class, w) in self.classes.iter().zip(&self.widening) {
+            s.push((format!("widening_{}", class.name), *w));
+        }
+        s
+    }
+}
+
+/// The class posterior from log marginal likelihoods at `temperature` (a class that lost every
+/// particle gets none; if all did, an even split).
+fn posterior(scores: &[f64], temperature: f64) -> Vec<f64> {
+    if scores.iter().all(|s| !s.is_finite()) {
+        return vec![1.0 / scores.len() as f64; scores.len()];
+    }
+    softmax(scores, temperature)
+}
+
+/// The temperature, from 1e-6 to 10 on a log grid, at which the class posteriors of held-out
+/// runs (`scores`: their classes' log marginal likelihoods; `labels`: their classes) have the
+/// least log loss, and that mean loss.
+fn class_temperature(scores: &[Vec<f64>], labels: &[usize]) -> (f64, f64) {
+    let loss = |t: f64| -> f64 {
+        scores
+            .iter()
+            .zip(labels)
+            .map(|(s, &l)| -posterior(s, t)[l].max(1e-300).ln())
+            .sum::<f64>()
+            / scores.len().max(1) as f64
+    };
+    (0..=140)
+        .map(|k| 10f64.powf(-6.0 + k as f64 / 20.0))
+        .map(|t| (t, loss(t)))
+        .fold(
+            (1.0, f64::INFINITY),
+            |best, (t, l)| if l < best.1 { (t, l) } else { best },
+        )
+}
+
+/// Each class's log marginal likelihood of the whole recording.
+fn last_log_z(runs: &[ClassRun]) -> Vec<f64> {
+    runs.iter()
+        .map(|r| {
+            let z = r.log_z.last().copied().unwrap_or(f64::NEG_INFINITY);
+            // A class that lost every particle scores far below any other.
+            if z.is_finite() {
+                z
+            } else {
+                -1e300
+            }
+        })
+        .collect()
+}
+
+/// Refuses a recording that does not hold `whiskers` whiskers of five channels of `samples`.
+fn check_shape(rec: &[Vec<Vec<f64>>], whiskers: usize, samples: usize) -> Result<()> {
+    if rec.len() != whiskers {
+        return Err(Error::Observation(format!(
+            "{} whiskers recorded where {whiskers} are read",
+            rec.len()
+        )));
+    }
+    for (w, ch) in rec.iter().enumerate() {
+        if ch.len() != CHANNELS.len() || ch.iter().any(|c| c.len() != samples) {
+            return Err(Error::Observation(format!(
+                "whisker {w}: expected {} channels of {samples} samples",
+                CHANNELS.len()
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// The likelihood's standard deviation per channel: the RMS residual of the filter's model, run
+/// at the true pose of the first `split[c]` training runs of each class `c`, against their
+/// recordings, over every whisker and sample (at least the sensor noise the runs show), widened
+/// for the residuals' correlation from one sample to the next; and that correlation.
+fn residual_sigma(
+    classes: &[ClassModel],
+    set: &Settings,
+    by_class: &[Vec<&ShapeSample>],
+    split: &[usize],
+    training: &[ShapeSample],
+    samples: usize,
+) -> Result<([f64; 5], [f64; 5])> {
+    let runs: Vec<(usize, &ShapeSample)> = by_class
+        .iter()
+        .zip(split)
+        .enumerate()
+        .flat_map(|(c, (r, &k))| r[..k].iter().map(move |s| (c, *s)))
+        .collect();
+    // Per channel: the residuals' sum of squares, count, and sum of products of neighbours.
+    let sums: Vec<[[f64; 3]; 5]> = runs
+        .par_iter()
+        .map(|&(c, s)| {
+            let model = replay(&classes[c], set, &s.params, samples)?;
+            let mut acc = [[0.0; 3]; 5];
+            for (w, series) in model.iter().enumerate() {
+                for (ch, a) in acc.iter_mut().enumerate() {
+                    let mut last: Option<f64> = None;
+                    for (k, pred) in series.iter().enumerate() {
+                        let y = s.whiskers[w][ch][k];
+                        if !y.is_finite() {
+                            last = None;
+                            continue;
+                        }
+                        let r = y - pred[ch];
+                        a[0] += r * r;
+                        a[1] += 1.0;
+                        if let Some(l) = last {
+                            a[2] += l * r;
+                        }
+                        last = Some(r);
+                    }
+                }
+            }
+            Ok(acc)
+        })
+        .collect::<Result<_>>()?;
+    let noise = ShapeSample::measured_noise(training).unwrap_or(Noise::NONE.sensor);
+    let mut sigma = [0.0; 5];
+    let mut correlation = [0.0; 5];
+    for ch in 0..5 {
+        let [ss, n, lag] = sums.iter().fold([0.0; 3], |t, a| {
+            [t[0] + a[ch][0], t[1] + a[ch][1], t[2] + a[ch][2]]
+        });
+        let rms = if n > 0.0 { (ss / n).sqrt() } else { 0.0 };
+        let rho = if ss > 0.0 {
+            (lag / ss).clamp(0.0, MAX_CORRELATION)
+        } else {
+            0.0
+        };
+        correlation[ch] = rho;
+        // Residuals correlated from sample to sample (as AR(1) with coefficient `rho`) carry
+        // (1 − rho)/(1 + rho) of the information of as many independent ones.
+        sigma[ch] = rms.max(noise[ch]) * ((1.0 + rho) / (1.0 - rho)).sqrt();
+        if !(sigma[ch].is_finite() && sigma[ch] > 0.0) {
+            return Err(Error::Fit {
+                method: ShapePf::NAME.into(),
+                detail: format!(
+                    "the channel {} shows neither noise nor a residual on the training runs",
+                    CHANNELS[ch]
+                ),
+            });
+        }
+    }
+    Ok((sigma, correlation))
+}
+
+/// A digest of a recording's bits.
+fn digest(rec: &[Vec<Vec<f64>>]) -> u64 {
+    use std::hash::{Hash, Hasher};
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    for w in rec {
+        for c in w {
+            for x in c {
+                x.to_bits().hash(&mut h);
+            }
+        }
+    }
+    h.finish()
+}
