@@ -12,7 +12,8 @@
 //! channel is the residual of the filter's own model, run at the true poses of training runs,
 //! against their recordings (sensor noise, random forces and the coarse chain's error together);
 //! the factor it is widened by (one of [`TEMPERINGS`]), the temperature of the class posterior
-//! and the widening of each class's pose intervals are fitted on other training runs, held out.
+//! and its floor (a share of the even split), and the widening of each class's pose intervals
+//! are fitted on other training runs, held out.
 
 mod cloud;
 mod pose;
@@ -35,7 +36,7 @@ use vibrissa_core::sim::BaseDrive;
 pub const SHAPE_PF_PARTICLES: usize = 1000;
 /// Training runs per class whose residuals set the likelihood's spread.
 const RESIDUAL_RUNS: usize = 8;
-/// Training runs per class held out to fit the class posterior's temperature and the pose
+/// Training runs per class held out to fit the class posterior's calibration and the pose
 /// intervals' widening.
 const HELD_OUT: usize = 10;
 /// Longest step of the filter's chain, s (three per millisecond, as `pf`'s coarse model).
@@ -52,8 +53,8 @@ pub struct ShapePf {
     set: Settings,
     whiskers: usize,
     samples: usize,
-    /// The class posterior's temperature (log marginal likelihoods are multiplied by it).
-    temperature: f64,
+    /// How the classes' log marginal likelihoods become probabilities.
+    calibration: Calibration,
     /// The factor of [`TEMPERINGS`] the likelihood's spread was widened by.
     tempering: f64,
     /// The residuals' correlation from one sample to the next, per channel.
@@ -71,7 +72,7 @@ impl ShapePf {
 
     /// Fits on `training` runs of `family` (its whiskers those the recordings hold): the
     /// likelihood's spread from the residuals of [`RESIDUAL_RUNS`] runs per class, the
-    /// temperature and the widening from [`HELD_OUT`] others.
+    /// calibration and the widening from [`HELD_OUT`] others.
     pub fn fit(family: &ShapeFamily, training: &[ShapeSample]) -> Result<ShapePf> {
         Self::fit_with(family, training, SHAPE_PF_PARTICLES)
     }
@@ -181,7 +182,10 @@ impl ShapePf {
             set,
             whiskers,
             samples,
-            temperature: 1.0,
+            calibration: Calibration {
+                temperature: 1.0,
+                floor: 0.0,
+            },
             tempering: 1.0,
             correlation,
             widening: Vec::new(),
@@ -189,34 +193,56 @@ impl ShapePf {
             traces: Mutex::new(HashMap::new()),
         };
         m.widening = vec![1.0; m.classes.len()];
+        // Held out: runs whose poses lie in the class's ranges (the training runs' margins hold
+        // poses no recording is meant to show), or any if too few do.
         let held: Vec<&ShapeSample> = by_class
             .iter()
             .zip(&split)
-            .flat_map(|(runs, &k)| runs[k..].iter().take(HELD_OUT).copied())
+            .zip(family.classes())
+            .flat_map(|((runs, &k), class)| {
+                let ranges = class.family.ranges();
+                let inside = |s: &&ShapeSample| {
+                    s.params
+                        .iter()
+                        .zip(&ranges)
+                        .all(|(x, [lo, hi])| (lo..=hi).contains(&x))
+                };
+                let within: Vec<&ShapeSample> = runs[k..]
+                    .iter()
+                    .copied()
+                    .filter(inside)
+                    .take(HELD_OUT)
+                    .collect();
+                if within.len() >= HELD_OUT.min(runs.len() - k) / 2 && !within.is_empty() {
+                    within
+                } else {
+                    runs[k..].iter().take(HELD_OUT).copied().collect()
+                }
+            })
             .collect();
         // The likelihood's spread treats the model's error as independent from sample to sample
         // and its clouds degenerate under a likelihood that is too sharp: it is widened by the
         // factor of [`TEMPERINGS`] under which the held-out runs' classes are read with the
         // least log loss.
         let sigma = m.set.sigma;
-        let mut best: Option<(f64, f64, f64, Vec<f64>)> = None;
+        let mut best: Option<(f64, f64, Calibration, Vec<f64>)> = None;
         for &t in &TEMPERINGS {
             m.set.sigma = sigma.map(|s| s * t);
             let loss = m.calibrate(&held)?;
             if best.as_ref().is_none_or(|b| loss < b.1) {
-                best = Some((t, loss, m.temperature, m.widening.clone()));
+                best = Some((t, loss, m.calibration, m.widening.clone()));
             }
         }
-        if let Some((t, _, temperature, widening)) = best {
+        if let Some((t, _, calibration, widening)) = best {
             m.tempering = t;
             m.set.sigma = sigma.map(|s| s * t);
-            m.temperature = temperature;
+            m.calibration = calibration;
             m.widening = widening;
         }
         Ok(m)
     }
 
-    /// Fits the class posterior's temperature and each class's widening on the runs `held`;
+    /// Fits the class posterior's calibration and each class's widening on the runs `held`;
     /// returns their classes' mean log loss.
     fn calibrate(&mut self, held: &[&ShapeSample]) -> Result<f64> {
         let m = &*self;
@@ -226,7 +252,7 @@ impl ShapePf {
             .collect::<Result<_>>()?;
         let scores: Vec<Vec<f64>> = runs.iter().map(|r| last_log_z(r)).collect();
         let labels: Vec<usize> = held.iter().map(|s| s.class).collect();
-        let (temperature, loss) = class_temperature(&scores, &labels);
+        let (calibration, loss) = class_calibration(&scores, &labels);
         let widening = (0..m.classes.len())
             .map(|c| {
                 let mut z: Vec<f64> = held
@@ -251,7 +277,7 @@ impl ShapePf {
                 }
             })
             .collect();
-        self.temperature = temperature;
+        self.calibration = calibration;
         self.widening = widening;
         Ok(loss)
     }
@@ -281,7 +307,7 @@ impl ShapePf {
         let trace: Vec<Vec<f64>> = (0..self.samples)
             .map(|k| {
                 let scores: Vec<f64> = runs.iter().map(|r| r.log_z[k]).collect();
-                posterior(&scores, self.temperature)
+                posterior(&scores, self.calibration)
             })
             .collect();
         let probabilities = trace.last().cloned().unwrap_or_default();
@@ -344,7 +370,8 @@ impl ShapePf {
     pub fn settings(&self) -> Vec<(String, f64)> {
         let mut s = vec![
             ("particles".to_string(), self.set.particles as f64),
-            ("temperature".to_string(), self.temperature),
+            ("temperature".to_string(), self.calibration.temperature),
+            ("floor".to_string(), self.calibration.floor),
             ("tempering".to_string(), self.tempering),
         ];
         for (c, x) in self.set.sigma.iter().enumerate() {
@@ -360,34 +387,63 @@ impl ShapePf {
     }
 }
 
-/// The class posterior from log marginal likelihoods at `temperature` (a class that lost every
-/// particle gets none; if all did, an even split).
-fn posterior(scores: &[f64], temperature: f64) -> Vec<f64> {
+/// The class posterior from log marginal likelihoods under the calibration `c` (a class that
+/// lost every particle gets only the floor's share; if all did, an even split).
+fn posterior(scores: &[f64], c: Calibration) -> Vec<f64> {
+    let even = 1.0 / scores.len() as f64;
     if scores.iter().all(|s| !s.is_finite()) {
-        return vec![1.0 / scores.len() as f64; scores.len()];
+        return vec![even; scores.len()];
     }
-    softmax(scores, temperature)
+    softmax(scores, c.temperature)
+        .into_iter()
+        .map(|p| (1.0 - c.floor) * p + c.floor * even)
+        .collect()
 }
 
-/// The temperature, from 1e-6 to 10 on a log grid, at which the class posteriors of held-out
-/// runs (`scores`: their classes' log marginal likelihoods; `labels`: their classes) have the
-/// least log loss, and that mean loss.
-fn class_temperature(scores: &[Vec<f64>], labels: &[usize]) -> (f64, f64) {
-    let loss = |t: f64| -> f64 {
+/// How log marginal likelihoods become class probabilities: multiplied by `temperature`
+/// through a softmax, and mixed with the even split by `floor` (the share of recordings on
+/// which the filters' evidence is no guide: a cloud that lost the true pose).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Calibration {
+    temperature: f64,
+    floor: f64,
+}
+
+/// Shares of the even split [`class_calibration`] tries.
+const FLOORS: [f64; 6] = [0.0, 0.01, 0.02, 0.05, 0.1, 0.2];
+
+/// The calibration (temperature from 1e-6 to 10 on a log grid, floor one of [`FLOORS`]) under
+/// which the class posteriors of held-out runs (`scores`: their classes' log marginal
+/// likelihoods; `labels`: their classes) have the least log loss, and that mean loss.
+fn class_calibration(scores: &[Vec<f64>], labels: &[usize]) -> (Calibration, f64) {
+    let loss = |c: Calibration| -> f64 {
         scores
             .iter()
             .zip(labels)
-            .map(|(s, &l)| -posterior(s, t)[l].max(1e-300).ln())
+            .map(|(s, &l)| -posterior(s, c)[l].max(1e-300).ln())
             .sum::<f64>()
             / scores.len().max(1) as f64
     };
-    (0..=140)
-        .map(|k| 10f64.powf(-6.0 + k as f64 / 20.0))
-        .map(|t| (t, loss(t)))
-        .fold(
-            (1.0, f64::INFINITY),
-            |best, (t, l)| if l < best.1 { (t, l) } else { best },
-        )
+    let start = Calibration {
+        temperature: 1.0,
+        floor: 0.0,
+    };
+    FLOORS
+        .iter()
+        .flat_map(|&floor| {
+            (0..=140).map(move |k| Calibration {
+                temperature: 10f64.powf(-6.0 + k as f64 / 20.0),
+                floor,
+            })
+        })
+        .map(|c| (c, loss(c)))
+        .fold((start, f64::INFINITY), |best, (c, l)| {
+            if l < best.1 {
+                (c, l)
+            } else {
+                best
+            }
+        })
 }
 
 /// Each class's log marginal likelihood of the whole recording.
