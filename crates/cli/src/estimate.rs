@@ -44,7 +44,7 @@ pub struct Args {
     /// Shape families: the whiskers read, by name joined by `+` (default: all of the family's).
     #[arg(long, value_name = "NAMES", requires = "shapes")]
     pub(crate) whiskers: Option<String>,
-    /// Shape families: training runs per class (default 800).
+    /// Shape families: training runs per class (default 800; 60 for shape-pf, which reads few).
     #[arg(long, value_name = "N", requires = "shapes", value_parser = crate::limits::training)]
     pub(crate) training: Option<usize>,
     /// Shape families with shape-bank: noise-free runs per class in its bank (default 3200).

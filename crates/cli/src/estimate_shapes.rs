@@ -19,7 +19,7 @@ use std::io::{self, Write};
 use std::path::Path;
 use vibrissa_infer::shapes::{
     check_shape_method, estimate_batch, BatchOptions, ShapeBank, ShapeEsn, ShapeFamily, ShapeKrr,
-    ShapePf, DEFAULT_TRAINING, SHAPE_METHODS,
+    ShapePf, DEFAULT_TRAINING, SHAPE_METHODS, SHAPE_PF_TRAINING,
 };
 use vibrissa_infer::{Reader, CHANNELS};
 
@@ -115,7 +115,12 @@ pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
     let stated = crate::estimate::stated_noise(&family.classes()[0].family, &args.noise)?;
     let options = BatchOptions {
         method: method.to_string(),
-        training: args.training.unwrap_or(DEFAULT_TRAINING),
+        // The filter reads a few dozen training runs per class; the others learn from all.
+        training: args.training.unwrap_or(if method == ShapePf::NAME {
+            SHAPE_PF_TRAINING
+        } else {
+            DEFAULT_TRAINING
+        }),
         bank: args.bank.unwrap_or(vibrissa_infer::shapes::BANK_PER_CLASS),
         seed: args.seed,
         randomise: args.randomise,

@@ -34,6 +34,10 @@ use vibrissa_core::sim::BaseDrive;
 
 /// Particles per class.
 pub const SHAPE_PF_PARTICLES: usize = 1000;
+/// Training runs per class that `vibrissa estimate` simulates for the filter by default: it
+/// reads [`RESIDUAL_RUNS`] and [`HELD_OUT`] of them (those in the class's ranges), and the
+/// training runs' margins leave some out.
+pub const SHAPE_PF_TRAINING: usize = 60;
 /// Training runs per class whose residuals set the likelihood's spread.
 const RESIDUAL_RUNS: usize = 8;
 /// Training runs per class held out to fit the class posterior's calibration and the pose
