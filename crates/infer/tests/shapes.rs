@@ -281,14 +281,7 @@ fn the_bank_tells_a_wall_from_a_peg_through_noise_and_says_how_sure_it_is() {
     // sensor noise and random forces (chance: 50%, log loss ln 2 = 0.69), against a bank of
     // 400 runs per class, far sparser than the default. Seeds 3-6 gave 70-72% and log losses
     // of 0.53-0.60 (a wall whose near end reaches only the tip looks like a large peg).
-    let e3 = ShapeFamily::builtin("e3").unwrap().unwrap();
-    let pair = ShapeFamily::new(
-        "wall or peg",
-        vec![e3.classes()[0].clone(), e3.classes()[2].clone()],
-    )
-    .unwrap()
-    .with_whiskers(&["c3"])
-    .unwrap();
+    let pair = wall_or_peg_read_by_c3();
     let seed = 3;
     let settings = ShapeSettings {
         train_per_class: 80,
@@ -348,14 +341,7 @@ fn the_filter_over_each_class_tells_a_wall_from_a_peg_by_marginal_likelihood() {
     // The wall and the peg of e3, read by the middle whisker through the noisy variant's noise
     // (chance: 50%, log loss ln 2 = 0.69): a filter per class over its pose, the class by the
     // recording's marginal likelihood under each.
-    let e3 = ShapeFamily::builtin("e3").unwrap().unwrap();
-    let pair = ShapeFamily::new(
-        "wall or peg",
-        vec![e3.classes()[0].clone(), e3.classes()[2].clone()],
-    )
-    .unwrap()
-    .with_whiskers(&["c3"])
-    .unwrap();
+    let pair = wall_or_peg_read_by_c3();
     let settings = ShapeSettings {
         train_per_class: 24,
         eval_per_class: 20,
@@ -427,14 +413,7 @@ fn the_filter_over_each_class_refuses_whisked_whiskers_and_a_recording_of_other_
         .to_string();
     assert!(e.contains("bases move"), "{e}");
 
-    let e3 = ShapeFamily::builtin("e3").unwrap().unwrap();
-    let pair = ShapeFamily::new(
-        "wall or peg",
-        vec![e3.classes()[0].clone(), e3.classes()[2].clone()],
-    )
-    .unwrap()
-    .with_whiskers(&["c3"])
-    .unwrap();
+    let pair = wall_or_peg_read_by_c3();
     let draws = pair.draws(4, false, 2);
     let (runs, _) = pair
         .simulate_completed(&draws, &Noise::NONE, 2, &|| {})
@@ -448,4 +427,16 @@ fn the_filter_over_each_class_refuses_whisked_whiskers_and_a_recording_of_other_
     let two = vec![runs[0].whiskers[0].clone(), runs[0].whiskers[0].clone()];
     let e = pf.predict(&two).unwrap_err().to_string();
     assert!(e.contains("2 whiskers recorded where 1 are read"), "{e}");
+}
+
+/// The wall and the peg of e3, read by the middle whisker alone.
+fn wall_or_peg_read_by_c3() -> ShapeFamily {
+    let e3 = ShapeFamily::builtin("e3").unwrap().unwrap();
+    ShapeFamily::new(
+        "wall or peg",
+        vec![e3.classes()[0].clone(), e3.classes()[2].clone()],
+    )
+    .unwrap()
+    .with_whiskers(&["c3"])
+    .unwrap()
 }

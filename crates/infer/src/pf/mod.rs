@@ -60,6 +60,7 @@ pub use method::{
     ONLINE_PARTICLES, RANDOMISED_TEMPER, SENSOR_FLOOR,
 };
 pub use posterior::{Observations, Posterior, SensorPosterior, TraceRow};
+pub(crate) use sampling::systematic;
 pub use sensors::SensorSpread;
 pub use transition::map_joints;
 pub(crate) use transition::JointMap;

@@ -31,7 +31,7 @@ pub(super) fn truncated_normal(rng: &mut Rng, mean: f64, std: f64, p: &Prior) ->
 }
 
 /// Systematic resampling: parent index of every new particle.
-pub(super) fn systematic(w: &[f64], u0: f64) -> Vec<usize> {
+pub(crate) fn systematic(w: &[f64], u0: f64) -> Vec<usize> {
     let n = w.len();
     let mut parents = Vec::with_capacity(n);
     let mut cum = w[0];

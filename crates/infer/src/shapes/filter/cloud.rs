@@ -6,7 +6,7 @@
 
 use super::pose::PoseObjects;
 use crate::error::{Error, Result};
-use crate::pf::JointMap;
+use crate::pf::{systematic, JointMap};
 use vibrissa_core::array::Mount;
 use vibrissa_core::chain::{Discretisation, Model};
 use vibrissa_core::dynamics::{
@@ -313,6 +313,10 @@ impl<'a> Cloud<'a> {
         for w in 0..self.class.whiskers.len() {
             self.states[w] = parents.iter().map(|&p| self.states[w][p].clone()).collect();
             self.touched[w] = parents.iter().map(|&p| self.touched[w][p]).collect();
+            self.objects[w] = parents
+                .iter()
+                .map(|&p| self.objects[w][p].clone())
+                .collect();
         }
     }
 
@@ -550,35 +554,9 @@ fn log_sum_exp(x: &[f64]) -> f64 {
     m + x.iter().map(|v| (v - m).exp()).sum::<f64>().ln()
 }
 
-/// Systematic resampling: the parent of every new particle.
-fn systematic(w: &[f64], u0: f64) -> Vec<usize> {
-    let n = w.len();
-    let mut parents = Vec::with_capacity(n);
-    let mut cum = w[0];
-    let mut i = 0;
-    for j in 0..n {
-        let u = (j as f64 + u0) / n as f64;
-        while u > cum && i + 1 < n {
-            i += 1;
-            cum += w[i];
-        }
-        parents.push(i);
-    }
-    parents
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn systematic_resampling_follows_the_weights() {
-        let parents = systematic(&[0.1, 0.0, 0.6, 0.3], 0.5);
-        assert_eq!(parents.len(), 4);
-        let count = |k| parents.iter().filter(|&&p| p == k).count();
-        assert_eq!(count(1), 0);
-        assert!(count(2) >= 2);
-    }
 
     #[test]
     fn distance_to_a_segment_is_to_its_nearest_point() {
