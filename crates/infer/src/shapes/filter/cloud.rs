@@ -320,9 +320,9 @@ impl<'a> Cloud<'a> {
         }
     }
 
-    /// The spread of each unknown over the cloud (equal weights), floored at [`SPREAD_FLOOR`]
-    /// of its range.
-    fn spread(&self) -> Vec<f64> {
+    /// The mean and spread of each unknown over the cloud (equal weights), the spread floored
+    /// at [`SPREAD_FLOOR`] of its range.
+    fn spread(&self) -> Vec<(f64, f64)> {
         let n = self.theta.len() as f64;
         self.class
             .ranges
@@ -336,7 +336,7 @@ impl<'a> Cloud<'a> {
                     .map(|p| (p[j] - mean).powi(2))
                     .sum::<f64>()
                     / n;
-                var.sqrt().max(SPREAD_FLOOR * (hi - lo))
+                (mean, var.sqrt().max(SPREAD_FLOOR * (hi - lo)))
             })
             .collect()
     }
@@ -360,15 +360,13 @@ impl<'a> Cloud<'a> {
     /// `√(1 − a²)`, reflected into the ranges; the whisker states stay (an approximation).
     fn jitter_touched(&mut self, rng: &mut Rng) {
         let a = LW_SHRINK;
-        let n = self.theta.len() as f64;
-        let sd = self.spread();
-        for (j, &[lo, hi]) in self.class.ranges.iter().enumerate() {
-            let mean = self.theta.iter().map(|p| p[j]).sum::<f64>() / n;
-            let h = (1.0 - a * a).sqrt() * sd[j];
-            for i in 0..self.theta.len() {
-                if !self.touched.iter().any(|w| w[i]) {
-                    continue;
-                }
+        let stats = self.spread();
+        let touched: Vec<usize> = (0..self.theta.len())
+            .filter(|&i| self.touched.iter().any(|w| w[i]))
+            .collect();
+        for (j, (&[lo, hi], &(mean, sd))) in self.class.ranges.iter().zip(&stats).enumerate() {
+            let h = (1.0 - a * a).sqrt() * sd;
+            for &i in &touched {
                 let x = a * self.theta[i][j] + (1.0 - a) * mean + h * rng.normal();
                 let y = if x < lo {
                     2.0 * lo - x
@@ -486,7 +484,7 @@ pub(super) fn filter(
             let step: Vec<f64> = cloud
                 .spread()
                 .iter()
-                .map(|s| 2.38 / (d as f64).sqrt() * s)
+                .map(|(_, s)| 2.38 / (d as f64).sqrt() * s)
                 .collect();
             cloud.move_waiting(k as f64 * set.period, &step, &mut rng);
             cloud.jitter_touched(&mut rng);
