@@ -429,6 +429,57 @@ fn the_filter_over_each_class_refuses_whisked_whiskers_and_a_recording_of_other_
     assert!(e.contains("2 whiskers recorded where 1 are read"), "{e}");
 }
 
+#[test]
+fn the_filter_over_each_class_says_when_another_whisker_made_the_recording() {
+    // Trained on e3's whisker; the same poses recorded by it and by a whisker a third stiffer
+    // whose moment sensor reads 10% high, through the noisy variant's noise.
+    let noise = vibrissa_infer::Family::builtin("e2")
+        .unwrap()
+        .noise(Variant::Noisy)
+        .unwrap();
+    let own = wall_or_peg_read_by_c3();
+    let sets = ["whisker.youngs_modulus=4e9", "sensors.m0.gain=1.1"].map(String::from);
+    let e3 = ShapeFamily::builtin_with("e3", &sets, None)
+        .unwrap()
+        .unwrap();
+    let other = ShapeFamily::new(
+        "wall or peg",
+        vec![e3.classes()[0].clone(), e3.classes()[2].clone()],
+    )
+    .unwrap()
+    .with_whiskers(&["c3"])
+    .unwrap();
+    let (training, _) = own
+        .simulate_completed(&own.draws(24, true, 1), &noise, 1, &|| {})
+        .unwrap();
+    let pf = vibrissa_infer::shapes::ShapePf::fit(&own, &training).unwrap();
+    let fresh = own.draws(6, false, 3);
+    let read = |family: &ShapeFamily| {
+        let (runs, _) = family
+            .simulate_completed(&fresh, &noise, 5, &|| {})
+            .unwrap();
+        runs.iter()
+            .map(|r| pf.predict(&r.whiskers).unwrap())
+            .collect::<Vec<_>>()
+    };
+    let (mine, theirs) = (read(&own), read(&other));
+    let misfit = |v: &[vibrissa_infer::shapes::ShapeEstimate]| -> Vec<f64> {
+        v.iter().map(|e| e.misfit.unwrap()).collect()
+    };
+    let (a, b) = (misfit(&mine), misfit(&theirs));
+    eprintln!("misfit, own whisker {a:?}, other whisker {b:?}");
+    assert!(a.iter().chain(&b).all(|r| r.is_finite() && *r >= 1.0));
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    // Its own whisker's recordings lie as near as its held-out runs (half of which lie above
+    // their median); the other whisker's farther.
+    assert!(mean(&a) < 1.5, "{a:?}");
+    assert!(mean(&b) > 2.0 * mean(&a), "{a:?} {b:?}");
+    for e in &theirs {
+        assert!((e.class.iter().map(|c| c.1).sum::<f64>() - 1.0).abs() < 1e-9);
+        assert!(e.pose.iter().all(|(_, x)| x.std.is_finite() && x.std > 0.0));
+    }
+}
+
 /// The wall and the peg of e3, read by the middle whisker alone.
 fn wall_or_peg_read_by_c3() -> ShapeFamily {
     let e3 = ShapeFamily::builtin("e3").unwrap().unwrap();

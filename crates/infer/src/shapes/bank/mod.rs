@@ -31,7 +31,7 @@ use super::between::{between, Between};
 use super::estimator::ShapeEstimate;
 use super::evaluate::subset;
 use super::family::{ShapeFamily, ShapeSample};
-use super::off_nominal::{self, Trust};
+use super::off_nominal::{self, median, misfit_ratio, Trust};
 use super::refine::{refine, Refined};
 use super::series_noise::SeriesNoise;
 use crate::error::{Error, Result};
@@ -228,33 +228,6 @@ fn nearest(d2: &[f64], extra: &[f64]) -> f64 {
         .chain(extra)
         .copied()
         .fold(f64::INFINITY, f64::min)
-}
-
-/// The median of the finite values of `v` (NaN when there is none).
-fn median(v: &[f64]) -> f64 {
-    let mut f: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
-    if f.is_empty() {
-        return f64::NAN;
-    }
-    f.sort_by(|a, b| a.total_cmp(b));
-    let n = f.len();
-    if n % 2 == 1 {
-        f[n / 2]
-    } else {
-        0.5 * (f[n / 2 - 1] + f[n / 2])
-    }
-}
-
-/// How many times farther a recording whose nearest run lies at squared distance `near` is
-/// than the held-out runs' median `reference`: at least 1 (a recording nearer than usual is
-/// not read more sharply), and 1 when either is not a positive finite number.
-fn misfit_ratio(near: f64, reference: f64) -> f64 {
-    let r = near / reference;
-    if r.is_finite() && r > 1.0 {
-        r
-    } else {
-        1.0
-    }
 }
 
 /// `exp(s·l)` normalised.

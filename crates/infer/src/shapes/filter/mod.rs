@@ -14,12 +14,21 @@
 //! the factor it is widened by (one of [`TEMPERINGS`]), the temperature of the class posterior
 //! and its floor (a share of the even split), and the widening of each class's pose intervals
 //! are fitted on other training runs, held out.
+//!
+//! A recording that none of the classes explains as well as the held-out runs are explained
+//! (another whisker's, say) reads sharper than it should: the least −2·log marginal likelihood
+//! over the classes (the filters' χ², their likelihood leaving out its normalising constant) is
+//! compared after every sample with its median over the held-out runs, and `r` times that
+//! median (`r` > 1, the misfit) divides the class posterior's temperature and widens the pose's
+//! intervals by √r, as a least-squares fit scales its noise by the reduced χ². The held-out runs
+//! are scored with their own `r` when the calibration and widening are fitted.
 
 mod cloud;
 mod pose;
 
 use super::estimator::{softmax, ShapeEstimate};
 use super::family::{ShapeFamily, ShapeSample};
+use super::off_nominal::{median, misfit_ratio};
 use cloud::{filter, replay, ClassModel, ClassRun, Settings, WhiskerModel};
 use pose::PoseObjects;
 
@@ -65,6 +74,9 @@ pub struct ShapePf {
     correlation: [f64; 5],
     /// Per class, the factor its pose's standard deviations are widened by.
     widening: Vec<f64>,
+    /// After every sample, the held-out runs' median of the classes' least χ² (the misfit
+    /// ratio's yardstick).
+    yardstick: Vec<f64>,
     seed: u64,
     /// Class posteriors after every sample of recordings already read, by their bits.
     traces: Mutex<HashMap<u64, Vec<Vec<f64>>>>,
@@ -193,6 +205,7 @@ impl ShapePf {
             tempering: 1.0,
             correlation,
             widening: Vec::new(),
+            yardstick: Vec::new(),
             seed: 0x7368_6170,
             traces: Mutex::new(HashMap::new()),
         };
@@ -229,32 +242,54 @@ impl ShapePf {
         // factor of [`TEMPERINGS`] under which the held-out runs' classes are read with the
         // least log loss.
         let sigma = m.set.sigma;
-        let mut best: Option<(f64, f64, Calibration, Vec<f64>)> = None;
+        let mut best: Option<(f64, f64, HeldOutFit)> = None;
         for &t in &TEMPERINGS {
             m.set.sigma = sigma.map(|s| s * t);
             let loss = m.calibrate(&held)?;
             if best.as_ref().is_none_or(|b| loss < b.1) {
-                best = Some((t, loss, m.calibration, m.widening.clone()));
+                let fit = HeldOutFit {
+                    calibration: m.calibration,
+                    widening: m.widening.clone(),
+                    yardstick: m.yardstick.clone(),
+                };
+                best = Some((t, loss, fit));
             }
         }
-        if let Some((t, _, calibration, widening)) = best {
+        if let Some((t, _, fit)) = best {
             m.tempering = t;
             m.set.sigma = sigma.map(|s| s * t);
-            m.calibration = calibration;
-            m.widening = widening;
+            m.calibration = fit.calibration;
+            m.widening = fit.widening;
+            m.yardstick = fit.yardstick;
         }
         Ok(m)
     }
 
-    /// Fits the class posterior's calibration and each class's widening on the runs `held`;
-    /// returns their classes' mean log loss.
+    /// Fits the misfit's yardstick, the class posterior's calibration and each class's
+    /// widening on the runs `held`; returns their classes' mean log loss.
     fn calibrate(&mut self, held: &[&ShapeSample]) -> Result<f64> {
         let m = &*self;
         let runs: Vec<Vec<ClassRun>> = held
             .par_iter()
             .map(|s| m.run_all(&s.whiskers))
             .collect::<Result<_>>()?;
-        let scores: Vec<Vec<f64>> = runs.iter().map(|r| last_log_z(r)).collect();
+        let chi2: Vec<Vec<f64>> = runs.iter().map(|r| least_chi2(r)).collect();
+        let yardstick: Vec<f64> = (0..m.samples)
+            .map(|k| median(&chi2.iter().map(|c| c[k]).collect::<Vec<_>>()))
+            .collect();
+        // Each held-out run at its own misfit, as a recording is read.
+        let ratio: Vec<f64> = chi2
+            .iter()
+            .map(|c| match (c.last(), yardstick.last()) {
+                (Some(&x), Some(&y)) => misfit_ratio(x, y),
+                _ => 1.0,
+            })
+            .collect();
+        let scores: Vec<Vec<f64>> = runs
+            .iter()
+            .zip(&ratio)
+            .map(|(r, q)| last_log_z(r).into_iter().map(|s| s / q).collect())
+            .collect();
         let labels: Vec<usize> = held.iter().map(|s| s.class).collect();
         let (calibration, loss) = class_calibration(&scores, &labels);
         let widening = (0..m.classes.len())
@@ -262,14 +297,15 @@ impl ShapePf {
                 let mut z: Vec<f64> = held
                     .iter()
                     .zip(&runs)
-                    .filter(|(s, _)| s.class == c)
-                    .flat_map(|(s, r)| {
+                    .zip(&ratio)
+                    .filter(|((s, _), _)| s.class == c)
+                    .flat_map(|((s, r), q)| {
                         let run = &r[c];
                         s.params
                             .iter()
                             .zip(run.mean.iter().zip(&run.std))
                             .filter(|(_, (m, sd))| m.is_finite() && **sd > 0.0)
-                            .map(|(t, (m, sd))| ((t - m) / sd).abs())
+                            .map(|(t, (m, sd))| ((t - m) / (sd * q.sqrt())).abs())
                             .collect::<Vec<_>>()
                     })
                     .collect();
@@ -283,6 +319,7 @@ impl ShapePf {
             .collect();
         self.calibration = calibration;
         self.widening = widening;
+        self.yardstick = yardstick;
         Ok(loss)
     }
 
@@ -308,12 +345,18 @@ impl ShapePf {
     /// (`[whiskers][CHANNELS][samples]`).
     pub fn predict(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<ShapeEstimate> {
         let runs = self.run_all(whiskers)?;
+        let ratio: Vec<f64> = least_chi2(&runs)
+            .iter()
+            .zip(&self.yardstick)
+            .map(|(&x, &y)| misfit_ratio(x, y))
+            .collect();
         let trace: Vec<Vec<f64>> = (0..self.samples)
             .map(|k| {
                 let scores: Vec<f64> = runs.iter().map(|r| r.log_z[k]).collect();
-                posterior(&scores, self.calibration)
+                posterior(&scores, self.calibration.at_misfit(ratio[k]))
             })
             .collect();
+        let misfit = ratio.last().copied().unwrap_or(1.0);
         let probabilities = trace.last().cloned().unwrap_or_default();
         self.traces
             .lock()
@@ -331,7 +374,10 @@ impl ShapePf {
             .map(|(j, name)| {
                 let [lo, hi] = class.ranges[j];
                 let (mean, std) = if run.mean[j].is_finite() {
-                    (run.mean[j], run.std[j] * self.widening[best])
+                    (
+                        run.mean[j],
+                        run.std[j] * self.widening[best] * misfit.sqrt(),
+                    )
                 } else {
                     // No particle of the class survived: its prior.
                     (0.5 * (lo + hi), (hi - lo) / 12f64.sqrt())
@@ -348,7 +394,7 @@ impl ShapePf {
                 .collect(),
             best,
             pose,
-            misfit: None,
+            misfit: Some(misfit),
         })
     }
 
@@ -377,6 +423,10 @@ impl ShapePf {
             ("temperature".to_string(), self.calibration.temperature),
             ("floor".to_string(), self.calibration.floor),
             ("tempering".to_string(), self.tempering),
+            (
+                "misfit_yardstick".to_string(),
+                self.yardstick.last().copied().unwrap_or(f64::NAN),
+            ),
         ];
         for (c, x) in self.set.sigma.iter().enumerate() {
             s.push((format!("sigma_{}", CHANNELS[c]), *x));
@@ -389,6 +439,13 @@ impl ShapePf {
         }
         s
     }
+}
+
+/// What [`ShapePf::calibrate`] fits on the held-out runs under one tempering.
+struct HeldOutFit {
+    calibration: Calibration,
+    widening: Vec<f64>,
+    yardstick: Vec<f64>,
 }
 
 /// The class posterior from log marginal likelihoods under the calibration `c` (a class that
@@ -411,6 +468,16 @@ fn posterior(scores: &[f64], c: Calibration) -> Vec<f64> {
 struct Calibration {
     temperature: f64,
     floor: f64,
+}
+
+impl Calibration {
+    /// The calibration of a recording at misfit ratio `ratio`: its temperature divided by it.
+    fn at_misfit(self, ratio: f64) -> Calibration {
+        Calibration {
+            temperature: self.temperature / ratio,
+            ..self
+        }
+    }
 }
 
 /// Shares of the even split [`class_calibration`] tries.
@@ -461,6 +528,21 @@ fn last_log_z(runs: &[ClassRun]) -> Vec<f64> {
             } else {
                 -1e300
             }
+        })
+        .collect()
+}
+
+/// After every sample, the least over the classes of −2·log marginal likelihood (infinite
+/// where every class lost its particles).
+fn least_chi2(runs: &[ClassRun]) -> Vec<f64> {
+    let samples = runs.first().map_or(0, |r| r.log_z.len());
+    (0..samples)
+        .map(|k| {
+            let best = runs
+                .iter()
+                .map(|r| r.log_z[k])
+                .fold(f64::NEG_INFINITY, f64::max);
+            -2.0 * best
         })
         .collect()
 }
@@ -572,4 +654,45 @@ fn digest(rec: &[Vec<Vec<f64>>]) -> u64 {
         }
     }
     h.finish()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_misfit_is_measured_against_the_best_class_and_cools_the_posterior() {
+        let run = |log_z: Vec<f64>| ClassRun {
+            log_z,
+            mean: vec![0.0],
+            std: vec![1.0],
+        };
+        // The least χ² after each sample is the best class's; where every class lost its
+        // particles it is infinite, and no misfit ratio can be told from it.
+        let runs = [
+            run(vec![-1.0, -5.0, f64::NEG_INFINITY]),
+            run(vec![-2.0, -4.0, f64::NEG_INFINITY]),
+        ];
+        assert_eq!(least_chi2(&runs), vec![2.0, 8.0, f64::INFINITY]);
+        assert_eq!(misfit_ratio(f64::INFINITY, 4.0), 1.0);
+        // At misfit r the evidence counts 1/r as much: scores four apart at temperature 1/2
+        // and r = 2 read as scores one apart at temperature 1; the floor stays.
+        let c = Calibration {
+            temperature: 0.5,
+            floor: 0.1,
+        };
+        let far = posterior(&[0.0, -4.0], c.at_misfit(2.0));
+        let near = posterior(
+            &[0.0, -1.0],
+            Calibration {
+                temperature: 1.0,
+                floor: 0.1,
+            },
+        );
+        for (a, b) in far.iter().zip(&near) {
+            assert!((a - b).abs() < 1e-12, "{far:?} {near:?}");
+        }
+        let plain = posterior(&[0.0, -4.0], c);
+        assert!(far[0] < plain[0] && far[0] > 0.5);
+    }
 }
