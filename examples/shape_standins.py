@@ -205,6 +205,9 @@ def main():
             }
             print(f"{key:32} accuracy {100 * right.mean():5.1f}%  log loss {np.mean(loss):.3f}  "
                   f"ECE {ece:.3f}  ({len(files)} runs)", flush=True)
+            for line in r.stderr.splitlines():
+                if line.startswith("fitted:"):
+                    print(f"{'':32} {line}", flush=True)
             misfit = [r["misfit"] for r in rows if "misfit" in r]
             if misfit:
                 print(f"{'':32} misfit: median {np.median(misfit):.2f}, "

@@ -144,6 +144,20 @@ pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
         eprintln!("warning: {w}");
     }
     eprintln!("trained in {:.1} s", batch.training_seconds);
+    if !batch.settings.is_empty() {
+        let fitted: Vec<String> = batch
+            .settings
+            .iter()
+            .map(|(k, v)| {
+                if *v != 0.0 && (v.abs() < 1e-3 || v.abs() >= 1e4) {
+                    format!("{k} {v:.3e}")
+                } else {
+                    format!("{k} {v:.4}")
+                }
+            })
+            .collect();
+        eprintln!("fitted: {}", fitted.join(", "));
+    }
     if let (Some(path), Some(trace), Some(first)) =
         (&args.trace, batch.traces.first(), recordings.first())
     {

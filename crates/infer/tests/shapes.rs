@@ -453,6 +453,14 @@ fn the_filter_over_each_class_says_when_another_whisker_made_the_recording() {
         .simulate_completed(&own.draws(24, true, 1), &noise, 1, &|| {})
         .unwrap();
     let pf = vibrissa_infer::shapes::ShapePf::fit(&own, &training).unwrap();
+    let fitted: std::collections::HashMap<String, f64> = pf.settings().into_iter().collect();
+    eprintln!("{fitted:?}");
+    // How far to trust a far reading was learnt from runs of drawn whiskers, one at each
+    // held-out run's pose (those of the 16 left per class after the residuals' 8 whose pose
+    // lies in the class's ranges).
+    let drawn = fitted["off_nominal_runs"];
+    assert!((8.0..=20.0).contains(&drawn), "{drawn}");
+    assert!((0.5..=2.0).contains(&fitted["widen_power"]));
     let fresh = own.draws(6, false, 3);
     let read = |family: &ShapeFamily| {
         let (runs, _) = family

@@ -68,6 +68,8 @@ pub struct Batch {
     pub warnings: Vec<String>,
     /// Seconds spent simulating and fitting.
     pub training_seconds: f64,
+    /// What the fit chose ([`super::ShapeMethod::settings`]), for the user to see.
+    pub settings: Vec<(String, f64)>,
 }
 
 /// Estimates every recording of `recordings` (`[recordings][whiskers]`, each recording's
@@ -179,6 +181,7 @@ pub fn estimate_batch(
         noise: sensor,
         warnings,
         training_seconds,
+        settings: model.settings(),
     })
 }
 

@@ -21,16 +21,21 @@
 //! compared after every sample with its median over the held-out runs, and `r` times that
 //! median (`r` > 1, the misfit) divides the class posterior's temperature and widens the pose's
 //! intervals by √r, as a least-squares fit scales its noise by the reduced χ². The held-out runs
-//! are scored with their own `r` when the calibration and widening are fitted.
+//! are scored with their own `r` when the calibration and widening are fitted. How far such
+//! a reading is trusted beyond that (a share of the posterior spread evenly, the intervals
+//! widened by a power of `r`) is learnt from noisy runs of whiskers drawn from the family's
+//! randomisation prior, as `shape-bank` learns it ([`super::off_nominal`]).
 
 mod cloud;
 mod pose;
+mod trust;
 
 use super::estimator::{softmax, ShapeEstimate};
 use super::family::{ShapeFamily, ShapeSample};
-use super::off_nominal::{median, misfit_ratio};
+use super::off_nominal::{self, median, misfit_ratio, Readings, Trust};
 use cloud::{filter, replay, ClassModel, ClassRun, Settings, WhiskerModel};
 use pose::PoseObjects;
+use trust::{drawn_runs, held_posteriors, widening, HeldReading};
 
 use crate::error::{Error, Result};
 use crate::experiment::{Noise, CHANNELS};
@@ -77,6 +82,13 @@ pub struct ShapePf {
     /// After every sample, the held-out runs' median of the classes' least χ² (the misfit
     /// ratio's yardstick).
     yardstick: Vec<f64>,
+    /// How far a reading at a misfit ratio above 1 is trusted ([`off_nominal`]).
+    trust: Trust,
+    /// `δ` of [`off_nominal`]: a pose interval widens by `r^δ`.
+    widen_power: f64,
+    /// The drawn whiskers' runs read to fit `trust` and `widen_power`: how many, the share named
+    /// right, and their median misfit ratio (0, NaN, NaN when none could be simulated).
+    off_nominal: (usize, f64, f64),
     seed: u64,
     /// Class posteriors after every sample of recordings already read, by their bits.
     traces: Mutex<HashMap<u64, Vec<Vec<f64>>>>,
@@ -206,6 +218,9 @@ impl ShapePf {
             correlation,
             widening: Vec::new(),
             yardstick: Vec::new(),
+            trust: Trust::default(),
+            widen_power: 0.5,
+            off_nominal: (0, f64::NAN, f64::NAN),
             seed: 0x7368_6170,
             traces: Mutex::new(HashMap::new()),
         };
@@ -245,12 +260,13 @@ impl ShapePf {
         let mut best: Option<(f64, f64, HeldOutFit)> = None;
         for &t in &TEMPERINGS {
             m.set.sigma = sigma.map(|s| s * t);
-            let loss = m.calibrate(&held)?;
+            let (loss, readings) = m.calibrate(&held)?;
             if best.as_ref().is_none_or(|b| loss < b.1) {
                 let fit = HeldOutFit {
                     calibration: m.calibration,
                     widening: m.widening.clone(),
                     yardstick: m.yardstick.clone(),
+                    held: readings,
                 };
                 best = Some((t, loss, fit));
             }
@@ -261,66 +277,128 @@ impl ShapePf {
             m.calibration = fit.calibration;
             m.widening = fit.widening;
             m.yardstick = fit.yardstick;
+            m.learn_trust(family, &held, &fit.held);
         }
         Ok(m)
     }
 
     /// Fits the misfit's yardstick, the class posterior's calibration and each class's
-    /// widening on the runs `held`; returns their classes' mean log loss.
-    fn calibrate(&mut self, held: &[&ShapeSample]) -> Result<f64> {
+    /// widening on the runs `held`; returns their classes' mean log loss and the runs as read.
+    fn calibrate(&mut self, held: &[&ShapeSample]) -> Result<(f64, Vec<HeldReading>)> {
         let m = &*self;
         let runs: Vec<Vec<ClassRun>> = held
             .par_iter()
             .map(|s| m.run_all(&s.whiskers))
             .collect::<Result<_>>()?;
         let chi2: Vec<Vec<f64>> = runs.iter().map(|r| least_chi2(r)).collect();
-        let yardstick: Vec<f64> = (0..m.samples)
+        self.yardstick = (0..self.samples)
             .map(|k| median(&chi2.iter().map(|c| c[k]).collect::<Vec<_>>()))
             .collect();
-        // Each held-out run at its own misfit, as a recording is read.
-        let ratio: Vec<f64> = chi2
+        // Each held-out run as a recording is read, at its own misfit.
+        let readings: Vec<HeldReading> = held
             .iter()
-            .map(|c| match (c.last(), yardstick.last()) {
-                (Some(&x), Some(&y)) => misfit_ratio(x, y),
-                _ => 1.0,
-            })
+            .zip(runs)
+            .map(|(s, r)| HeldReading::new(s, &self.reading(r)))
             .collect();
-        let scores: Vec<Vec<f64>> = runs
+        let scores: Vec<Vec<f64>> = readings
             .iter()
-            .zip(&ratio)
-            .map(|(r, q)| last_log_z(r).into_iter().map(|s| s / q).collect())
+            .map(|h| h.scores.iter().map(|s| s / h.ratio).collect())
             .collect();
         let labels: Vec<usize> = held.iter().map(|s| s.class).collect();
         let (calibration, loss) = class_calibration(&scores, &labels);
-        let widening = (0..m.classes.len())
-            .map(|c| {
-                let mut z: Vec<f64> = held
-                    .iter()
-                    .zip(&runs)
-                    .zip(&ratio)
-                    .filter(|((s, _), _)| s.class == c)
-                    .flat_map(|((s, r), q)| {
-                        let run = &r[c];
-                        s.params
-                            .iter()
-                            .zip(run.mean.iter().zip(&run.std))
-                            .filter(|(_, (m, sd))| m.is_finite() && **sd > 0.0)
-                            .map(|(t, (m, sd))| ((t - m) / (sd * q.sqrt())).abs())
-                            .collect::<Vec<_>>()
-                    })
-                    .collect();
-                z.sort_by(f64::total_cmp);
-                // The factor that makes 90% of the held-out intervals hold.
-                match z.get(((0.9 * z.len() as f64).ceil() as usize).saturating_sub(1)) {
-                    Some(q) => (q / crate::method::Z90).max(1.0),
-                    None => 1.0,
-                }
-            })
-            .collect();
+        self.widening = widening(&readings, self.classes.len(), self.widen_power);
         self.calibration = calibration;
-        self.widening = widening;
-        self.yardstick = yardstick;
-        Ok(loss)
+        Ok((loss, readings))
+    }
+
+    /// How far a reading at a misfit ratio above 1 is trusted, and by what power of the ratio
+    /// its pose's intervals widen: fitted on the drawn whiskers' runs ([`drawn_runs`]) at the
+    /// poses of the runs `held` beside those runs as read (`own`). Every drawn run is read, or
+    /// none is used (the trust then stays full and the power ½).
+    fn learn_trust(&mut self, family: &ShapeFamily, held: &[&ShapeSample], own: &[HeldReading]) {
+        let drawn = drawn_runs(family, held);
+        if drawn.is_empty() {
+            return;
+        }
+        let m = &*self;
+        let Ok(readings) = drawn
+            .par_iter()
+            .map(|s| m.read(&s.whiskers))
+            .collect::<Result<Vec<Reading>>>()
+        else {
+            return;
+        };
+        let own_p = held_posteriors(own, self.calibration);
+        let own_truth: Vec<usize> = own.iter().map(|h| h.class).collect();
+        let own_r: Vec<f64> = own.iter().map(|h| h.ratio).collect();
+        let drawn_p: Vec<Vec<f64>> = readings.iter().map(|r| r.last()).collect();
+        let drawn_truth: Vec<usize> = drawn.iter().map(|s| s.class).collect();
+        let drawn_r: Vec<f64> = readings.iter().map(|r| r.misfit()).collect();
+        self.trust = off_nominal::fit_trust(
+            &Readings {
+                probs: &own_p,
+                truth: &own_truth,
+                ratio: &own_r,
+            },
+            &Readings {
+                probs: &drawn_p,
+                truth: &drawn_truth,
+                ratio: &drawn_r,
+            },
+        );
+        // The pose intervals of the drawn whiskers' runs named right.
+        let right: Vec<(&Reading, &ShapeSample, usize)> = readings
+            .iter()
+            .zip(&drawn)
+            .zip(&drawn_p)
+            .map(|((r, s), p)| (r, s, argmax(p)))
+            .filter(|(_, s, best)| *best == s.class)
+            .collect();
+        let classes = self.classes.len();
+        self.widen_power = off_nominal::widen_power(|power| {
+            if right.len() < 2 * classes {
+                return None;
+            }
+            let w = widening(own, classes, power);
+            let (mut inside, mut all) = (0usize, 0usize);
+            for (r, s, c) in &right {
+                let run = &r.runs[*c];
+                let scale = w[*c] * r.misfit().powf(power);
+                for ((t, m), sd) in s.params.iter().zip(&run.mean).zip(&run.std) {
+                    if m.is_finite() {
+                        all += 1;
+                        inside += usize::from((t - m).abs() <= crate::method::Z90 * sd * scale);
+                    }
+                }
+            }
+            (all > 0).then(|| inside as f64 / all as f64)
+        });
+        self.widening = widening(own, classes, self.widen_power);
+        self.off_nominal = (
+            readings.len(),
+            right.len() as f64 / readings.len() as f64,
+            median(&drawn_r),
+        );
+    }
+
+    /// Every class's filter over one recording and its misfit ratio after every sample.
+    fn read(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<Reading> {
+        let runs = self.run_all(whiskers)?;
+        Ok(self.reading(runs))
+    }
+
+    /// The reading of a recording whose classes' filters gave `runs`.
+    fn reading(&self, runs: Vec<ClassRun>) -> Reading {
+        let ratio = least_chi2(&runs)
+            .iter()
+            .zip(&self.yardstick)
+            .map(|(&x, &y)| misfit_ratio(x, y))
+            .collect();
+        Reading {
+            runs,
+            ratio,
+            calibration: self.calibration,
+        }
     }
 
     /// Every class's filter over one recording, the classes side by side.
@@ -344,27 +422,18 @@ impl ShapePf {
     /// The class posterior and the most probable class's pose from one recording
     /// (`[whiskers][CHANNELS][samples]`).
     pub fn predict(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<ShapeEstimate> {
-        let runs = self.run_all(whiskers)?;
-        let ratio: Vec<f64> = least_chi2(&runs)
-            .iter()
-            .zip(&self.yardstick)
-            .map(|(&x, &y)| misfit_ratio(x, y))
-            .collect();
+        let reading = self.read(whiskers)?;
         let trace: Vec<Vec<f64>> = (0..self.samples)
-            .map(|k| {
-                let scores: Vec<f64> = runs.iter().map(|r| r.log_z[k]).collect();
-                posterior(&scores, self.calibration.at_misfit(ratio[k]))
-            })
+            .map(|k| off_nominal::trusted(&reading.at(k), reading.ratio[k], self.trust))
             .collect();
-        let misfit = ratio.last().copied().unwrap_or(1.0);
+        let misfit = reading.misfit();
+        let runs = reading.runs;
         let probabilities = trace.last().cloned().unwrap_or_default();
         self.traces
             .lock()
             .map_err(|_| Error::Observation(format!("{}: a reading failed", Self::NAME)))?
             .insert(digest(whiskers), trace);
-        let best = (0..probabilities.len())
-            .max_by(|&a, &b| probabilities[a].total_cmp(&probabilities[b]))
-            .unwrap_or(0);
+        let best = argmax(&probabilities);
         let class = &self.classes[best];
         let run = &runs[best];
         let pose = class
@@ -376,7 +445,7 @@ impl ShapePf {
                 let (mean, std) = if run.mean[j].is_finite() {
                     (
                         run.mean[j],
-                        run.std[j] * self.widening[best] * misfit.sqrt(),
+                        run.std[j] * self.widening[best] * misfit.powf(self.widen_power),
                     )
                 } else {
                     // No particle of the class survived: its prior.
@@ -427,6 +496,13 @@ impl ShapePf {
                 "misfit_yardstick".to_string(),
                 self.yardstick.last().copied().unwrap_or(f64::NAN),
             ),
+            ("trust_threshold".to_string(), self.trust.threshold),
+            ("trust_step".to_string(), self.trust.step),
+            ("trust_power".to_string(), self.trust.power),
+            ("widen_power".to_string(), self.widen_power),
+            ("off_nominal_runs".to_string(), self.off_nominal.0 as f64),
+            ("off_nominal_accuracy".to_string(), self.off_nominal.1),
+            ("off_nominal_misfit".to_string(), self.off_nominal.2),
         ];
         for (c, x) in self.set.sigma.iter().enumerate() {
             s.push((format!("sigma_{}", CHANNELS[c]), *x));
@@ -441,11 +517,49 @@ impl ShapePf {
     }
 }
 
-/// What [`ShapePf::calibrate`] fits on the held-out runs under one tempering.
+/// What [`ShapePf::calibrate`] fits on the held-out runs under one tempering, and the runs as
+/// read.
 struct HeldOutFit {
     calibration: Calibration,
     widening: Vec<f64>,
     yardstick: Vec<f64>,
+    held: Vec<HeldReading>,
+}
+
+/// Every class's filter over one recording, before the trust in it is applied.
+struct Reading {
+    runs: Vec<ClassRun>,
+    /// The misfit ratio after every sample.
+    ratio: Vec<f64>,
+    calibration: Calibration,
+}
+
+impl Reading {
+    /// The class posterior after sample `k`, at its misfit.
+    fn at(&self, k: usize) -> Vec<f64> {
+        let scores: Vec<f64> = self.runs.iter().map(|r| r.log_z[k]).collect();
+        posterior(&scores, self.calibration.at_misfit(self.ratio[k]))
+    }
+
+    /// The class posterior of the whole recording, at its misfit.
+    fn last(&self) -> Vec<f64> {
+        posterior(
+            &last_log_z(&self.runs),
+            self.calibration.at_misfit(self.misfit()),
+        )
+    }
+
+    /// The whole recording's misfit ratio.
+    fn misfit(&self) -> f64 {
+        self.ratio.last().copied().unwrap_or(1.0)
+    }
+}
+
+/// The index of the largest of `p` (the last on ties; 0 when empty).
+fn argmax(p: &[f64]) -> usize {
+    (0..p.len())
+        .max_by(|&a, &b| p[a].total_cmp(&p[b]))
+        .unwrap_or(0)
 }
 
 /// The class posterior from log marginal likelihoods under the calibration `c` (a class that
