@@ -19,11 +19,11 @@
 //! (another whisker's, say) reads sharper than it should: the least −2·log marginal likelihood
 //! over the classes (the filters' χ², their likelihood leaving out its normalising constant) is
 //! compared after every sample with its median over the held-out runs, and `r` times that
-//! median (`r` > 1, the misfit) divides the class posterior's temperature and widens the pose's
-//! intervals by √r, as a least-squares fit scales its noise by the reduced χ². The held-out runs
-//! are scored with their own `r` when the calibration and widening are fitted. How far such
-//! a reading is trusted beyond that (a share of the posterior spread evenly, the intervals
-//! widened by a power of `r`) is learnt from noisy runs of whiskers drawn from the family's
+//! median (`r` > 1, the misfit) divides the class posterior's temperature, as a least-squares
+//! fit scales its noise by the reduced χ². The held-out runs are scored with their own `r` when
+//! the calibration and widening are fitted. How far such a reading is trusted beyond that (a
+//! share of the posterior spread evenly, the pose's intervals widened by a power of `r`) is
+//! learnt from noisy runs of whiskers drawn from the family's
 //! randomisation prior, as `shape-bank` learns it ([`super::off_nominal`]).
 
 mod cloud;
@@ -331,7 +331,7 @@ impl ShapePf {
         let own_p = held_posteriors(own, self.calibration);
         let own_truth: Vec<usize> = own.iter().map(|h| h.class).collect();
         let own_r: Vec<f64> = own.iter().map(|h| h.ratio).collect();
-        let drawn_p: Vec<Vec<f64>> = readings.iter().map(|r| r.last()).collect();
+        let drawn_p: Vec<Vec<f64>> = readings.iter().map(|r| r.last(self.calibration)).collect();
         let drawn_truth: Vec<usize> = drawn.iter().map(|s| s.class).collect();
         let drawn_r: Vec<f64> = readings.iter().map(|r| r.misfit()).collect();
         self.trust = off_nominal::fit_trust(
@@ -394,11 +394,7 @@ impl ShapePf {
             .zip(&self.yardstick)
             .map(|(&x, &y)| misfit_ratio(x, y))
             .collect();
-        Reading {
-            runs,
-            ratio,
-            calibration: self.calibration,
-        }
+        Reading { runs, ratio }
     }
 
     /// Every class's filter over one recording, the classes side by side.
@@ -424,7 +420,10 @@ impl ShapePf {
     pub fn predict(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<ShapeEstimate> {
         let reading = self.read(whiskers)?;
         let trace: Vec<Vec<f64>> = (0..self.samples)
-            .map(|k| off_nominal::trusted(&reading.at(k), reading.ratio[k], self.trust))
+            .map(|k| {
+                let p = reading.at(k, self.calibration);
+                off_nominal::trusted(&p, reading.ratio[k], self.trust)
+            })
             .collect();
         let misfit = reading.misfit();
         let runs = reading.runs;
@@ -531,22 +530,18 @@ struct Reading {
     runs: Vec<ClassRun>,
     /// The misfit ratio after every sample.
     ratio: Vec<f64>,
-    calibration: Calibration,
 }
 
 impl Reading {
-    /// The class posterior after sample `k`, at its misfit.
-    fn at(&self, k: usize) -> Vec<f64> {
+    /// The class posterior after sample `k` under `c`, at its misfit.
+    fn at(&self, k: usize, c: Calibration) -> Vec<f64> {
         let scores: Vec<f64> = self.runs.iter().map(|r| r.log_z[k]).collect();
-        posterior(&scores, self.calibration.at_misfit(self.ratio[k]))
+        posterior(&scores, c.at_misfit(self.ratio[k]))
     }
 
-    /// The class posterior of the whole recording, at its misfit.
-    fn last(&self) -> Vec<f64> {
-        posterior(
-            &last_log_z(&self.runs),
-            self.calibration.at_misfit(self.misfit()),
-        )
+    /// The class posterior of the whole recording under `c`, at its misfit.
+    fn last(&self, c: Calibration) -> Vec<f64> {
+        posterior(&last_log_z(&self.runs), c.at_misfit(self.misfit()))
     }
 
     /// The whole recording's misfit ratio.
