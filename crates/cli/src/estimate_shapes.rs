@@ -18,8 +18,8 @@ use serde_json::{Map, Value};
 use std::io::{self, Write};
 use std::path::Path;
 use vibrissa_infer::shapes::{
-    check_shape_method, estimate_batch, BatchOptions, ShapeBank, ShapeEsn, ShapeFamily, ShapeKrr,
-    ShapePf, DEFAULT_TRAINING, SHAPE_METHODS, SHAPE_PF_TRAINING,
+    check_shape_method, estimate_batch, needs_clean_runs, BatchOptions, ShapeBank, ShapeEsn,
+    ShapeFamily, ShapeKrr, ShapeMix, ShapePf, DEFAULT_TRAINING, SHAPE_METHODS, SHAPE_PF_TRAINING,
 };
 use vibrissa_infer::{Reader, CHANNELS};
 
@@ -77,7 +77,12 @@ pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
     if args.particles.is_some() || args.check || !args.prior.is_empty() {
         bail!("--particles, --check and --prior do not apply to shape families");
     }
-    let online = [ShapeEsn::NAME, ShapeBank::NAME, ShapePf::NAME];
+    let online = [
+        ShapeEsn::NAME,
+        ShapeBank::NAME,
+        ShapePf::NAME,
+        ShapeMix::NAME,
+    ];
     if args.trace.is_some() && !online.contains(&method) {
         bail!(
             "--trace with a shape family needs --method {} (the online estimators)",
@@ -109,8 +114,10 @@ pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
         };
         recordings.push(per);
     }
-    if args.bank.is_some() && method != "shape-bank" {
-        anyhow::bail!("--bank sets the bank of shape-bank: add --method shape-bank");
+    if args.bank.is_some() && !needs_clean_runs(method) {
+        anyhow::bail!(
+            "--bank sets the bank of shape-bank (and of shape-mix): add --method shape-bank"
+        );
     }
     let stated = crate::estimate::stated_noise(&family.classes()[0].family, &args.noise)?;
     let options = BatchOptions {

@@ -51,7 +51,8 @@ pub struct Args {
     /// shape-bank (the likelihood under a bank of noise-free runs, also online; simulates its
     /// bank, about 4 minutes on 2 cores) and shape-pf (a particle filter over each class's pose,
     /// the class by marginal likelihood, also online; about half a second per recording and
-    /// whisker). Default: shape-krr and shape-esn.
+    /// whisker), shape-mix (shape-bank and shape-pf pooled; costs both). Default: shape-krr and
+    /// shape-esn.
     #[arg(long = "method", value_name = "NAME", value_delimiter = ',')]
     methods: Vec<String>,
     /// Shape experiments: train on whiskers and sensors drawn around the scenario's (for

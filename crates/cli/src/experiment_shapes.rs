@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::Instant;
 use vibrissa_infer::shapes::{
-    evaluate_shapes, ShapeEvaluation, ShapeFamily, ShapeSettings, BANK_PER_CLASS,
+    evaluate_shapes, needs_clean_runs, ShapeEvaluation, ShapeFamily, ShapeSettings, BANK_PER_CLASS,
     DEFAULT_SHAPE_METHODS,
 };
 use vibrissa_infer::Variant;
@@ -112,8 +112,10 @@ pub fn run(args: ShapeArgs) -> Result<()> {
             args.methods.to_vec()
         },
     };
-    if args.bank.is_some() && !settings.methods.iter().any(|m| m == "shape-bank") {
-        anyhow::bail!("--bank sets the bank of shape-bank: add --method shape-bank");
+    if args.bank.is_some() && !settings.methods.iter().any(|m| needs_clean_runs(m)) {
+        anyhow::bail!(
+            "--bank sets the bank of shape-bank (and of shape-mix): add --method shape-bank"
+        );
     }
     if settings.train_per_class < 20 {
         anyhow::bail!(

@@ -400,6 +400,64 @@ fn the_filter_over_each_class_tells_a_wall_from_a_peg_by_marginal_likelihood() {
 }
 
 #[test]
+fn the_bank_and_the_filter_pooled_read_a_wall_or_a_peg() {
+    // shape-mix fits shape-bank and shape-pf without 10 training runs per class, then the
+    // exponents of their pooled class posteriors on those runs.
+    let pair = wall_or_peg_read_by_c3();
+    let settings = ShapeSettings {
+        train_per_class: 40,
+        eval_per_class: 15,
+        bank_per_class: 200,
+        variant: Variant::Noisy,
+        seed: 4,
+        randomise: false,
+        subsets: vec![vec!["c3".into()]],
+        methods: vec!["shape-mix".into()],
+    };
+    let ev = evaluate_shapes(&pair, &settings, &|_, _| {}).unwrap();
+    let s = &ev.subsets[0];
+    assert_eq!(s.method, "shape-mix");
+    eprintln!(
+        "shape-mix, wall or peg: accuracy {}, log loss {}, ECE {}",
+        s.accuracy, s.log_loss, s.ece
+    );
+    let fitted: std::collections::HashMap<String, f64> = s.settings.iter().cloned().collect();
+    eprintln!(
+        "exponents {} {}, held-out log loss {}",
+        fitted["exponent_bank"], fitted["exponent_pf"], fitted["held_out_log_loss"]
+    );
+    assert_eq!(fitted["held_out_runs"], 20.0);
+    // Each estimator's own settings are reported beside the pool's.
+    assert!(fitted.contains_key("bank_temperature") && fitted.contains_key("pf_temperature"));
+    // The pooled posterior reads the held-out runs at least as well as either alone (both are
+    // in the grid of exponents, as 1 and 0).
+    assert!(fitted["held_out_log_loss"] < 0.69, "{fitted:?}");
+    let n: usize = s.confusion.iter().flatten().sum();
+    assert_eq!(n + ev.failed.len(), 30);
+    assert!(
+        s.accuracy >= 0.7,
+        "accuracy {} {:?}",
+        s.accuracy,
+        s.confusion
+    );
+    assert!(s.log_loss < 0.6, "log loss {}", s.log_loss);
+    for r in &s.runs {
+        assert!((r.probabilities.iter().sum::<f64>() - 1.0).abs() < 1e-9);
+        assert!(r.pose.iter().flatten().all(|x| x.is_finite()));
+    }
+    // Online too: a pooled posterior after every sample.
+    assert!(!s.traces.is_empty());
+    for t in &s.traces {
+        assert_eq!(t.probabilities.len(), 201);
+        for p in &t.probabilities {
+            assert!((p.iter().sum::<f64>() - 1.0).abs() < 1e-9, "{p:?}");
+        }
+    }
+    let peg = &s.poses[1];
+    assert!(peg.right > 0 && peg.unknowns[0].mae < 3e-3, "{peg:?}");
+}
+
+#[test]
 fn the_filter_over_each_class_refuses_whisked_whiskers_and_a_recording_of_other_whiskers() {
     let active = ShapeFamily::builtin("e3-active").unwrap().unwrap();
     let one = active.with_whiskers(&["c3"]).unwrap();

@@ -57,6 +57,10 @@ pub struct ShapeEstimate {
     pub misfit: Option<f64>,
 }
 
+/// Every class's pose, `[classes]`, each unknown by name (what an estimator that follows every
+/// class gives beside its [`ShapeEstimate`]).
+pub type ClassPoses = Vec<Vec<(String, Estimate)>>;
+
 /// Kernel ridge scores of each class's indicator, through a softmax.
 #[derive(Debug, Clone, Default)]
 struct Classifier {

@@ -4,6 +4,7 @@ use super::bank::{CleanRuns, ShapeBank};
 use super::estimator::{ShapeEstimate, ShapeKrr};
 use super::family::{ShapeFamily, ShapeSample};
 use super::filter::ShapePf;
+use super::mix::ShapeMix;
 use super::online::ShapeEsn;
 use crate::error::{Error, Result};
 
@@ -11,12 +12,13 @@ use crate::error::{Error, Result};
 /// reads it one sample at a time (a class posterior after every sample), `shape-bank` weighs
 /// the recording's likelihood under a bank of noise-free runs of every class, `shape-pf` runs a
 /// particle filter over each class's pose and weighs the classes by their marginal likelihoods
-/// (also online).
-pub const SHAPE_METHODS: [&str; 4] = [
+/// (also online), `shape-mix` pools the class posteriors of `shape-bank` and `shape-pf`.
+pub const SHAPE_METHODS: [&str; 5] = [
     ShapeKrr::NAME,
     ShapeEsn::NAME,
     ShapeBank::NAME,
     ShapePf::NAME,
+    ShapeMix::NAME,
 ];
 
 /// The estimators an experiment scores when none is named (`shape-bank` simulates a bank of
@@ -25,7 +27,7 @@ pub const DEFAULT_SHAPE_METHODS: [&str; 2] = [ShapeKrr::NAME, ShapeEsn::NAME];
 
 /// Whether estimator `name` needs noise-free runs ([`CleanRuns`]) beside the training runs.
 pub fn needs_clean_runs(name: &str) -> bool {
-    name == ShapeBank::NAME
+    name == ShapeBank::NAME || name == ShapeMix::NAME
 }
 
 /// A fitted shape estimator.
@@ -87,6 +89,21 @@ impl ShapeMethod for ShapePf {
     }
 }
 
+impl ShapeMethod for ShapeMix {
+    fn name(&self) -> &'static str {
+        Self::NAME
+    }
+    fn predict(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<ShapeEstimate> {
+        ShapeMix::predict(self, whiskers)
+    }
+    fn trace(&self, whiskers: &[Vec<Vec<f64>>]) -> Option<Result<Vec<Vec<f64>>>> {
+        Some(ShapeMix::trace(self, whiskers))
+    }
+    fn settings(&self) -> Vec<(String, f64)> {
+        ShapeMix::settings(self)
+    }
+}
+
 impl ShapeMethod for ShapeEsn {
     fn name(&self) -> &'static str {
         Self::NAME
@@ -127,12 +144,16 @@ pub fn fit_shape_method(
         Box::new(ShapeEsn::fit(family, training)?)
     } else if name == ShapePf::NAME {
         Box::new(ShapePf::fit(family, training)?)
-    } else if name == ShapeBank::NAME {
+    } else if name == ShapeBank::NAME || name == ShapeMix::NAME {
         let clean = clean.ok_or_else(|| Error::Fit {
             method: name.into(),
             detail: "needs noise-free runs beside the training runs".into(),
         })?;
-        Box::new(ShapeBank::fit(family, training, clean)?)
+        if name == ShapeMix::NAME {
+            Box::new(ShapeMix::fit(family, training, clean)?)
+        } else {
+            Box::new(ShapeBank::fit(family, training, clean)?)
+        }
     } else {
         Box::new(ShapeKrr::fit(family, training)?)
     })

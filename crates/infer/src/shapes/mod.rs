@@ -16,6 +16,7 @@ mod evaluate;
 mod family;
 mod filter;
 mod method;
+mod mix;
 mod off_nominal;
 mod online;
 mod refine;
@@ -34,4 +35,5 @@ pub use method::{
     check_shape_method, fit_shape_method, needs_clean_runs, ShapeMethod, DEFAULT_SHAPE_METHODS,
     SHAPE_METHODS,
 };
+pub use mix::ShapeMix;
 pub use online::{Online, ShapeEsn};

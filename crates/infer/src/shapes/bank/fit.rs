@@ -716,7 +716,7 @@ impl ShapeBank {
             let (mut held_in, mut all) = (0usize, 0usize);
             for (r, s) in &right {
                 let w = r.ratio.powf(power);
-                for (u, (p, x)) in r.pose.iter().zip(&s.params).enumerate() {
+                for (u, (p, x)) in r.poses[r.best].iter().zip(&s.params).enumerate() {
                     all += 1;
                     held_in += usize::from((p - x).abs() <= h[s.class][u] * w);
                 }

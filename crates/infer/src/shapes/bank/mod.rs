@@ -28,7 +28,7 @@
 mod fit;
 
 use super::between::{between, Between};
-use super::estimator::ShapeEstimate;
+use super::estimator::{ClassPoses, ShapeEstimate};
 use super::evaluate::subset;
 use super::family::{ShapeFamily, ShapeSample};
 use super::off_nominal::{self, median, misfit_ratio, Trust};
@@ -214,9 +214,10 @@ pub struct ShapeBank {
 struct Reading {
     /// The class posterior.
     p: Vec<f64>,
-    /// The most probable class and its pose.
+    /// The most probable class.
     best: usize,
-    pose: Vec<f64>,
+    /// Every class's pose.
+    poses: Vec<Vec<f64>>,
     /// The misfit ratio.
     ratio: f64,
 }
@@ -588,46 +589,67 @@ impl ShapeBank {
         let ratio = self.misfit(&d2, &extra);
         let p = self.posterior(&d2, &extra, ratio);
         let best = (0..p.len()).fold(0, |b, c| if p[c] > p[b] { c } else { b });
-        let pose = match (&refined[best], &fitted[best]) {
-            (Some(f), _) if self.pose_refined => f.pose.clone(),
-            (_, Some(b)) if self.pose_between => b.pose.clone(),
-            _ => self.pose(&d2, best, self.pose_temperature * ratio),
-        };
+        let poses = (0..p.len())
+            .map(|c| match (&refined[c], &fitted[c]) {
+                (Some(f), _) if self.pose_refined => f.pose.clone(),
+                (_, Some(b)) if self.pose_between => b.pose.clone(),
+                _ => self.pose(&d2, c, self.pose_temperature * ratio),
+            })
+            .collect();
         Ok(Reading {
             p,
             best,
-            pose,
+            poses,
             ratio,
         })
+    }
+
+    /// Class `c`'s pose in `reading`, each unknown with its 90% interval widened by the
+    /// reading's misfit.
+    fn pose_estimates(&self, reading: &Reading, c: usize) -> Vec<(String, Estimate)> {
+        let widen = reading.ratio.powf(self.widen_power);
+        reading.poses[c]
+            .iter()
+            .zip(&self.half_width[c])
+            .zip(&self.names[c])
+            .map(|((m, h), n)| {
+                (
+                    n.clone(),
+                    Estimate::normal(*m, widen * h / crate::method::Z90),
+                )
+            })
+            .collect()
+    }
+
+    /// [`ShapeBank::predict`] with every class's pose beside it (`[classes]`, by name).
+    pub fn predict_every_class(
+        &self,
+        whiskers: &[Vec<Vec<f64>>],
+    ) -> Result<(ShapeEstimate, ClassPoses)> {
+        let reading = self.read(whiskers)?;
+        let poses: Vec<_> = (0..reading.p.len())
+            .map(|c| self.pose_estimates(&reading, c))
+            .collect();
+        let p = off_nominal::trusted(&reading.p, reading.ratio, self.trust);
+        let estimate = ShapeEstimate {
+            class: self.classes.iter().cloned().zip(p).collect(),
+            best: reading.best,
+            pose: poses[reading.best].clone(),
+            misfit: Some(reading.ratio),
+        };
+        Ok((estimate, poses))
     }
 
     /// The class posterior and the most probable class's pose of one recording
     /// (`[whiskers][CHANNELS][samples]`).
     pub fn predict(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<ShapeEstimate> {
-        let Reading {
-            p,
-            best,
-            pose,
-            ratio,
-        } = self.read(whiskers)?;
-        let p = off_nominal::trusted(&p, ratio, self.trust);
-        let widen = ratio.powf(self.widen_power);
-        let pose = pose
-            .into_iter()
-            .zip(&self.half_width[best])
-            .zip(&self.names[best])
-            .map(|((m, h), n)| {
-                (
-                    n.clone(),
-                    Estimate::normal(m, widen * h / crate::method::Z90),
-                )
-            })
-            .collect();
+        let reading = self.read(whiskers)?;
+        let p = off_nominal::trusted(&reading.p, reading.ratio, self.trust);
         Ok(ShapeEstimate {
             class: self.classes.iter().cloned().zip(p).collect(),
-            best,
-            pose,
-            misfit: Some(ratio),
+            best: reading.best,
+            pose: self.pose_estimates(&reading, reading.best),
+            misfit: Some(reading.ratio),
         })
     }
 

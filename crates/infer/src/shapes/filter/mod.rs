@@ -30,7 +30,7 @@ mod cloud;
 mod pose;
 mod trust;
 
-use super::estimator::{softmax, ShapeEstimate};
+use super::estimator::{softmax, ClassPoses, ShapeEstimate};
 use super::family::{ShapeFamily, ShapeSample};
 use super::off_nominal::{self, median, misfit_ratio, Readings, Trust};
 use cloud::{filter, replay, ClassModel, ClassRun, Settings, WhiskerModel};
@@ -418,6 +418,14 @@ impl ShapePf {
     /// The class posterior and the most probable class's pose from one recording
     /// (`[whiskers][CHANNELS][samples]`).
     pub fn predict(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<ShapeEstimate> {
+        Ok(self.predict_every_class(whiskers)?.0)
+    }
+
+    /// [`ShapePf::predict`] with every class's pose beside it (`[classes]`, by name).
+    pub fn predict_every_class(
+        &self,
+        whiskers: &[Vec<Vec<f64>>],
+    ) -> Result<(ShapeEstimate, ClassPoses)> {
         let reading = self.read(whiskers)?;
         let trace: Vec<Vec<f64>> = (0..self.samples)
             .map(|k| {
@@ -433,27 +441,33 @@ impl ShapePf {
             .map_err(|_| Error::Observation(format!("{}: a reading failed", Self::NAME)))?
             .insert(digest(whiskers), trace);
         let best = argmax(&probabilities);
-        let class = &self.classes[best];
-        let run = &runs[best];
-        let pose = class
-            .unknowns
+        let poses: ClassPoses = self
+            .classes
             .iter()
-            .enumerate()
-            .map(|(j, name)| {
-                let [lo, hi] = class.ranges[j];
-                let (mean, std) = if run.mean[j].is_finite() {
-                    (
-                        run.mean[j],
-                        run.std[j] * self.widening[best] * misfit.powf(self.widen_power),
-                    )
-                } else {
-                    // No particle of the class survived: its prior.
-                    (0.5 * (lo + hi), (hi - lo) / 12f64.sqrt())
-                };
-                (name.clone(), Estimate::normal(mean, std))
+            .zip(&runs)
+            .zip(&self.widening)
+            .map(|((class, run), widening)| {
+                class
+                    .unknowns
+                    .iter()
+                    .enumerate()
+                    .map(|(j, name)| {
+                        let [lo, hi] = class.ranges[j];
+                        let (mean, std) = if run.mean[j].is_finite() {
+                            (
+                                run.mean[j],
+                                run.std[j] * widening * misfit.powf(self.widen_power),
+                            )
+                        } else {
+                            // No particle of the class survived: its prior.
+                            (0.5 * (lo + hi), (hi - lo) / 12f64.sqrt())
+                        };
+                        (name.clone(), Estimate::normal(mean, std))
+                    })
+                    .collect()
             })
             .collect();
-        Ok(ShapeEstimate {
+        let estimate = ShapeEstimate {
             class: self
                 .classes
                 .iter()
@@ -461,9 +475,10 @@ impl ShapePf {
                 .map(|(c, p)| (c.name.clone(), *p))
                 .collect(),
             best,
-            pose,
+            pose: poses[best].clone(),
             misfit: Some(misfit),
-        })
+        };
+        Ok((estimate, poses))
     }
 
     /// The class posterior after every sample (`[samples][classes]`).
