@@ -401,13 +401,14 @@ fn the_filter_over_each_class_tells_a_wall_from_a_peg_by_marginal_likelihood() {
 
 #[test]
 fn the_bank_and_the_filter_pooled_read_a_wall_or_a_peg() {
-    // shape-mix fits shape-bank and shape-pf without 10 training runs per class, then the
-    // exponents of their pooled class posteriors on those runs.
+    // shape-mix fits shape-bank and shape-pf without a quarter of the training runs (10 per
+    // class here; at most 20), then the exponents and floor of their pooled class posteriors on
+    // those runs. The bank is sparse (400 runs per class), as in the bank's own test above.
     let pair = wall_or_peg_read_by_c3();
     let settings = ShapeSettings {
         train_per_class: 40,
         eval_per_class: 15,
-        bank_per_class: 200,
+        bank_per_class: 400,
         variant: Variant::Noisy,
         seed: 4,
         randomise: false,
@@ -423,8 +424,11 @@ fn the_bank_and_the_filter_pooled_read_a_wall_or_a_peg() {
     );
     let fitted: std::collections::HashMap<String, f64> = s.settings.iter().cloned().collect();
     eprintln!(
-        "exponents {} {}, held-out log loss {}",
-        fitted["exponent_bank"], fitted["exponent_pf"], fitted["held_out_log_loss"]
+        "exponents {} {}, floor {}, held-out log loss {}",
+        fitted["exponent_bank"],
+        fitted["exponent_pf"],
+        fitted["floor"],
+        fitted["held_out_log_loss"]
     );
     assert_eq!(fitted["held_out_runs"], 20.0);
     // Each estimator's own settings are reported beside the pool's.

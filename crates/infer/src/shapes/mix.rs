@@ -4,10 +4,13 @@
 //! The two estimators err differently: the bank compares the recording with noise-free runs of
 //! every class (and searches the nearest with the simulator), the filter follows each class's
 //! pose sample by sample through a coarser chain. Their class posteriors are pooled
-//! log-linearly, `p ∝ p_bank^a · p_pf^b`, the exponents `a` and `b` (each of [`EXPONENTS`])
-//! those under which training runs that neither estimator saw are read with the least log
-//! loss. An exponent below 1 tempers an estimator whose probabilities, beside the other's, say
-//! more than they know (both read the same data, so a plain product counts it twice).
+//! log-linearly, `p ∝ p_bank^a · p_pf^b`, and a share `ε` of the even split is mixed in: the
+//! exponents `a` and `b` (each of [`EXPONENTS`], at most 1: the pool never sharpens either) and
+//! `ε` (of [`FLOORS`], at least ½%, so that one estimator's confident mistake cannot drive the
+//! truth's probability to nothing) those under which training runs that neither estimator saw
+//! are read with the least log loss. An exponent below 1 tempers an estimator whose
+//! probabilities, beside the other's, say more than they know (both read the same data, so a
+//! plain product counts it twice).
 //!
 //! The pose of the pooled posterior's most probable class is the even mixture of the two
 //! estimators' poses of that class (its mean the mean of theirs; its variance the mean of
@@ -24,9 +27,11 @@ use rayon::prelude::*;
 use std::collections::HashSet;
 
 /// Training runs per class set aside (not seen by either estimator) to fit the exponents.
-const HELD_OUT: usize = 10;
+const HELD_OUT: usize = 20;
 /// Exponents tried for each estimator's class posterior.
-pub(super) const EXPONENTS: [f64; 7] = [0.0, 0.25, 0.5, 0.75, 1.0, 1.25, 1.5];
+pub(super) const EXPONENTS: [f64; 5] = [0.0, 0.25, 0.5, 0.75, 1.0];
+/// Shares of the even split tried as the pooled posterior's floor.
+pub(super) const FLOORS: [f64; 6] = [0.005, 0.01, 0.02, 0.05, 0.1, 0.2];
 /// Least probability a pooled class posterior's log is taken of.
 const TINY: f64 = 1e-300;
 
@@ -34,8 +39,8 @@ const TINY: f64 = 1e-300;
 pub struct ShapeMix {
     bank: ShapeBank,
     pf: ShapePf,
-    /// The exponents of the bank's and the filter's class posterior.
-    exponents: [f64; 2],
+    /// The exponents of the bank's and the filter's class posterior, and the floor.
+    pooling: Pooling,
     /// The held-out runs' mean log loss under the pooled posterior, and how many there were.
     held_out: (f64, usize),
 }
@@ -93,11 +98,11 @@ impl ShapeMix {
                 Ok((probabilities(&b), probabilities(&p), s.class))
             })
             .collect::<Result<_>>()?;
-        let (exponents, loss) = fit_exponents(&read);
+        let (pooling, loss) = fit_pooling(&read);
         Ok(ShapeMix {
             bank,
             pf,
-            exponents,
+            pooling,
             held_out: (loss, read.len()),
         })
     }
@@ -110,7 +115,7 @@ impl ShapeMix {
             || self.pf.predict_every_class(whiskers),
         );
         let ((b, b_poses), (p, p_poses)) = (b?, p?);
-        let pooled = pool(&probabilities(&b), &probabilities(&p), self.exponents);
+        let pooled = pool(&probabilities(&b), &probabilities(&p), self.pooling);
         let best = (0..pooled.len()).fold(0, |k, c| if pooled[c] > pooled[k] { c } else { k });
         let misfit = match (b.misfit, p.misfit) {
             (Some(x), Some(y)) => Some(x.max(y)),
@@ -135,16 +140,17 @@ impl ShapeMix {
         let (b, p) = (b?, p?);
         Ok(b.iter()
             .zip(&p)
-            .map(|(b, p)| pool(b, p, self.exponents))
+            .map(|(b, p)| pool(b, p, self.pooling))
             .collect())
     }
 
-    /// The exponents, the held-out runs' log loss, and each estimator's settings (prefixed
-    /// `bank_` and `pf_`).
+    /// The exponents, the floor, the held-out runs' log loss, and each estimator's settings
+    /// (prefixed `bank_` and `pf_`).
     pub fn settings(&self) -> Vec<(String, f64)> {
         let mut s = vec![
-            ("exponent_bank".to_string(), self.exponents[0]),
-            ("exponent_pf".to_string(), self.exponents[1]),
+            ("exponent_bank".to_string(), self.pooling.exponents[0]),
+            ("exponent_pf".to_string(), self.pooling.exponents[1]),
+            ("floor".to_string(), self.pooling.floor),
             ("held_out_log_loss".to_string(), self.held_out.0),
             ("held_out_runs".to_string(), self.held_out.1 as f64),
         ];
@@ -204,33 +210,59 @@ fn probabilities(e: &ShapeEstimate) -> Vec<f64> {
     e.class.iter().map(|(_, p)| *p).collect()
 }
 
-/// The pooled posterior `∝ bank^a · pf^b` (`[a, b]` = `exponents`).
-pub(super) fn pool(bank: &[f64], pf: &[f64], exponents: [f64; 2]) -> Vec<f64> {
+/// How the two class posteriors are pooled.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct Pooling {
+    /// The exponents `[a, b]` of the bank's and the filter's posterior.
+    pub exponents: [f64; 2],
+    /// The share `ε` of the even split mixed in.
+    pub floor: f64,
+}
+
+/// The pooled posterior: `(1 − ε)·q + ε/K`, `q ∝ bank^a · pf^b`.
+pub(super) fn pool(bank: &[f64], pf: &[f64], pooling: Pooling) -> Vec<f64> {
+    let [a, b] = pooling.exponents;
     let log: Vec<f64> = bank
         .iter()
         .zip(pf)
-        .map(|(b, p)| exponents[0] * b.max(TINY).ln() + exponents[1] * p.max(TINY).ln())
+        .map(|(x, y)| a * x.max(TINY).ln() + b * y.max(TINY).ln())
         .collect();
     let top = log.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     let w: Vec<f64> = log.iter().map(|l| (l - top).exp()).collect();
     let total: f64 = w.iter().sum();
-    w.iter().map(|x| x / total).collect()
+    let even = pooling.floor / w.len().max(1) as f64;
+    w.iter()
+        .map(|x| (1.0 - pooling.floor) * x / total + even)
+        .collect()
 }
 
-/// The exponents of [`EXPONENTS`] under which the runs `read` (each the bank's and the filter's
-/// class posterior and the true class) have the least mean log loss, and that loss. Ties go to
-/// the first found, trying the bank's exponent in the outer loop.
-pub(super) fn fit_exponents(read: &[(Vec<f64>, Vec<f64>, usize)]) -> ([f64; 2], f64) {
-    let mut best = ([1.0, 1.0], f64::INFINITY);
+/// The pooling (exponents of [`EXPONENTS`], floor of [`FLOORS`]) under which the runs `read`
+/// (each the bank's and the filter's class posterior and the true class) have the least mean
+/// log loss, and that loss. Ties go to the first found (the bank's exponent in the outer loop,
+/// then the filter's, then the floor).
+pub(super) fn fit_pooling(read: &[(Vec<f64>, Vec<f64>, usize)]) -> (Pooling, f64) {
+    let mut best = (
+        Pooling {
+            exponents: [1.0, 1.0],
+            floor: FLOORS[0],
+        },
+        f64::INFINITY,
+    );
     for &a in &EXPONENTS {
         for &b in &EXPONENTS {
-            let loss = read
-                .iter()
-                .map(|(pb, pp, truth)| -pool(pb, pp, [a, b])[*truth].max(TINY).ln())
-                .sum::<f64>()
-                / read.len().max(1) as f64;
-            if loss < best.1 {
-                best = ([a, b], loss);
+            for &floor in &FLOORS {
+                let pooling = Pooling {
+                    exponents: [a, b],
+                    floor,
+                };
+                let loss = read
+                    .iter()
+                    .map(|(pb, pp, truth)| -pool(pb, pp, pooling)[*truth].ln())
+                    .sum::<f64>()
+                    / read.len().max(1) as f64;
+                if loss < best.1 {
+                    best = (pooling, loss);
+                }
             }
         }
     }
@@ -263,34 +295,46 @@ pub(super) fn mixed_pose(
 mod tests {
     use super::*;
 
+    fn pooling(a: f64, b: f64, floor: f64) -> Pooling {
+        Pooling {
+            exponents: [a, b],
+            floor,
+        }
+    }
+
     #[test]
-    fn the_pool_is_the_normalised_weighted_product() {
+    fn the_pool_is_the_normalised_weighted_product_with_a_floor() {
         let bank = [0.7, 0.2, 0.1];
         let pf = [0.2, 0.6, 0.2];
-        let p = pool(&bank, &pf, [1.0, 1.0]);
+        let p = pool(&bank, &pf, pooling(1.0, 1.0, 0.0));
         let raw = [0.14, 0.12, 0.02];
         let total: f64 = raw.iter().sum();
         for (x, r) in p.iter().zip(raw) {
             assert!((x - r / total).abs() < 1e-12);
         }
         // An exponent of 0 leaves the other estimator alone.
-        let only_pf = pool(&bank, &pf, [0.0, 1.0]);
+        let only_pf = pool(&bank, &pf, pooling(0.0, 1.0, 0.0));
         for (x, y) in only_pf.iter().zip(pf) {
             assert!((x - y).abs() < 1e-12);
         }
-        // A class one estimator rules out entirely stays finite.
-        let p = pool(&[1.0, 0.0], &[0.5, 0.5], [1.0, 1.0]);
-        assert!(p.iter().all(|x| x.is_finite()) && (p[0] - 1.0).abs() < 1e-12);
+        // The floor mixes in the even split.
+        let floored = pool(&bank, &pf, pooling(1.0, 1.0, 0.3));
+        for (x, r) in floored.iter().zip(raw) {
+            assert!((x - (0.7 * r / total + 0.1)).abs() < 1e-12);
+        }
+        // A class one estimator rules out entirely keeps the floor's share.
+        let p = pool(&[1.0, 0.0], &[0.5, 0.5], pooling(1.0, 1.0, 0.01));
+        assert!((p[1] - 0.005).abs() < 1e-12 && (p.iter().sum::<f64>() - 1.0).abs() < 1e-12);
     }
 
     #[test]
-    fn the_exponents_follow_the_estimator_that_is_right() {
-        // The bank is always right and sure; the filter is right half the time.
+    fn the_pooling_follows_the_estimator_that_is_right() {
+        // The bank is always right and fairly sure; the filter is right half the time.
         let mut read = Vec::new();
         for k in 0..20 {
             let truth = k % 2;
-            let mut bank = vec![0.1, 0.1];
-            bank[truth] = 0.9;
+            let mut bank = vec![0.2, 0.2];
+            bank[truth] = 0.8;
             let pf = if k % 4 < 2 {
                 bank.clone()
             } else {
@@ -298,11 +342,15 @@ mod tests {
             };
             read.push((bank, pf, truth));
         }
-        let ([a, b], loss) = fit_exponents(&read);
-        assert_eq!(b, 0.0, "the filter tells nothing here");
-        assert_eq!(a, EXPONENTS[EXPONENTS.len() - 1], "the bank is sharpened");
+        let (p, loss) = fit_pooling(&read);
+        assert_eq!(p.exponents, [1.0, 0.0], "the filter tells nothing here");
+        assert_eq!(p.floor, FLOORS[0]);
         let plain = read.iter().map(|(p, _, t)| -p[*t].ln()).sum::<f64>() / read.len() as f64;
-        assert!(loss < plain);
+        assert!(loss <= plain + 5e-3 && loss > 0.0, "{loss} {plain}");
+        // One run on which both are sure and wrong raises the floor.
+        read.push((vec![1e-9, 1.0 - 1e-9], vec![1e-9, 1.0 - 1e-9], 0));
+        let (q, _) = fit_pooling(&read);
+        assert!(q.floor > FLOORS[0], "{q:?}");
     }
 
     #[test]
