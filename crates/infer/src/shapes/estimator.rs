@@ -57,6 +57,13 @@ pub struct ShapeEstimate {
     pub misfit: Option<f64>,
 }
 
+/// The index of the largest of `p` (the last on ties; 0 when empty).
+pub(super) fn argmax(p: &[f64]) -> usize {
+    (0..p.len())
+        .max_by(|&a, &b| p[a].total_cmp(&p[b]))
+        .unwrap_or(0)
+}
+
 /// Every class's pose, `[classes]`, each unknown by name (what an estimator that follows every
 /// class gives beside its [`ShapeEstimate`]).
 pub type ClassPoses = Vec<Vec<(String, Estimate)>>;

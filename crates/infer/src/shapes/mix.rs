@@ -18,7 +18,7 @@
 //! two disagree. The misfit reported is the larger of the two.
 
 use super::bank::{CleanRuns, ShapeBank};
-use super::estimator::ShapeEstimate;
+use super::estimator::{argmax, ShapeEstimate};
 use super::family::{ShapeFamily, ShapeSample};
 use super::filter::ShapePf;
 use crate::error::{Error, Result};
@@ -116,7 +116,7 @@ impl ShapeMix {
         );
         let ((b, b_poses), (p, p_poses)) = (b?, p?);
         let pooled = pool(&probabilities(&b), &probabilities(&p), self.pooling);
-        let best = (0..pooled.len()).fold(0, |k, c| if pooled[c] > pooled[k] { c } else { k });
+        let best = argmax(&pooled);
         let misfit = match (b.misfit, p.misfit) {
             (Some(x), Some(y)) => Some(x.max(y)),
             (x, y) => x.or(y),

@@ -643,14 +643,7 @@ impl ShapeBank {
     /// The class posterior and the most probable class's pose of one recording
     /// (`[whiskers][CHANNELS][samples]`).
     pub fn predict(&self, whiskers: &[Vec<Vec<f64>>]) -> Result<ShapeEstimate> {
-        let reading = self.read(whiskers)?;
-        let p = off_nominal::trusted(&reading.p, reading.ratio, self.trust);
-        Ok(ShapeEstimate {
-            class: self.classes.iter().cloned().zip(p).collect(),
-            best: reading.best,
-            pose: self.pose_estimates(&reading, reading.best),
-            misfit: Some(reading.ratio),
-        })
+        Ok(self.predict_every_class(whiskers)?.0)
     }
 
     /// One recording's whitened series in full (`[whiskers][samples][CHANNELS]`, f32).

@@ -30,7 +30,7 @@ mod cloud;
 mod pose;
 mod trust;
 
-use super::estimator::{softmax, ClassPoses, ShapeEstimate};
+use super::estimator::{argmax, softmax, ClassPoses, ShapeEstimate};
 use super::family::{ShapeFamily, ShapeSample};
 use super::off_nominal::{self, median, misfit_ratio, Readings, Trust};
 use cloud::{filter, replay, ClassModel, ClassRun, Settings, WhiskerModel};
@@ -563,13 +563,6 @@ impl Reading {
     fn misfit(&self) -> f64 {
         self.ratio.last().copied().unwrap_or(1.0)
     }
-}
-
-/// The index of the largest of `p` (the last on ties; 0 when empty).
-fn argmax(p: &[f64]) -> usize {
-    (0..p.len())
-        .max_by(|&a, &b| p[a].total_cmp(&p[b]))
-        .unwrap_or(0)
 }
 
 /// The class posterior from log marginal likelihoods under the calibration `c` (a class that
