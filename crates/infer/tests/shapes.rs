@@ -561,3 +561,57 @@ fn wall_or_peg_read_by_c3() -> ShapeFamily {
     .with_whiskers(&["c3"])
     .unwrap()
 }
+
+#[test]
+fn a_class_lies_at_no_distance_from_its_own_twin_and_far_from_another() {
+    // Two classes that are one and the same (the peg, twice) and a third (the wall). The
+    // search moves the twin's nearest run far nearer than the nearest start and finds the twin
+    // the nearest rival, well inside the wall's distance; it does not reach the twin's exact
+    // pose (the peg's x and radius trade along a narrow valley, where it stops a few noise
+    // levels short: the distances it gives are from above).
+    use vibrissa_infer::shapes::{normal_tail, separations, Class};
+    let e3 = ShapeFamily::builtin("e3").unwrap().unwrap();
+    let peg = e3.classes()[2].clone();
+    let twin = Class {
+        name: "twin".into(),
+        family: peg.family.clone(),
+    };
+    let three = ShapeFamily::new(
+        "peg, its twin, wall",
+        vec![peg, twin, e3.classes()[0].clone()],
+    )
+    .unwrap()
+    .with_whiskers(&["c3"])
+    .unwrap();
+    let draws: Vec<(usize, Vec<f64>)> = three
+        .draws(2, false, 9)
+        .into_iter()
+        .filter(|d| d.0 == 0)
+        .collect();
+    let (runs, _) = three
+        .simulate_completed(&draws, &Noise::NONE, 1, &|| {})
+        .unwrap();
+    let sigma = vibrissa_infer::Family::builtin("e2")
+        .unwrap()
+        .noise(Variant::Noisy)
+        .unwrap()
+        .sensor;
+    let sep = separations(&three, &runs, sigma, 0.0, 0, 400, 3, &|| {}).unwrap();
+    assert_eq!(sep.len(), 2);
+    for s in &sep {
+        eprintln!(
+            "{:?} from {:?}; poses {:?}",
+            s.distance, s.start_distance, s.pose
+        );
+        assert_eq!(s.class, 0);
+        assert_eq!(s.distance[0], 0.0);
+        // The twin: far nearer than the nearest start, the nearest rival, and well inside
+        // the wall's distance (about 5.6 against 15 for the first run).
+        assert!(s.distance[1] < 0.6 * s.start_distance[1], "{s:?}");
+        assert_eq!(s.rival().0, 1);
+        assert!(s.distance[1] < 0.5 * s.distance[2], "{s:?}");
+        assert!(s.least_error() > normal_tail(4.0));
+        // No random forces: the same distances.
+        assert_eq!(s.distance_with_forces, s.distance);
+    }
+}

@@ -15,11 +15,13 @@ mod estimator;
 mod evaluate;
 mod family;
 mod filter;
+mod forced;
 mod method;
 mod mix;
 mod off_nominal;
 mod online;
 mod refine;
+mod separation;
 mod series_noise;
 
 pub use bank::{CleanRuns, ShapeBank, BANK_PER_CLASS};
@@ -37,3 +39,6 @@ pub use method::{
 };
 pub use mix::ShapeMix;
 pub use online::{Online, ShapeEsn};
+pub use separation::{
+    forced_log_likelihood, nearest_from, normal_tail, search_every_class, separations, Separation,
+};
