@@ -1,0 +1,113 @@
+//! How smoothly a noise-free `e3` run follows its pose: one class's run (read by `c3`) at a pose
+//! and at that pose with `x` moved by `STEP_UM` micrometres at a time, and each run's distance
+//! from the first in units of the `noisy` variant's sensor noise (as `e3_separation` measures
+//! it). A smooth simulation gives a distance that grows steadily with the move; a jagged one
+//! jumps by several noise levels between neighbouring poses, which stalls a search that fits a
+//! pose by differences.
+//!
+//! `cargo run --release -p vibrissa-infer --example e3_smoothness -- [CLASS] [STEP_UM] [STEPS]`
+//! (defaults `circle`, 2 µm, 100; the peg at x 21.2 mm, radius 4.44 mm, 0.98 m/s; other classes
+//! at the middle of their ranges).
+use vibrissa_infer::experiment::{Noise, Variant};
+use vibrissa_infer::shapes::{ShapeFamily, ShapeSample};
+use vibrissa_infer::Family;
+
+fn main() {
+    let a: Vec<String> = std::env::args().skip(1).collect();
+    let name = a.first().map_or("circle", |s| s.as_str());
+    let step: f64 = a.get(1).map_or(2.0, |s| s.parse().expect("STEP_UM")) * 1e-6;
+    let steps: usize = a.get(2).map_or(100, |s| s.parse().expect("STEPS"));
+    let family = ShapeFamily::builtin("e3")
+        .expect("built in")
+        .expect("opens")
+        .with_whiskers(&["c3"])
+        .expect("c3");
+    let class = family
+        .class_names()
+        .iter()
+        .position(|n| *n == name)
+        .unwrap_or_else(|| panic!("CLASS: one of {:?}", family.class_names()));
+    let sigma = Family::builtin("e2")
+        .unwrap()
+        .noise(Variant::Noisy)
+        .unwrap()
+        .sensor;
+    let ranges = family.classes()[class].family.ranges();
+    let base: Vec<f64> = if name == "circle" {
+        vec![0.021203, 0.0044436, 0.9813]
+    } else {
+        ranges.iter().map(|[lo, hi]| 0.5 * (lo + hi)).collect()
+    };
+    let draws: Vec<(usize, Vec<f64>)> = (0..=steps)
+        .map(|i| {
+            let mut p = base.clone();
+            p[0] += i as f64 * step;
+            (class, p)
+        })
+        .collect();
+    let (runs, _) = family
+        .simulate_completed(&draws, &Noise::NONE, 0, &|| {})
+        .unwrap();
+    let whiten = |s: &ShapeSample| -> Vec<f64> {
+        s.whiskers
+            .iter()
+            .flat_map(|w| {
+                w.iter()
+                    .zip(&sigma)
+                    .flat_map(|(c, sg)| c.iter().map(move |v| v / sg))
+            })
+            .collect()
+    };
+    let first = whiten(&runs[0]);
+    let d: Vec<f64> = runs
+        .iter()
+        .map(|r| {
+            whiten(r)
+                .iter()
+                .zip(&first)
+                .map(|(a, b)| (a - b) * (a - b))
+                .sum::<f64>()
+                .sqrt()
+        })
+        .collect();
+    println!(
+        "{name} at {base:?}, x moved by {:.1} µm per step",
+        step * 1e6
+    );
+    let mut jumps = (0.0f64, 0usize);
+    for (i, v) in d.iter().enumerate() {
+        if i > 0 && (v - d[i - 1]).abs() > jumps.0 {
+            jumps = ((v - d[i - 1]).abs(), i);
+        }
+        if i % 5 == 0 {
+            println!("x + {:6.1} µm: Δ {v:.3}", i as f64 * step * 1e6);
+        }
+    }
+    println!(
+        "largest change of Δ between neighbouring poses: {:.3} noise levels (steps {} and {})",
+        jumps.0,
+        jumps.1 - 1,
+        jumps.1
+    );
+    // Where, in the recording, the two neighbouring runs part.
+    let (a, b) = (&runs[jumps.1 - 1], &runs[jumps.1]);
+    let channels = vibrissa_infer::experiment::CHANNELS;
+    let samples = a.whiskers[0][0].len();
+    let rate = family.sample_rate();
+    for (c, name) in channels.iter().enumerate() {
+        let diff: Vec<f64> = (0..samples)
+            .map(|t| (a.whiskers[0][c][t] - b.whiskers[0][c][t]) / sigma[c])
+            .collect();
+        let first = diff.iter().position(|v| v.abs() > 0.1);
+        let (peak, at) = diff
+            .iter()
+            .enumerate()
+            .map(|(t, v)| (v.abs(), t))
+            .fold((0.0f64, 0usize), |m, x| if x.0 > m.0 { x } else { m });
+        println!(
+            "  {name}: the runs part (> 0.1 σ) at {}, the largest difference {peak:.2} σ at {:.0} ms",
+            first.map_or("never".to_string(), |t| format!("{:.0} ms", 1e3 * t as f64 / rate)),
+            1e3 * at as f64 / rate
+        );
+    }
+}
