@@ -5,9 +5,11 @@
 //! jumps by several noise levels between neighbouring poses, which stalls a search that fits a
 //! pose by differences.
 //!
-//! `cargo run --release -p vibrissa-infer --example e3_smoothness -- [CLASS] [STEP_UM] [STEPS]`
-//! (defaults `circle`, 2 µm, 100; the peg at x 21.2 mm, radius 4.44 mm, 0.98 m/s; other classes
-//! at the middle of their ranges).
+//! `cargo run --release -p vibrissa-infer --example e3_smoothness -- [CLASS] [STEP_UM] [STEPS]
+//! [AVERAGE]` (defaults `circle`, 2 µm, 100, 1; the peg at x 21.2 mm, radius 4.44 mm, 0.98 m/s;
+//! other classes at the middle of their ranges). With `AVERAGE` n > 1 the runs are recorded n
+//! times as often and every sample is the mean of the n readings of its period (ending at its
+//! instant): what a sensor that averages over the sample period would record.
 use vibrissa_infer::experiment::{Noise, Variant};
 use vibrissa_infer::shapes::{ShapeFamily, ShapeSample};
 use vibrissa_infer::Family;
@@ -17,6 +19,7 @@ fn main() {
     let name = a.first().map_or("circle", |s| s.as_str());
     let step: f64 = a.get(1).map_or(2.0, |s| s.parse().expect("STEP_UM")) * 1e-6;
     let steps: usize = a.get(2).map_or(100, |s| s.parse().expect("STEPS"));
+    let average: usize = a.get(3).map_or(1, |s| s.parse().expect("AVERAGE"));
     let family = ShapeFamily::builtin("e3")
         .expect("built in")
         .expect("opens")
@@ -45,9 +48,29 @@ fn main() {
             (class, p)
         })
         .collect();
-    let (runs, _) = family
+    let rate = family.sample_rate();
+    let samples = family.samples();
+    let fine = family
+        .with_timing(rate * average as f64, (samples - 1) * average + 1)
+        .expect("a finer timing");
+    let (mut runs, _) = fine
         .simulate_completed(&draws, &Noise::NONE, 0, &|| {})
         .unwrap();
+    if average > 1 {
+        for r in &mut runs {
+            for w in &mut r.whiskers {
+                for ch in w.iter_mut() {
+                    *ch = (0..samples)
+                        .map(|k| {
+                            let end = k * average;
+                            let start = end.saturating_sub(average - 1);
+                            ch[start..=end].iter().sum::<f64>() / (end - start + 1) as f64
+                        })
+                        .collect();
+                }
+            }
+        }
+    }
     let whiten = |s: &ShapeSample| -> Vec<f64> {
         s.whiskers
             .iter()
@@ -92,8 +115,6 @@ fn main() {
     // Where, in the recording, the two neighbouring runs part.
     let (a, b) = (&runs[jumps.1 - 1], &runs[jumps.1]);
     let channels = vibrissa_infer::experiment::CHANNELS;
-    let samples = a.whiskers[0][0].len();
-    let rate = family.sample_rate();
     for (c, name) in channels.iter().enumerate() {
         let diff: Vec<f64> = (0..samples)
             .map(|t| (a.whiskers[0][c][t] - b.whiskers[0][c][t]) / sigma[c])
