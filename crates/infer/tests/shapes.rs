@@ -567,8 +567,8 @@ fn a_class_lies_at_no_distance_from_its_own_twin_and_far_from_another() {
     // Two classes that are one and the same (the peg, twice) and a third (the wall). The
     // search moves the twin's nearest run far nearer than the nearest start and finds the twin
     // the nearest rival, well inside the wall's distance; it does not reach the twin's exact
-    // pose (the peg's x and radius trade along a narrow valley, where it stops a few noise
-    // levels short: the distances it gives are from above).
+    // pose (it stops a few noise levels short, at a larger x and radius: the run is jagged in
+    // the pose, examples/e3_smoothness.rs; the distances it gives are from above).
     use vibrissa_infer::shapes::{normal_tail, separations, Class};
     let e3 = ShapeFamily::builtin("e3").unwrap().unwrap();
     let peg = e3.classes()[2].clone();
