@@ -11,7 +11,7 @@
 //! times as often and every sample is the mean of the n readings of its period (ending at its
 //! instant): what a sensor that averages over the sample period would record.
 use vibrissa_infer::experiment::{Noise, Variant};
-use vibrissa_infer::shapes::{ShapeFamily, ShapeSample};
+use vibrissa_infer::shapes::{whitened, ShapeFamily, ShapeSample};
 use vibrissa_infer::Family;
 
 fn main() {
@@ -71,16 +71,7 @@ fn main() {
             }
         }
     }
-    let whiten = |s: &ShapeSample| -> Vec<f64> {
-        s.whiskers
-            .iter()
-            .flat_map(|w| {
-                w.iter()
-                    .zip(&sigma)
-                    .flat_map(|(c, sg)| c.iter().map(move |v| v / sg))
-            })
-            .collect()
-    };
+    let whiten = |s: &ShapeSample| whitened(&s.whiskers, &sigma);
     let first = whiten(&runs[0]);
     let d: Vec<f64> = runs
         .iter()

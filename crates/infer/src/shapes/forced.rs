@@ -19,7 +19,7 @@ use nalgebra::{Cholesky, DMatrix, DVector, Dyn};
 
 /// A run's series whitened and laid end to end: whiskers, channels, samples; each value over
 /// its channel's noise level.
-pub(super) fn whitened(whiskers: &[Vec<Vec<f64>>], sigma: &[f64; 5]) -> Vec<f64> {
+pub fn whitened(whiskers: &[Vec<Vec<f64>>], sigma: &[f64; 5]) -> Vec<f64> {
     whiskers
         .iter()
         .flat_map(|w| {

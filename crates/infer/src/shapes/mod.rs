@@ -33,6 +33,7 @@ pub use evaluate::{
 };
 pub use family::{Class, ShapeFamily, ShapeSample, SHAPE_BUILTINS};
 pub use filter::{ShapePf, SHAPE_PF_PARTICLES, SHAPE_PF_TRAINING};
+pub use forced::whitened;
 pub use method::{
     check_shape_method, fit_shape_method, needs_clean_runs, ShapeMethod, DEFAULT_SHAPE_METHODS,
     SHAPE_METHODS,

@@ -20,7 +20,7 @@
 
 use super::family::{ShapeFamily, ShapeSample};
 use super::forced::{dot, whitened, Forced};
-use super::refine::refine;
+use super::refine::{refine, Refined};
 use crate::error::Result;
 use crate::experiment::Noise;
 use rayon::prelude::*;
@@ -89,6 +89,47 @@ fn dist2(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum()
 }
 
+/// The noise-free run of class `k` at `pose`, whitened by `sigma`; `None` if it cannot be
+/// simulated.
+fn noise_free(family: &ShapeFamily, k: usize, pose: &[f64], sigma: &[f64; 5]) -> Option<Vec<f64>> {
+    let (s, _) = family
+        .simulate_completed(&[(k, pose.to_vec())], &Noise::NONE, 0, &|| {})
+        .ok()?;
+    s.first().map(|s| whitened(&s.whiskers, sigma))
+}
+
+/// Class `k`'s noise-free run nearest the whitened recording `z`, searched from the `STARTS`
+/// runs of `pool` (class, pose, whitened series) of that class nearest it, `ROUNDS` rounds
+/// each: the distance to the nearest start and the nearest found. `None` if the pool holds no
+/// run of the class.
+fn search_class(
+    family: &ShapeFamily,
+    z: &[f64],
+    sigma: &[f64; 5],
+    k: usize,
+    pool: &[(usize, &[f64], &[f64])],
+) -> Option<(f64, Refined)> {
+    let ranges = family.classes()[k].family.ranges();
+    let mut near: Vec<(f64, usize)> = pool
+        .iter()
+        .enumerate()
+        .filter(|(_, (c, _, _))| *c == k)
+        .map(|(i, (_, _, w))| (dist2(z, w), i))
+        .collect();
+    near.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let first = near.first()?.0.sqrt();
+    let simulate = |p: &[f64]| noise_free(family, k, p, sigma);
+    let best = near
+        .iter()
+        .take(STARTS)
+        .map(|&(_, i)| {
+            let (_, p, w) = pool[i];
+            refine(z, &ranges, (p, w), None, ROUNDS, &simulate)
+        })
+        .min_by(|a, b| a.d2.total_cmp(&b.d2))?;
+    Some((first, best))
+}
+
 /// Every run of `runs` (noise-free runs of `family`, with their true poses) against every class:
 /// the nearest noise-free run of each other class, searched from the nearest `STARTS` of
 /// `starts_per_class` evenly spread noise-free runs of that class (drawn with `seed`), the
@@ -114,12 +155,13 @@ pub fn separations(
     }
     let draws = family.even_draws(starts_per_class, seed);
     let (pool, _) = family.simulate_completed(&draws, &Noise::NONE, seed, &|| {})?;
-    let pool: Vec<(usize, Vec<f64>, Vec<f64>)> = pool
-        .into_iter()
-        .map(|s| (s.class, s.params, whitened(&s.whiskers, &sigma)))
+    let series: Vec<Vec<f64>> = pool.iter().map(|s| whitened(&s.whiskers, &sigma)).collect();
+    let pool: Vec<(usize, &[f64], &[f64])> = pool
+        .iter()
+        .zip(&series)
+        .map(|(s, w)| (s.class, &s.params[..], &w[..]))
         .collect();
     let classes = family.classes().len();
-    let ranges: Vec<Vec<[f64; 2]>> = family.classes().iter().map(|c| c.family.ranges()).collect();
     runs.par_iter()
         .map(|run| {
             let z = whitened(&run.whiskers, &sigma);
@@ -137,45 +179,21 @@ pub fn separations(
             let mut pose = vec![run.params.clone(); classes];
             let mut start_distance = vec![0.0; classes];
             for k in (0..classes).filter(|&k| k != run.class) {
-                let simulate = |p: &[f64]| -> Option<Vec<f64>> {
-                    let (s, _) = family
-                        .simulate_completed(&[(k, p.to_vec())], &Noise::NONE, seed, &|| {})
-                        .ok()?;
-                    s.first().map(|s| whitened(&s.whiskers, &sigma))
-                };
-                let mut near: Vec<(f64, usize)> = pool
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, (c, _, _))| *c == k)
-                    .map(|(i, (_, _, w))| (dist2(&z, w), i))
-                    .collect();
-                near.sort_by(|a, b| a.0.total_cmp(&b.0));
-                let Some(&(first, _)) = near.first() else {
+                let Some((first, best)) = search_class(family, &z, &sigma, k, &pool) else {
                     distance[k] = f64::INFINITY;
                     start_distance[k] = f64::INFINITY;
                     distance_with_forces[k] = f64::INFINITY;
                     continue;
                 };
-                start_distance[k] = first.sqrt();
-                let best = near
-                    .iter()
-                    .take(STARTS)
-                    .map(|&(_, i)| {
-                        let (_, p, w) = &pool[i];
-                        refine(&z, &ranges[k], (p, w), None, ROUNDS, &simulate)
-                    })
-                    .min_by(|a, b| a.d2.total_cmp(&b.d2))
-                    .expect("at least one start");
+                start_distance[k] = first;
                 distance[k] = best.d2.sqrt();
-                distance_with_forces[k] = match simulate(&best.pose) {
-                    Some(c) => {
+                distance_with_forces[k] = match (noise_free(family, k, &best.pose, &sigma), &forced)
+                {
+                    (Some(c), Some(f)) => {
                         let delta: Vec<f64> = z.iter().zip(&c).map(|(a, b)| a - b).collect();
-                        match &forced {
-                            Some(f) => dot(&delta, &f.solve(&delta)).max(0.0).sqrt(),
-                            None => distance[k],
-                        }
+                        dot(&delta, &f.solve(&delta)).max(0.0).sqrt()
                     }
-                    None => distance[k],
+                    _ => distance[k],
                 };
                 pose[k] = best.pose;
             }
@@ -205,12 +223,7 @@ pub fn nearest_from(
 ) -> Option<(f64, Vec<f64>)> {
     let ranges = family.classes().get(class)?.family.ranges();
     let z = whitened(recording, &sigma);
-    let simulate = |p: &[f64]| -> Option<Vec<f64>> {
-        let (s, _) = family
-            .simulate_completed(&[(class, p.to_vec())], &Noise::NONE, 0, &|| {})
-            .ok()?;
-        s.first().map(|s| whitened(&s.whiskers, &sigma))
-    };
+    let simulate = |p: &[f64]| noise_free(family, class, p, &sigma);
     let start = simulate(pose)?;
     let found = refine(&z, &ranges, (pose, &start), None, rounds, &simulate);
     Some((found.d2, found.pose))
@@ -219,8 +232,8 @@ pub fn nearest_from(
 /// Every class's nearest noise-free run to a recording (`[whiskers][CHANNELS][samples]`),
 /// searched as an estimator without the truth would: from the `STARTS` runs of `pool` (noise-free
 /// runs of the family) of that class nearest the recording, `ROUNDS` rounds each, the distance
-/// whitened by `sigma`. Per class: the squared distance and the pose (`∞` and the first start's
-/// pose where nothing could be simulated; `∞` and no pose for a class the pool lacks).
+/// whitened by `sigma`. Per class: the squared distance and the pose (the nearest start's where
+/// nothing more could be simulated; `∞` and no pose for a class the pool lacks).
 pub fn search_every_class(
     family: &ShapeFamily,
     recording: &[Vec<Vec<f64>>],
@@ -229,37 +242,15 @@ pub fn search_every_class(
 ) -> Vec<(f64, Vec<f64>)> {
     let z = whitened(recording, &sigma);
     let series: Vec<Vec<f64>> = pool.iter().map(|s| whitened(&s.whiskers, &sigma)).collect();
+    let pool: Vec<(usize, &[f64], &[f64])> = pool
+        .iter()
+        .zip(&series)
+        .map(|(s, w)| (s.class, &s.params[..], &w[..]))
+        .collect();
     (0..family.classes().len())
         .map(|k| {
-            let ranges = family.classes()[k].family.ranges();
-            let mut near: Vec<(f64, usize)> = pool
-                .iter()
-                .enumerate()
-                .filter(|(_, s)| s.class == k)
-                .map(|(i, _)| (dist2(&z, &series[i]), i))
-                .collect();
-            near.sort_by(|a, b| a.0.total_cmp(&b.0));
-            let simulate = |p: &[f64]| -> Option<Vec<f64>> {
-                let (s, _) = family
-                    .simulate_completed(&[(k, p.to_vec())], &Noise::NONE, 0, &|| {})
-                    .ok()?;
-                s.first().map(|s| whitened(&s.whiskers, &sigma))
-            };
-            near.iter()
-                .take(STARTS)
-                .map(|&(_, i)| {
-                    let f = refine(
-                        &z,
-                        &ranges,
-                        (&pool[i].params, &series[i]),
-                        None,
-                        ROUNDS,
-                        &simulate,
-                    );
-                    (f.d2, f.pose)
-                })
-                .min_by(|a, b| a.0.total_cmp(&b.0))
-                .unwrap_or((f64::INFINITY, Vec::new()))
+            search_class(family, &z, &sigma, k, &pool)
+                .map_or((f64::INFINITY, Vec::new()), |(_, f)| (f.d2, f.pose))
         })
         .collect()
 }
