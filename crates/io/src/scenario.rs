@@ -30,6 +30,9 @@
 //!                            # e.g. dt = 1e-3 with 20; see docs/contact.md, "Long time steps")
 //! fit_first_mode = false     # integrator: whole steps on a chain whose first mode rings at its
 //!                            # own frequency at this dt (true | false; docs/contact.md)
+//! hold_contacts = false      # integrator: keep a contact that carried force while it is still
+//!                            # closing, instead of letting it flicker (docs/contact.md,
+//!                            # "Held contacts")
 //! segments = 20              # segment count N
 //! discretisation = "gregory" # "gregory" | "trapezoid" | "seed"
 //! process_noise = 0.0        # N·s^½·m^-½, random forces on every segment

@@ -64,6 +64,15 @@ impl Scratch {
             .fold(0, |m, c| m | (1u64 << c.object.min(63)))
     }
 
+    /// The features of the whisker that carried contact force in the last solve (see
+    /// [`feature_bit`]).
+    pub(crate) fn held(&self) -> u128 {
+        self.cand[..self.count]
+            .iter()
+            .filter(|c| c.lambda_n > 0.0)
+            .fold(0, |m, c| m | feature_bit(c))
+    }
+
     /// The report of the last solve (`None` without objects or contact force).
     pub(crate) fn report(&self, model: &Model, no_objects: bool) -> Option<ContactReport> {
         if no_objects {
@@ -89,6 +98,31 @@ impl Scratch {
     }
 }
 
+/// The share of its gap that a held contact ([`Integrator::hold_contacts`](super::Integrator::hold_contacts)), open at the end of
+/// the step, may close within the step (its row: `v_end ≥ −HELD_CLOSING · gap / h`).
+///
+/// Without held contacts, a whisker's tip pressed against a surface that turns away from it (a
+/// peg sliding past the tip) lost contact for one step whenever the step's end found it a few
+/// micrometres off the surface, sprang back and struck it again in the next: the base forces
+/// flickered by several times the sensor noise from one step to the next, and which steps
+/// flickered changed with sub-micrometre moves of the object. Holding such a contact at zero
+/// closing speed (a share of 0) lets the gap grow until it releases anyway; closing all of it (1)
+/// overshoots, and the contact force rings at two steps' period. Half was measured to give a
+/// smooth force (docs/contact.md, "Held contacts").
+const HELD_CLOSING: f64 = 0.5;
+
+/// A contact candidate's feature of the whisker as a bit: bit 2i for a point within segment i,
+/// bit 2i + 1 for its far node, for segments 0..63. A longer chain's further features have no
+/// bit, so their contacts are judged afresh every step (none is held).
+fn feature_bit(c: &Candidate) -> u128 {
+    let bit = 2 * c.seg + usize::from(c.node);
+    if bit < 128 {
+        1u128 << bit
+    } else {
+        0
+    }
+}
+
 /// The step's starting angles, rates and accelerations.
 pub(crate) struct StepStart<'a> {
     pub q: &'a [f64],
@@ -96,6 +130,9 @@ pub(crate) struct StepStart<'a> {
     pub a: &'a [f64],
     /// Objects that carried contact force in the previous step (bit k for object k).
     pub touching: u64,
+    /// Features of the whisker that carried contact force in the previous step (see
+    /// [`feature_bit`]).
+    pub held: u128,
     /// How far the base turns between the evaluation point's time and the end of the step, rad.
     pub base_turn: f64,
     /// The base's angular rate at the end of the step, rad/s.
@@ -336,6 +373,7 @@ pub(crate) fn solve(
                     gap,
                     seg: i,
                     point: c.on_whisker,
+                    node: c.u >= 1.0,
                     s: (i as f64 + c.u) * model.arc,
                     n: nrm,
                     t: tan,
@@ -444,10 +482,19 @@ pub(crate) fn solve(
         }
         c.c_v += vn + start.base_rate * an;
         // Active when the step would end in penetration without a contact force; the normal row is
-        // then the end-of-step normal velocity (an inelastic contact: v ≥ 0).
-        c.active = c.c_n <= 0.0;
-        c.g_pred = c.c_n;
-        c.c_n = c.c_v;
+        // then the end-of-step normal velocity (an inelastic contact: v ≥ 0). A held contact (its
+        // object and its segment carried force in the previous step) is active too when the step
+        // would end with it open but still closing fast enough to penetrate within the next step:
+        // its row then lets it close a share of the gap instead of none (see `HELD_CLOSING`).
+        let g = c.c_n;
+        let held = st.hold_contacts && !c.impact && start.held & feature_bit(c) != 0;
+        c.active = g <= 0.0 || (held && g + h * c.c_v < 0.0);
+        c.g_pred = g;
+        c.c_n = if g > 0.0 {
+            c.c_v + HELD_CLOSING * g / h
+        } else {
+            c.c_v
+        };
     }
     // Only active candidates take force: their responses (M + A)⁻¹ Jᵀ, and the Delassus columns
     // they own. Rows stay complete, for the gaps that post-stabilisation checks.

@@ -45,6 +45,15 @@ pub struct Integrator {
     /// held against a face up to twice its value). [`DEFAULT_CONTACT_RHO_INF`] damps it within a
     /// few steps; `rho_inf`'s value here steps contact as every other step.
     pub contact_rho_inf: f64,
+    /// Held contacts: a contact point of the whisker that carried force in the previous step
+    /// stays a contact while the step would end with it open by less than it is still closing in
+    /// a step, and may then close half that gap within the step, instead of being let go for a
+    /// step and struck again in the next. A tip pressed against a surface that turns away from it
+    /// (a peg sliding past it) otherwise flickers in and out of contact from step to step, and its
+    /// base forces with it, by several times a sensor's noise, in a pattern that changes with
+    /// sub-micrometre moves of the object (docs/contact.md, "Held contacts"). false, the default,
+    /// judges every contact afresh each step.
+    pub hold_contacts: bool,
 }
 
 impl Default for Integrator {
@@ -57,6 +66,7 @@ impl Default for Integrator {
             contact_substeps: 1,
             fit_first_mode: false,
             contact_rho_inf: DEFAULT_CONTACT_RHO_INF,
+            hold_contacts: false,
         }
     }
 }
@@ -170,6 +180,7 @@ impl Integrator {
             contact_substeps: self.contact_substeps,
             fit_first_mode: self.fit_first_mode,
             contact_rho_inf: rc,
+            hold_contacts: self.hold_contacts,
             alpha_m: free.alpha_m,
             alpha_f: free.alpha_f,
             gamma: free.gamma,
@@ -229,6 +240,8 @@ pub struct Stepper {
     pub fit_first_mode: bool,
     /// Spectral radius of steps that begin in lasting contact.
     pub contact_rho_inf: f64,
+    /// Whether contacts that carried force are held ([`Integrator::hold_contacts`]).
+    pub hold_contacts: bool,
     pub(super) alpha_m: f64,
     pub(super) alpha_f: f64,
     pub(super) gamma: f64,
@@ -252,6 +265,7 @@ impl Stepper {
             contact_substeps: self.contact_substeps,
             fit_first_mode: self.fit_first_mode,
             contact_rho_inf: self.contact_rho_inf,
+            hold_contacts: self.hold_contacts,
         }
     }
     /// These settings for a step that begins in lasting contact: the coefficients of

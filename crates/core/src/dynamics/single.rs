@@ -141,7 +141,7 @@ fn step_once<F: Forcing + ?Sized>(
     if inputs.objects.is_empty() {
         ws.contacts.clear();
     }
-    let touching = state.touching;
+    let (touching, held) = (state.touching, state.held);
 
     for attempt in 0..2 {
         // Stage: predict. The intermediate angles and rates are affine in the unknown
@@ -181,6 +181,7 @@ fn step_once<F: Forcing + ?Sized>(
                     v,
                     a,
                     touching,
+                    held,
                     base_turn: b1.angle - base.angle,
                     base_rate: b1.rate,
                 };
@@ -264,10 +265,10 @@ fn step_once<F: Forcing + ?Sized>(
     }
     state.wrench_alpha = w;
     state.contact = ws.contacts.report(model, inputs.objects.is_empty());
-    state.touching = if inputs.objects.is_empty() {
-        0
+    (state.touching, state.held) = if inputs.objects.is_empty() {
+        (0, 0)
     } else {
-        ws.contacts.touching()
+        (ws.contacts.touching(), ws.contacts.held())
     };
     state.t = t_next;
     state.base = inputs.base;

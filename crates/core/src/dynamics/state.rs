@@ -24,6 +24,9 @@ pub struct State {
     pub contact: Option<ContactReport>,
     /// Objects that carried contact force in the last step (bit k for object k).
     pub(super) touching: u64,
+    /// Features of the whisker that carried contact force in the last step (bit 2i for a point
+    /// within segment i, 2i + 1 for its far node; segments 0..63).
+    pub(super) held: u128,
     /// The state's own random stream (process noise).
     pub rng: Rng,
 }
@@ -38,6 +41,7 @@ impl Clone for State {
             base_wrench: self.base_wrench,
             contact: self.contact,
             touching: self.touching,
+            held: self.held,
             rng: self.rng.clone(),
         }
     }
@@ -51,6 +55,7 @@ impl Clone for State {
         self.base_wrench = source.base_wrench;
         self.contact = source.contact;
         self.touching = source.touching;
+        self.held = source.held;
         self.rng.clone_from(&source.rng);
     }
 }
@@ -69,6 +74,7 @@ impl State {
             base_wrench: [0.0; 3],
             contact: None,
             touching: 0,
+            held: 0,
             rng: Rng::new(seed),
         }
     }

@@ -145,6 +145,8 @@ pub(super) struct Candidate {
     /// Segment and whisker point (world).
     pub(super) seg: usize,
     pub(super) point: [f64; 2],
+    /// Whether the point is the segment's far node (not a point within the segment).
+    pub(super) node: bool,
     /// Arc length of the point.
     pub(super) s: f64,
     /// Gap at the evaluation point, m.

@@ -36,6 +36,7 @@ pub(super) struct FileTable {
     max_iterations: Option<usize>,
     contact_substeps: Option<usize>,
     fit_first_mode: Option<bool>,
+    hold_contacts: Option<bool>,
     sample_rate: Option<f64>,
     seed: Option<u64>,
     segments: Option<usize>,
@@ -288,6 +289,9 @@ impl FileTable {
             contact_rho_inf: self
                 .contact_rho_inf
                 .unwrap_or(defaults.integrator.contact_rho_inf),
+            hold_contacts: self
+                .hold_contacts
+                .unwrap_or(defaults.integrator.hold_contacts),
         };
         integrator.check().map_err(|e| ctx.invalid(e))?;
 

@@ -51,6 +51,7 @@ struct LaneState {
     base_wrench: [Wide; 3],
     contact: [Option<ContactReport>; LANES],
     touching: [u64; LANES],
+    held: [u128; LANES],
     rng: [Rng; LANES],
 }
 
@@ -68,6 +69,7 @@ impl LaneState {
             base_wrench: [Wide::default(); 3],
             contact: [None; LANES],
             touching: [0; LANES],
+            held: [0; LANES],
             rng: std::array::from_fn(|_| Rng::new(0)),
         }
     }
@@ -98,6 +100,7 @@ impl LaneState {
         }
         self.contact[l] = s.contact;
         self.touching[l] = s.touching;
+        self.held[l] = s.held;
         self.rng[l].clone_from(&s.rng);
     }
 
@@ -141,6 +144,7 @@ impl LaneState {
         }
         s.contact = self.contact[l];
         s.touching = self.touching[l];
+        s.held = self.held[l];
         s.rng.clone_from(&self.rng[l]);
     }
 }
@@ -155,6 +159,7 @@ struct LaneContacts {
     lasting: Vec<Wide>,
     fix: Vec<Wide>,
     touching: [u64; LANES],
+    held: [u128; LANES],
     report: [Option<ContactReport>; LANES],
 }
 
@@ -166,6 +171,7 @@ impl LaneContacts {
             lasting: vec![Wide::default(); n],
             fix: vec![Wide::default(); n],
             touching: [0; LANES],
+            held: [0; LANES],
             report: [None; LANES],
         }
     }
@@ -182,6 +188,7 @@ impl LaneContacts {
             x.0[l] = 0.0;
         }
         self.touching[l] = 0;
+        self.held[l] = 0;
         self.report[l] = None;
     }
 
@@ -197,6 +204,7 @@ impl LaneContacts {
             *x = Wide::default();
         }
         self.touching = [0; LANES];
+        self.held = [0; LANES];
         self.report = [None; LANES];
     }
 }
@@ -674,6 +682,7 @@ fn step_lanes(
     }
     s.contact = cs.report;
     s.touching = cs.touching;
+    s.held = cs.held;
     s.t += h_w;
     s.base = [inputs.base; LANES];
     retake
@@ -729,6 +738,7 @@ fn lane_contact(
         v: &start[1],
         a: &start[2],
         touching: state.touching[l],
+        held: state.held[l],
         base_turn,
         base_rate: inputs.base.rate,
     };
@@ -758,6 +768,7 @@ fn lane_contact(
     }
     cs.any[l] = ws.contacts.count > 0;
     cs.touching[l] = ws.contacts.touching();
+    cs.held[l] = ws.contacts.held();
     cs.report[l] = ws.contacts.report(model, false);
     Ok(())
 }
