@@ -280,3 +280,29 @@ fn a_group_striking_its_own_boxes_steps_to_the_bits_of_single_steps() {
     let touched = strikes_same_as_single(&fine, &st, 6, 0.0, 0.06, 10);
     assert!(touched > 30, "{touched}");
 }
+
+#[test]
+fn a_group_with_held_contacts_steps_to_the_bits_of_single_steps() {
+    // The simulator's chain with held contacts (`Integrator::hold_contacts`): which contact
+    // features each lane holds travels with its state.
+    let fine = model(20, 20.0);
+    let st = Integrator {
+        hold_contacts: true,
+        ..Integrator::default()
+    }
+    .check()
+    .unwrap();
+    let touched = strikes_same_as_single(&fine, &st, 6, 0.0, 0.06, 10);
+    assert!(touched > 30, "{touched}");
+    let coarse = model(5, 0.0);
+    let fast = Integrator {
+        dt: 1e-3 / 3.0,
+        max_iterations: 1,
+        hold_contacts: true,
+        ..Integrator::default()
+    }
+    .check()
+    .unwrap();
+    let touched = strikes_same_as_single(&coarse, &fast, LANES, 2e-6, 0.1, 3);
+    assert!(touched > 100, "{touched}");
+}
