@@ -12,9 +12,11 @@
 //! noise-free runs, as an estimator without the truth would.
 //!
 //! `cargo run --release -p vibrissa-infer --example e3_separation -- WHISKERS [RUNS_PER_CLASS]
-//! [STARTS_PER_CLASS] [POOL_PER_CLASS] [--csv FILE]` with `WHISKERS` e.g. `c3`, `c2+c3+c4` or
-//! `all` (defaults 50 runs, 400 starts and a pool of 3200 per class; the experiment's evaluated
-//! draws of seed 1; about 15 minutes with `c3` on 2 cores). With `E3_SEPARATION_VERBOSE` set in
+//! [STARTS_PER_CLASS] [POOL_PER_CLASS] [--csv FILE] [--set KEY=VALUE]...` with `WHISKERS` e.g.
+//! `c3`, `c2+c3+c4` or `all` (defaults 50 runs, 400 starts and a pool of 3200 per class; the
+//! experiment's evaluated draws of seed 1; about 15 minutes with `c3` on 2 cores). Every `--set`
+//! overrides a key of every class's scenario, for the recordings and the search alike
+//! (`--set hold_contacts=true`). With `E3_SEPARATION_VERBOSE` set in
 //! the environment, each noisy run's χ² per sample at the truth's noise-free run and per class
 //! at the searched poses go to standard error.
 use rayon::prelude::*;
@@ -32,10 +34,18 @@ fn main() {
         .iter()
         .position(|s| s == "--csv")
         .map(|i| a.get(i + 1).expect("--csv FILE").clone());
+    let sets: Vec<String> = a
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| *i > 0 && a[i - 1] == "--set")
+        .map(|(_, s)| s.clone())
+        .collect();
     let pos: Vec<&String> = a
         .iter()
         .enumerate()
-        .filter(|(i, s)| !s.starts_with("--") && (*i == 0 || a[i - 1] != "--csv"))
+        .filter(|(i, s)| {
+            !s.starts_with("--") && (*i == 0 || (a[i - 1] != "--csv" && a[i - 1] != "--set"))
+        })
         .map(|(_, s)| s)
         .collect();
     let which = pos.first().map_or("c3", |s| s.as_str());
@@ -48,9 +58,9 @@ fn main() {
     let pool_per_class: usize = pos
         .get(3)
         .map_or(3200, |s| s.parse().expect("POOL_PER_CLASS"));
-    let e3 = ShapeFamily::builtin("e3")
+    let e3 = ShapeFamily::builtin_with("e3", &sets, None)
         .expect("built in")
-        .expect("opens");
+        .expect("opens with the --set overrides");
     let family = if which == "all" {
         e3
     } else {

@@ -6,23 +6,102 @@
 //! pose by differences.
 //!
 //! `cargo run --release -p vibrissa-infer --example e3_smoothness -- [CLASS] [STEP_UM] [STEPS]
-//! [AVERAGE]` (defaults `circle`, 2 µm, 100, 1; the peg at x 21.2 mm, radius 4.44 mm, 0.98 m/s;
-//! other classes at the middle of their ranges). With `AVERAGE` n > 1 the runs are recorded n
-//! times as often and every sample is the mean of the n readings of its period (ending at its
-//! instant): what a sensor that averages over the sample period would record.
+//! [AVERAGE] [--set KEY=VALUE]...` (defaults `circle`, 2 µm, 100, 1; the peg at x 21.2 mm,
+//! radius 4.44 mm, 0.98 m/s; other classes at the middle of their ranges). With `AVERAGE` n > 1
+//! the runs are recorded n times as often and every sample is the mean of the n readings of its
+//! period (ending at its instant): what a sensor that averages over the sample period would
+//! record. Every `--set` overrides a key of every class's scenario (`--set hold_contacts=true`).
+//!
+//! `-- --survey [--set KEY=VALUE]...`: for every class, 8 poses drawn within the middle 60% of
+//! each unknown's range (a fixed seed), each moved 60 times by 0.2 µm in `x`; the changes of the
+//! distance between neighbouring poses, pooled per class: mean, median, 90th and 99th
+//! percentiles and largest, in noise levels.
 use vibrissa_infer::experiment::{Noise, Variant};
 use vibrissa_infer::shapes::{whitened, ShapeFamily, ShapeSample};
 use vibrissa_infer::Family;
 
+/// Every whitened run's distance from the first, in noise levels.
+fn distances(runs: &[ShapeSample], sigma: &[f64; 5]) -> Vec<f64> {
+    let whiten = |s: &ShapeSample| whitened(&s.whiskers, sigma);
+    let first = whiten(&runs[0]);
+    runs.iter()
+        .map(|r| {
+            whiten(r)
+                .iter()
+                .zip(&first)
+                .map(|(a, b)| (a - b) * (a - b))
+                .sum::<f64>()
+                .sqrt()
+        })
+        .collect()
+}
+
+/// The `--survey` table (see the module's documentation).
+fn survey(family: &ShapeFamily, sigma: &[f64; 5]) {
+    let (poses, moves, step) = (8, 60, 0.2e-6);
+    // A fixed linear congruential stream: the same poses with every build and setting.
+    let mut seed = 12345u64;
+    let mut uniform = || {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    };
+    for (class, name) in family.class_names().iter().enumerate() {
+        let ranges = family.classes()[class].family.ranges();
+        let mut jumps = Vec::new();
+        for _ in 0..poses {
+            let base: Vec<f64> = ranges
+                .iter()
+                .map(|[lo, hi]| lo + (hi - lo) * (0.2 + 0.6 * uniform()))
+                .collect();
+            let draws: Vec<(usize, Vec<f64>)> = (0..=moves)
+                .map(|i| {
+                    let mut p = base.clone();
+                    p[0] += i as f64 * step;
+                    (class, p)
+                })
+                .collect();
+            let (runs, _) = family
+                .simulate_completed(&draws, &Noise::NONE, 0, &|| {})
+                .unwrap();
+            let d = distances(&runs, sigma);
+            jumps.extend(d.windows(2).map(|w| (w[1] - w[0]).abs()));
+        }
+        jumps.sort_by(f64::total_cmp);
+        let q = |p: f64| jumps[((jumps.len() - 1) as f64 * p).round() as usize];
+        let mean = jumps.iter().sum::<f64>() / jumps.len() as f64;
+        println!(
+            "{name:9} change per 0.2 µm: mean {mean:.3}, median {:.3}, 90% {:.3}, 99% {:.3}, largest {:.3}",
+            q(0.5),
+            q(0.9),
+            q(0.99),
+            q(1.0)
+        );
+    }
+}
+
 fn main() {
-    let a: Vec<String> = std::env::args().skip(1).collect();
+    let all: Vec<String> = std::env::args().skip(1).collect();
+    let sets: Vec<String> = all
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| *i > 0 && all[i - 1] == "--set")
+        .map(|(_, s)| s.clone())
+        .collect();
+    let a: Vec<&String> = all
+        .iter()
+        .enumerate()
+        .filter(|(i, s)| !s.starts_with("--") && (*i == 0 || all[i - 1] != "--set"))
+        .map(|(_, s)| s)
+        .collect();
     let name = a.first().map_or("circle", |s| s.as_str());
     let step: f64 = a.get(1).map_or(2.0, |s| s.parse().expect("STEP_UM")) * 1e-6;
     let steps: usize = a.get(2).map_or(100, |s| s.parse().expect("STEPS"));
     let average: usize = a.get(3).map_or(1, |s| s.parse().expect("AVERAGE"));
-    let family = ShapeFamily::builtin("e3")
+    let family = ShapeFamily::builtin_with("e3", &sets, None)
         .expect("built in")
-        .expect("opens")
+        .expect("opens with the --set overrides")
         .with_whiskers(&["c3"])
         .expect("c3");
     let class = family
@@ -35,6 +114,14 @@ fn main() {
         .noise(Variant::Noisy)
         .unwrap()
         .sensor;
+    if all.iter().any(|s| s == "--survey") {
+        survey(&family, &sigma);
+        return;
+    }
+    if all.iter().any(|s| s == "--survey") {
+        survey(&family, &sigma);
+        return;
+    }
     let ranges = family.classes()[class].family.ranges();
     let base: Vec<f64> = if name == "circle" {
         vec![0.021203, 0.0044436, 0.9813]
@@ -71,19 +158,7 @@ fn main() {
             }
         }
     }
-    let whiten = |s: &ShapeSample| whitened(&s.whiskers, &sigma);
-    let first = whiten(&runs[0]);
-    let d: Vec<f64> = runs
-        .iter()
-        .map(|r| {
-            whiten(r)
-                .iter()
-                .zip(&first)
-                .map(|(a, b)| (a - b) * (a - b))
-                .sum::<f64>()
-                .sqrt()
-        })
-        .collect();
+    let d = distances(&runs, &sigma);
     println!(
         "{name} at {base:?}, x moved by {:.1} µm per step",
         step * 1e6
