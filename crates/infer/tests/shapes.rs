@@ -615,3 +615,52 @@ fn a_class_lies_at_no_distance_from_its_own_twin_and_far_from_another() {
         assert_eq!(s.distance_with_forces, s.distance);
     }
 }
+
+#[test]
+fn with_held_contacts_the_search_comes_nearer_the_twin() {
+    // The test above on runs made with held contacts (`hold_contacts = true`: the runs are no
+    // longer jagged in the pose): the search ends nearer the twin's pose, on average a fifth of
+    // the nearest start's distance instead of nearly two fifths (1.1 from 11.1 and 3.2 from 10.6
+    // noise levels, against 5.6 from 11.8 and 3.0 from 10.5).
+    use vibrissa_infer::shapes::{separations, Class};
+    let e3 = ShapeFamily::builtin_with("e3", &["hold_contacts=true".to_string()], None)
+        .unwrap()
+        .unwrap();
+    let peg = e3.classes()[2].clone();
+    let twin = Class {
+        name: "twin".into(),
+        family: peg.family.clone(),
+    };
+    let three = ShapeFamily::new(
+        "peg, its twin, wall",
+        vec![peg, twin, e3.classes()[0].clone()],
+    )
+    .unwrap()
+    .with_whiskers(&["c3"])
+    .unwrap();
+    let draws: Vec<(usize, Vec<f64>)> = three
+        .draws(2, false, 9)
+        .into_iter()
+        .filter(|d| d.0 == 0)
+        .collect();
+    let (runs, _) = three
+        .simulate_completed(&draws, &Noise::NONE, 1, &|| {})
+        .unwrap();
+    let sigma = vibrissa_infer::Family::builtin("e2")
+        .unwrap()
+        .noise(Variant::Noisy)
+        .unwrap()
+        .sensor;
+    let sep = separations(&three, &runs, sigma, 0.0, 0, 400, 3, &|| {}).unwrap();
+    assert_eq!(sep.len(), 2);
+    let ratios: Vec<f64> = sep
+        .iter()
+        .map(|s| s.distance[1] / s.start_distance[1])
+        .collect();
+    eprintln!("{ratios:?}");
+    assert!(ratios.iter().all(|r| *r < 0.4), "{ratios:?}");
+    assert!(ratios.iter().sum::<f64>() / 2.0 < 0.3, "{ratios:?}");
+    for s in &sep {
+        assert_eq!(s.rival().0, 1, "{s:?}");
+    }
+}
