@@ -97,6 +97,9 @@ struct Report {
     /// Substeps near contact that the fit simulated with and wrote into the fitted file, where
     /// the nominal left them to their default (`None`: as the nominal says).
     contact_substeps: Option<usize>,
+    /// Whether the fit held contacts and wrote `hold_contacts = true` into the fitted file,
+    /// where the nominal left it to its default.
+    hold_contacts: bool,
     /// Wall-clock time of the fit, s.
     seconds: f64,
 }
@@ -199,6 +202,7 @@ pub fn run(args: &Args) -> Result<()> {
         correlation: fit.correlation.clone(),
         left_out: fit.left_out.clone(),
         contact_substeps: fit.contact_substeps,
+        hold_contacts: fit.hold_contacts,
         seconds,
     };
     args.format.format().print(&report)?;
@@ -218,6 +222,13 @@ impl Render for Report {
                 "contact simulated in {m} substeps of each step near the object \
                  (contact_substeps = {m}, written to the fitted file, so that what is trained on \
                  it simulates as the fit did)"
+            )?;
+        }
+        if self.hold_contacts {
+            writeln!(
+                out,
+                "contacts held while the whisker still closes on the object (hold_contacts = \
+                 true, written to the fitted file; docs/contact.md, \"Held contacts\")"
             )?;
         }
         writeln!(out, "\nparameters:")?;
@@ -449,6 +460,7 @@ mod tests {
                 matrix,
             },
             contact_substeps: Some(5),
+            hold_contacts: true,
             seconds: 1.0,
         }
     }
@@ -481,10 +493,13 @@ mod tests {
         assert!(!text(&weak).contains("errors correlated"));
         // The contact stepping the fit used is said, and nothing when the nominal set it.
         assert!(text(&weak).contains("contact_substeps = 5"));
+        assert!(text(&weak).contains("hold_contacts = true"));
         let named = Report {
             contact_substeps: None,
+            hold_contacts: false,
             ..weak
         };
         assert!(!text(&named).contains("contact_substeps"));
+        assert!(!text(&named).contains("hold_contacts"));
     }
 }

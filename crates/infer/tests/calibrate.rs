@@ -19,9 +19,17 @@ fn folder(name: &str) -> PathBuf {
 }
 
 /// Writes strikes of `truth` (e2 with these overrides) at the labels into `dir`, with truth.csv.
-/// Contact is stepped as calibration steps it (a recording resolves it finely).
+/// Contact is stepped and held as calibration steps and holds it (a recording resolves it
+/// finely, and a real whisker, or another engine's, stays on a surface it is pressed against).
 fn strikes(dir: &Path, truth: &[&str], labels: &[(f64, f64)]) {
-    let doc = Document::load("e2", &["contact_substeps=5".to_string()]).unwrap();
+    let doc = Document::load(
+        "e2",
+        &[
+            "contact_substeps=5".to_string(),
+            "hold_contacts=true".into(),
+        ],
+    )
+    .unwrap();
     let mut listing = String::from("file,d,v\n");
     for (k, (d, v)) in labels.iter().enumerate() {
         let mut sets: Vec<String> = truth.iter().map(|s| s.to_string()).collect();
@@ -90,12 +98,17 @@ fn a_stiffer_lighter_whisker_with_a_sensor_gain_draws_the_fit_towards_it() {
     );
 
     // The fitted scenario loads, carries the record and reproduces a strike, with contact
-    // stepped as the fit stepped it.
-    assert_eq!(fit.overrides[0], "contact_substeps=5");
+    // stepped and held as the fit stepped and held it.
+    assert_eq!(
+        fit.overrides[..2],
+        ["hold_contacts=true", "contact_substeps=5"]
+    );
     assert_eq!(fit.contact_substeps, Some(5));
+    assert!(fit.hold_contacts);
     let fitted = fit.document(&nominal, "strikes").unwrap();
     let loaded = fitted.loaded().unwrap();
     assert_eq!(loaded.scenario.integrator.contact_substeps, 5);
+    assert!(loaded.scenario.integrator.hold_contacts);
     let record = loaded.calibration.expect("a [calibration] table");
     assert_eq!(record.recordings, Some(labels.len()));
     assert!(record
@@ -213,12 +226,12 @@ fn bad_settings_are_refused_before_any_simulation() {
 
 /// A calibrated scenario file beside `dir` that names it as its labelled strikes (by its name
 /// alone, so that it is found from the file's directory), with the short strikes' timing and
-/// contact stepped as calibration writes it.
+/// contact stepped and held as calibration writes it.
 fn calibrated_file(dir: &Path) -> PathBuf {
     let name = dir.file_name().unwrap().to_str().unwrap();
     let path = dir.with_extension("toml");
     let text = format!(
-        "experiment = \"e2\"\nduration = 0.08\ncontact_substeps = 5\n\n[calibration]\nlabelled = \"{name}\"\n\
+        "experiment = \"e2\"\nduration = 0.08\ncontact_substeps = 5\nhold_contacts = true\n\n[calibration]\nlabelled = \"{name}\"\n\
          recordings = 1\nrms_before = {{}}\nrms_after = {{}}\nnoise = {{}}\nparameters = []\n"
     );
     std::fs::write(&path, text).unwrap();

@@ -96,7 +96,7 @@ mod report;
 mod search;
 mod starts;
 
-pub use crate::resolution::{contact_resolution, CONTACT_STEP};
+pub use crate::resolution::{contact_resolution, holds_contacts, CONTACT_STEP};
 
 use crate::error::{Error, Result};
 use fit::{Covariance, Run, Setup, Solution, CHANNELS};
@@ -255,6 +255,10 @@ pub struct Fit {
     /// Substeps near contact that the fit simulated with and [`Fit::overrides`] writes into the
     /// fitted scenario ([`contact_resolution`]; `None`: the nominal's own setting).
     pub contact_substeps: Option<usize>,
+    /// Whether the fit held contacts where the nominal left `hold_contacts` to its default, and
+    /// [`Fit::overrides`] writes `hold_contacts = true` into the fitted scenario
+    /// ([`holds_contacts`]).
+    pub hold_contacts: bool,
 }
 
 impl Fit {
@@ -312,19 +316,35 @@ pub fn calibrate(
     progress: &mut dyn FnMut(&Progress),
 ) -> Result<Fit> {
     check_settings(settings)?;
+    let hold = holds_contacts(nominal)?;
+    let mut resolved = nominal.clone();
+    if hold {
+        resolved.set(HOLD_SETTING)?;
+    }
     let Some(substeps) = contact_resolution(nominal)? else {
-        return fit_resolved(nominal, set, settings, None, progress);
+        let mut fit = fit_resolved(&resolved, set, settings, None, progress)?;
+        if hold {
+            fit.overrides.insert(0, HOLD_SETTING.to_string());
+        }
+        fit.hold_contacts = hold;
+        return Ok(fit);
     };
     let setting = format!("contact_substeps={substeps}");
-    let mut resolved = nominal.clone();
     resolved.set(&setting)?;
     // The starting scan only ranks points far apart: it simulates at the nominal's own step.
     let own = nominal.loaded()?.scenario.integrator.contact_substeps;
     let mut fit = fit_resolved(&resolved, set, settings, Some(own), progress)?;
     fit.overrides.insert(0, setting);
+    if hold {
+        fit.overrides.insert(0, HOLD_SETTING.to_string());
+    }
     fit.contact_substeps = Some(substeps);
+    fit.hold_contacts = hold;
     Ok(fit)
 }
+
+/// The override with which calibration holds contacts ([`holds_contacts`]).
+const HOLD_SETTING: &str = "hold_contacts=true";
 
 /// [`calibrate`] on `nominal` as it will be simulated.
 fn fit_resolved(

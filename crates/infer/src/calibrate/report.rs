@@ -155,6 +155,7 @@ pub(super) fn assemble(
         correlation: correlation(&rows, &cov.cov),
         left_out: Vec::new(),
         contact_substeps: None,
+        hold_contacts: false,
     }
 }
 
