@@ -36,6 +36,18 @@ fn distances(runs: &[ShapeSample], sigma: &[f64; 5]) -> Vec<f64> {
         .collect()
 }
 
+/// Draws of `class` at `base` and at `base` with `x` (its first value) moved by `step` once,
+/// twice, … `moves` times.
+fn moved_in_x(class: usize, base: &[f64], step: f64, moves: usize) -> Vec<(usize, Vec<f64>)> {
+    (0..=moves)
+        .map(|i| {
+            let mut p = base.to_vec();
+            p[0] += i as f64 * step;
+            (class, p)
+        })
+        .collect()
+}
+
 /// The `--survey` table (see the module's documentation).
 fn survey(family: &ShapeFamily, sigma: &[f64; 5]) {
     let (poses, moves, step) = (8, 60, 0.2e-6);
@@ -55,15 +67,13 @@ fn survey(family: &ShapeFamily, sigma: &[f64; 5]) {
                 .iter()
                 .map(|[lo, hi]| lo + (hi - lo) * (0.2 + 0.6 * uniform()))
                 .collect();
-            let draws: Vec<(usize, Vec<f64>)> = (0..=moves)
-                .map(|i| {
-                    let mut p = base.clone();
-                    p[0] += i as f64 * step;
-                    (class, p)
-                })
-                .collect();
             let (runs, _) = family
-                .simulate_completed(&draws, &Noise::NONE, 0, &|| {})
+                .simulate_completed(
+                    &moved_in_x(class, &base, step, moves),
+                    &Noise::NONE,
+                    0,
+                    &|| {},
+                )
                 .unwrap();
             let d = distances(&runs, sigma);
             jumps.extend(d.windows(2).map(|w| (w[1] - w[0]).abs()));
@@ -128,13 +138,7 @@ fn main() {
     } else {
         ranges.iter().map(|[lo, hi]| 0.5 * (lo + hi)).collect()
     };
-    let draws: Vec<(usize, Vec<f64>)> = (0..=steps)
-        .map(|i| {
-            let mut p = base.clone();
-            p[0] += i as f64 * step;
-            (class, p)
-        })
-        .collect();
+    let draws = moved_in_x(class, &base, step, steps);
     let rate = family.sample_rate();
     let samples = family.samples();
     let fine = family

@@ -562,15 +562,14 @@ fn wall_or_peg_read_by_c3() -> ShapeFamily {
     .unwrap()
 }
 
-#[test]
-fn a_class_lies_at_no_distance_from_its_own_twin_and_far_from_another() {
-    // Two classes that are one and the same (the peg, twice) and a third (the wall). The
-    // search moves the twin's nearest run far nearer than the nearest start and finds the twin
-    // the nearest rival, well inside the wall's distance; it does not reach the twin's exact
-    // pose (it stops a few noise levels short, at a larger x and radius: the run is jagged in
-    // the pose, examples/e3_smoothness.rs; the distances it gives are from above).
-    use vibrissa_infer::shapes::{normal_tail, separations, Class};
-    let e3 = ShapeFamily::builtin("e3").unwrap().unwrap();
+/// Two noise-free peg runs of `e3` (read by `c3`; the built-in family with `sets` applied to
+/// every class) and, for each, every class's nearest run searched from the nearest of 400
+/// starts per class, in a family of three classes: the peg, its exact twin and the wall.
+fn peg_twin_and_wall(sets: &[String]) -> Vec<vibrissa_infer::shapes::Separation> {
+    use vibrissa_infer::shapes::{separations, Class};
+    let e3 = ShapeFamily::builtin_with("e3", sets, None)
+        .unwrap()
+        .unwrap();
     let peg = e3.classes()[2].clone();
     let twin = Class {
         name: "twin".into(),
@@ -596,7 +595,18 @@ fn a_class_lies_at_no_distance_from_its_own_twin_and_far_from_another() {
         .noise(Variant::Noisy)
         .unwrap()
         .sensor;
-    let sep = separations(&three, &runs, sigma, 0.0, 0, 400, 3, &|| {}).unwrap();
+    separations(&three, &runs, sigma, 0.0, 0, 400, 3, &|| {}).unwrap()
+}
+
+#[test]
+fn a_class_lies_at_no_distance_from_its_own_twin_and_far_from_another() {
+    // Two classes that are one and the same (the peg, twice) and a third (the wall). The
+    // search moves the twin's nearest run far nearer than the nearest start and finds the twin
+    // the nearest rival, well inside the wall's distance; it does not reach the twin's exact
+    // pose (it stops a few noise levels short, at a larger x and radius: the run is jagged in
+    // the pose, examples/e3_smoothness.rs; the distances it gives are from above).
+    use vibrissa_infer::shapes::normal_tail;
+    let sep = peg_twin_and_wall(&[]);
     assert_eq!(sep.len(), 2);
     for s in &sep {
         eprintln!(
@@ -622,36 +632,7 @@ fn with_held_contacts_the_search_comes_nearer_the_twin() {
     // longer jagged in the pose): the search ends nearer the twin's pose, on average a fifth of
     // the nearest start's distance instead of nearly two fifths (1.1 from 11.1 and 3.2 from 10.6
     // noise levels, against 5.6 from 11.8 and 3.0 from 10.5).
-    use vibrissa_infer::shapes::{separations, Class};
-    let e3 = ShapeFamily::builtin_with("e3", &["hold_contacts=true".to_string()], None)
-        .unwrap()
-        .unwrap();
-    let peg = e3.classes()[2].clone();
-    let twin = Class {
-        name: "twin".into(),
-        family: peg.family.clone(),
-    };
-    let three = ShapeFamily::new(
-        "peg, its twin, wall",
-        vec![peg, twin, e3.classes()[0].clone()],
-    )
-    .unwrap()
-    .with_whiskers(&["c3"])
-    .unwrap();
-    let draws: Vec<(usize, Vec<f64>)> = three
-        .draws(2, false, 9)
-        .into_iter()
-        .filter(|d| d.0 == 0)
-        .collect();
-    let (runs, _) = three
-        .simulate_completed(&draws, &Noise::NONE, 1, &|| {})
-        .unwrap();
-    let sigma = vibrissa_infer::Family::builtin("e2")
-        .unwrap()
-        .noise(Variant::Noisy)
-        .unwrap()
-        .sensor;
-    let sep = separations(&three, &runs, sigma, 0.0, 0, 400, 3, &|| {}).unwrap();
+    let sep = peg_twin_and_wall(&["hold_contacts=true".to_string()]);
     assert_eq!(sep.len(), 2);
     let ratios: Vec<f64> = sep
         .iter()
