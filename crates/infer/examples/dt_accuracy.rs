@@ -2,7 +2,9 @@
 //! v = 0.3…1.5 m/s, clean) is simulated at a fine reference step and at each step compared, and
 //! for each step and each observed channel (theta01, theta12, m0, fx, fy, at the scenario's 1 kHz)
 //! the root-mean-square difference to the reference, divided by the channel's range over the
-//! reference run, is printed in percent: its largest value over the grid and its mean. Also
+//! reference run, is printed in percent: its largest value over the grid, its mean, and the grid's
+//! root-mean-square (the square root of the mean of the squared values: the whole grid's series
+//! against the whole grid's reference, each run in its own range). Also
 //! printed: the wall time per simulated second (runs one after another, on one core) and the
 //! steps taken per simulated second.
 //!
@@ -149,25 +151,25 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
 
     println!(
-        "{:>9} | {:>15} {:>15} {:>15} {:>15} {:>15} | {:>10} {:>10}",
+        "{:>9} | {:>19} {:>19} {:>19} {:>19} {:>19} | {:>10} {:>10}",
         "dt (s)",
-        "theta01 max/mean",
-        "theta12 max/mean",
-        "m0 max/mean",
-        "fx max/mean",
-        "fy max/mean",
+        "theta01 max/mean/rms",
+        "theta12 max/mean/rms",
+        "m0 max/mean/rms",
+        "fx max/mean/rms",
+        "fy max/mean/rms",
         "wall/sim",
         "steps/sim"
     );
     println!(
-        "{:>9} | {:>79} | {:>10.4} {:>10.0}",
+        "{:>9} | {:>99} | {:>10.4} {:>10.0}",
         reference_dt,
         "(reference)",
         ref_wall / ref_sim,
         ref_steps as f64 / ref_sim
     );
     for &dt in &dts {
-        let (mut max, mut sum) = ([0.0f64; 5], [0.0f64; 5]);
+        let (mut max, mut sum, mut squares) = ([0.0f64; 5], [0.0f64; 5], [0.0f64; 5]);
         let (mut wall, mut simulated, mut steps) = (0.0, 0.0, 0usize);
         let mut worst = [(0.0, 0.0); 5];
         for (&(d, v), reference) in grid.iter().zip(&references) {
@@ -182,10 +184,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     worst[c] = (d, v);
                 }
                 sum[c] += e[c];
+                squares[c] += e[c] * e[c];
             }
         }
         let cells: Vec<String> = (0..5)
-            .map(|c| format!("{:>7.3}/{:<7.3}", max[c], sum[c] / grid.len() as f64))
+            .map(|c| {
+                let n = grid.len() as f64;
+                format!(
+                    "{:>6.3}/{:.3}/{:<6.3}",
+                    max[c],
+                    sum[c] / n,
+                    (squares[c] / n).sqrt()
+                )
+            })
             .collect();
         println!(
             "{:>9} | {} | {:>10.4} {:>10.0}",
