@@ -58,9 +58,10 @@ impl Workspace {
         [p[0] + cs * c[0] - sn * c[1], p[1] + sn * c[0] + cs * c[1]]
     }
 
-    /// Draws this step's process-noise forces (once per step, whatever the iterations).
+    /// Draws this step's process-noise forces (once per step, whatever the iterations; within
+    /// a step taken in substeps, once for the whole step: see [`Self::noise_held`]).
     pub(super) fn draw_noise(&mut self, model: &Model, noise: f64, rng: &mut Rng, h: f64) {
-        if noise > 0.0 {
+        if noise > 0.0 && !self.noise_held {
             let sigma = noise * (model.arc / h).sqrt();
             for f in self.noise.iter_mut() {
                 *f = [sigma * rng.normal(), sigma * rng.normal()];

@@ -27,6 +27,10 @@
 //! such steps, keep their errors, and inertial loads (base acceleration) are scaled too (by
 //! 0.983 at 1 ms).
 //!
+//! The process noise's random forces are drawn once for the step and kept by all its substeps
+//! and halves: the forcing is the one a step taken whole would have, and the substeps only
+//! resolve the motion under it.
+//!
 //! The substeps interpolate the base motion between the step's ends (a cubic in the angle from
 //! its values and rates, the acceleration linearly) and each is one step of the method, halved
 //! where it diverges. The rates one step earlier, which predict the first geometric iterate of
@@ -179,6 +183,11 @@ pub(super) fn take<F: Forcing + ?Sized>(
     if pool.len() < EVENT_DEPTH + 1 {
         pool.resize_with(EVENT_DEPTH + 1, || state.clone());
     }
+    // The random forces are drawn once for the whole step and kept by every substep and half
+    // (piecewise constant over the step, as in a step taken whole), so that substeps refine the
+    // contact's motion under the same forcing instead of forcing it with more, larger draws.
+    ws.draw_noise(model, inputs.noise, &mut state.rng, st.dt);
+    ws.noise_held = true;
     let mut result = Ok(());
     for j in 1..=m {
         let (c0, c1) = (
@@ -197,6 +206,7 @@ pub(super) fn take<F: Forcing + ?Sized>(
         state.t = t_sub + sub.dt;
     }
     ws.event_pool = pool;
+    ws.noise_held = false;
     match result {
         Ok(()) => {
             scale_prev(n, state, m as f64);

@@ -54,6 +54,9 @@ pub struct Workspace {
     pub(crate) v_lin: Vec<f64>,
     /// Process-noise forces drawn for the current step, world frame, N: `[N][2]`.
     pub(crate) noise: Vec<[f64; 2]>,
+    /// Whether [`Self::noise`] holds the forces of a step being taken in substeps, which every
+    /// substep keeps instead of drawing its own.
+    pub(super) noise_held: bool,
     /// Contact scratch.
     pub(crate) contacts: Scratch,
     /// Geometric iterations used by the last step.
@@ -87,6 +90,7 @@ impl Workspace {
             q_lin: vec![0.0; n],
             v_lin: vec![0.0; n],
             noise: vec![[0.0; 2]; n],
+            noise_held: false,
             contacts: Scratch::new(n),
             iterations: 0,
             backup: None,
