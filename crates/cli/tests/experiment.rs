@@ -882,8 +882,8 @@ fn estimate_measures_the_recordings_noise_and_reports_it() {
     let sigma = SIGMA_3PC;
     noisy_e2_strike(&csv, &["duration=0.6", "seed=4"]);
     // The first estimate trains on 400 runs (knn); the later ones, which check only how the
-    // noise is stated and reported, read the 9 templates on all five channels (template-interp), which every method's
-    // noise handling shares.
+    // noise is stated and reported (the same for every method), read the 9 templates on all
+    // five channels (template-interp).
     let estimate = |method: &str, extra: &[&str]| {
         vibrissa()
             .args([

@@ -321,24 +321,23 @@ pub fn calibrate(
     if hold {
         resolved.set(HOLD_SETTING)?;
     }
-    let Some(substeps) = contact_resolution(nominal)? else {
-        let mut fit = fit_resolved(&resolved, set, settings, None, progress)?;
-        if hold {
-            fit.overrides.insert(0, HOLD_SETTING.to_string());
+    let mut fit = match contact_resolution(nominal)? {
+        None => fit_resolved(&resolved, set, settings, None, progress)?,
+        Some(substeps) => {
+            let setting = format!("contact_substeps={substeps}");
+            resolved.set(&setting)?;
+            // The starting scan only ranks points far apart: it simulates at the nominal's own
+            // step.
+            let own = nominal.loaded()?.scenario.integrator.contact_substeps;
+            let mut fit = fit_resolved(&resolved, set, settings, Some(own), progress)?;
+            fit.overrides.insert(0, setting);
+            fit.contact_substeps = Some(substeps);
+            fit
         }
-        fit.hold_contacts = hold;
-        return Ok(fit);
     };
-    let setting = format!("contact_substeps={substeps}");
-    resolved.set(&setting)?;
-    // The starting scan only ranks points far apart: it simulates at the nominal's own step.
-    let own = nominal.loaded()?.scenario.integrator.contact_substeps;
-    let mut fit = fit_resolved(&resolved, set, settings, Some(own), progress)?;
-    fit.overrides.insert(0, setting);
     if hold {
         fit.overrides.insert(0, HOLD_SETTING.to_string());
     }
-    fit.contact_substeps = Some(substeps);
     fit.hold_contacts = hold;
     Ok(fit)
 }
