@@ -3,7 +3,8 @@
 //! a model of SEGMENTS segments stepped at DT with ITERATIONS geometric iterations, in units of the
 //! `noisy` variant's sensor noise. Joint channels of a coarser chain are mapped onto the data's
 //! joints (`pf::map_joints`). Also prints how far the `noisy` variant's process noise alone moves
-//! the channels, in the same units, on the data's chain and on the model's.
+//! the channels, in the same units, on the data's chain and on the model's, and the two parts
+//! together as the filter's model error is defined (`pf::MODEL_ERROR`).
 //!
 //! ```sh
 //! cargo run --release -p vibrissa-infer --example pf_fidelity -- SEGMENTS DT ITERATIONS [SCENARIO]
@@ -99,6 +100,11 @@ impl Rms {
         }
     }
 
+    /// Mean square of channel `c`, in units of its sigma squared.
+    fn mean_square(&self, c: usize) -> f64 {
+        self.sum[c] / self.count as f64
+    }
+
     fn text(&self) -> String {
         self.sum
             .iter()
@@ -167,6 +173,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!(
         "N = {segments}, dt = {dt}, iterations {iterations}: rms / sensor sigma (theta01 theta12 m0 fx fy) = {}; model wall {wall:.3} s for 15 runs",
         fit.text()
+    );
+    // The two parts in quadrature, as the filter's model error is defined (`pf::MODEL_ERROR`):
+    // the fit itself and the process noise's response that the model's chain lacks.
+    let combined: Vec<String> = (0..5)
+        .map(|c| {
+            let lacked = (data_noise.mean_square(c) - model_noise.mean_square(c)).max(0.0);
+            format!("{:.2}", (fit.mean_square(c) + lacked).sqrt())
+        })
+        .collect();
+    println!(
+        "model error, both parts in quadrature / sensor sigma: {}",
+        combined.join(" ")
     );
     Ok(())
 }
