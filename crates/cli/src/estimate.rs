@@ -104,7 +104,8 @@ pub struct Args {
     /// List the methods and exit.
     #[arg(long)]
     list: bool,
-    /// pf: number of particles [default: 1000, or 4000 with --randomise].
+    /// pf: number of particles [default: 1000, or 4000 with --randomise]; shape-pf and
+    /// shape-mix: particles per class [default: 1000].
     #[arg(long, value_name = "N", value_parser = crate::limits::particles)]
     pub(crate) particles: Option<usize>,
     /// pf: independent filters the particles are split among, each with its own random streams,

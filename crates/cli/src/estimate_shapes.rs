@@ -19,7 +19,8 @@ use std::io::{self, Write};
 use std::path::Path;
 use vibrissa_infer::shapes::{
     check_shape_method, estimate_batch, needs_clean_runs, BatchOptions, ShapeBank, ShapeEsn,
-    ShapeFamily, ShapeKrr, ShapeMix, ShapePf, DEFAULT_TRAINING, SHAPE_METHODS, SHAPE_PF_TRAINING,
+    ShapeFamily, ShapeKrr, ShapeMix, ShapePf, DEFAULT_TRAINING, SHAPE_METHODS, SHAPE_PF_PARTICLES,
+    SHAPE_PF_TRAINING,
 };
 use vibrissa_infer::{Reader, CHANNELS};
 
@@ -74,8 +75,18 @@ pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
             SHAPE_METHODS.join(" or ")
         );
     }
-    if args.particles.is_some() || args.check || !args.prior.is_empty() {
-        bail!("--particles, --check and --prior do not apply to shape families");
+    if args.check || !args.prior.is_empty() {
+        bail!("--check and --prior do not apply to shape families");
+    }
+    let filters = [ShapePf::NAME, ShapeMix::NAME];
+    if args.particles.is_some() && !filters.contains(&method) {
+        bail!(
+            "--particles sets the particles per class of {}, not of {method}",
+            filters.join(" and ")
+        );
+    }
+    if args.particles.is_some_and(|n| n < 2) {
+        bail!("--particles must be at least 2 per class (got 1)");
     }
     let online = [
         ShapeEsn::NAME,
@@ -133,6 +144,7 @@ pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
         randomise: args.randomise,
         stated,
         trace: args.trace.is_some(),
+        particles: args.particles.unwrap_or(SHAPE_PF_PARTICLES),
     };
     let on = match &whisker {
         Some(w) => format!(", each the whisker of {}", w.origin()),

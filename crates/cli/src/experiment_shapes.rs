@@ -16,8 +16,8 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::Instant;
 use vibrissa_infer::shapes::{
-    evaluate_shapes, needs_clean_runs, ShapeEvaluation, ShapeFamily, ShapeSettings, BANK_PER_CLASS,
-    DEFAULT_SHAPE_METHODS,
+    evaluate_shapes, needs_clean_runs, ShapeEvaluation, ShapeFamily, ShapeMix, ShapePf,
+    ShapeSettings, BANK_PER_CLASS, DEFAULT_SHAPE_METHODS, SHAPE_PF_PARTICLES,
 };
 use vibrissa_infer::Variant;
 
@@ -35,6 +35,7 @@ pub struct ShapeArgs<'a> {
     pub training: Option<usize>,
     pub runs: Option<usize>,
     pub bank: Option<usize>,
+    pub particles: Option<usize>,
     pub whiskers: Option<&'a str>,
     pub methods: &'a [String],
     pub randomise: bool,
@@ -111,7 +112,27 @@ pub fn run(args: ShapeArgs) -> Result<()> {
         } else {
             args.methods.to_vec()
         },
+        particles: args.particles.unwrap_or(SHAPE_PF_PARTICLES),
     };
+    let filters = [ShapePf::NAME, ShapeMix::NAME];
+    if args.particles.is_some()
+        && !settings
+            .methods
+            .iter()
+            .any(|m| filters.contains(&m.as_str()))
+    {
+        anyhow::bail!(
+            "--particles sets the particles per class of {}: add --method {}",
+            filters.join(" and "),
+            ShapePf::NAME
+        );
+    }
+    if settings.particles < 2 {
+        anyhow::bail!(
+            "--particles must be at least 2 per class (got {})",
+            settings.particles
+        );
+    }
     if args.bank.is_some() && !settings.methods.iter().any(|m| needs_clean_runs(m)) {
         anyhow::bail!(
             "--bank sets the bank of shape-bank (and of shape-mix): add --method shape-bank"

@@ -1397,6 +1397,27 @@ fn experiment_e3_scores_shapes_and_exports_every_evaluated_run() {
         let err = String::from_utf8_lossy(&bad.stderr);
         assert!(err.contains("--method shape-bank"), "{err}");
     }
+    // So is a particle count for a shape estimator without a filter.
+    for (args, needle) in [
+        (
+            vec!["experiment", "e3", "--particles", "100", "--out"],
+            "--method shape-pf",
+        ),
+        (
+            vec!["estimate", "--shapes", "e3", "--particles", "100", "--obs"],
+            "not of shape-krr",
+        ),
+    ] {
+        let target = if args[0] == "experiment" {
+            dir.join("bad")
+        } else {
+            dir.join("run.csv")
+        };
+        let bad = vibrissa().args(&args).arg(target).output().unwrap();
+        assert!(!bad.status.success());
+        let err = String::from_utf8_lossy(&bad.stderr);
+        assert!(err.contains(needle), "{err}");
+    }
     let bad = vibrissa()
         .args(["experiment", "e2", "--bank", "100"])
         .output()

@@ -5,6 +5,10 @@ use vibrissa_infer::experiment::Noise;
 use vibrissa_infer::shapes::{evaluate_shapes, ShapeFamily, ShapeSettings};
 use vibrissa_infer::Variant;
 
+/// Particles per class of the filters read here (a third of the default: the wall and the peg
+/// through one whisker need fewer, and the checks hold with them).
+const PARTICLES: usize = 300;
+
 #[test]
 fn e3_has_four_classes_past_a_fan_of_five_whiskers() {
     let e3 = ShapeFamily::builtin("e3").unwrap().unwrap();
@@ -164,6 +168,7 @@ fn both_shape_estimators_tell_a_wall_from_a_peg_on_runs_they_did_not_see() {
         randomise: false,
         subsets: vec![vec!["c3".into()]],
         methods: vec!["shape-krr".into(), "shape-esn".into()],
+        particles: vibrissa_infer::shapes::SHAPE_PF_PARTICLES,
     };
     let ev = evaluate_shapes(&pair, &settings, &|_, _| {}).unwrap();
     assert_eq!(ev.subsets.len(), 2);
@@ -292,6 +297,7 @@ fn the_bank_tells_a_wall_from_a_peg_through_noise_and_says_how_sure_it_is() {
         randomise: false,
         subsets: vec![vec!["c3".into()]],
         methods: vec!["shape-bank".into()],
+        particles: vibrissa_infer::shapes::SHAPE_PF_PARTICLES,
     };
     let ev = evaluate_shapes(&pair, &settings, &|_, _| {}).unwrap();
     let s = &ev.subsets[0];
@@ -351,6 +357,7 @@ fn the_filter_over_each_class_tells_a_wall_from_a_peg_by_marginal_likelihood() {
         randomise: false,
         subsets: vec![vec!["c3".into()]],
         methods: vec!["shape-pf".into()],
+        particles: PARTICLES,
     };
     let ev = evaluate_shapes(&pair, &settings, &|_, _| {}).unwrap();
     let s = &ev.subsets[0];
@@ -414,6 +421,7 @@ fn the_bank_and_the_filter_pooled_read_a_wall_or_a_peg() {
         randomise: false,
         subsets: vec![vec!["c3".into()]],
         methods: vec!["shape-mix".into()],
+        particles: PARTICLES,
     };
     let ev = evaluate_shapes(&pair, &settings, &|_, _| {}).unwrap();
     let s = &ev.subsets[0];
@@ -514,7 +522,7 @@ fn the_filter_over_each_class_says_when_another_whisker_made_the_recording() {
     let (training, _) = own
         .simulate_completed(&own.draws(24, true, 1), &noise, 1, &|| {})
         .unwrap();
-    let pf = vibrissa_infer::shapes::ShapePf::fit(&own, &training).unwrap();
+    let pf = vibrissa_infer::shapes::ShapePf::fit_with(&own, &training, PARTICLES).unwrap();
     let fitted: std::collections::HashMap<String, f64> = pf.settings().into_iter().collect();
     eprintln!("{fitted:?}");
     // How far to trust a far reading was learnt from runs of drawn whiskers, one at each

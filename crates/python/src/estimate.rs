@@ -492,6 +492,7 @@ pub(crate) fn estimate_shapes(
         randomise,
         stated,
         trace: true,
+        particles: vibrissa_infer::shapes::SHAPE_PF_PARTICLES,
     };
     messages.push(format!(
         "training {} on {} runs per class of {}",

@@ -6,6 +6,7 @@
 use super::bank::{CleanRuns, BANK_PER_CLASS};
 use super::estimator::{ShapeEstimate, ShapeKrr};
 use super::family::ShapeFamily;
+use super::filter::SHAPE_PF_PARTICLES;
 use super::method::{check_shape_method, fit_shape_method, needs_clean_runs};
 use crate::contract::EstimateRow;
 use crate::error::{Error, Result};
@@ -33,6 +34,8 @@ pub struct BatchOptions {
     pub stated: [Option<f64>; 5],
     /// Also keep an online estimator's posterior after every sample ([`Batch::traces`]).
     pub trace: bool,
+    /// Particles per class of `shape-pf` and of `shape-mix`'s filter.
+    pub particles: usize,
 }
 
 impl Default for BatchOptions {
@@ -45,6 +48,7 @@ impl Default for BatchOptions {
             randomise: false,
             stated: [None; 5],
             trace: false,
+            particles: SHAPE_PF_PARTICLES,
         }
     }
 }
@@ -146,7 +150,13 @@ pub fn estimate_batch(
     } else {
         None
     };
-    let model = fit_shape_method(&options.method, &timed, &runs, clean.as_ref())?;
+    let model = fit_shape_method(
+        &options.method,
+        &timed,
+        &runs,
+        clean.as_ref(),
+        options.particles,
+    )?;
     let training_seconds = started.elapsed().as_secs_f64();
     let mut traces = Vec::new();
     let estimates = recordings

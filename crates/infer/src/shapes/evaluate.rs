@@ -35,6 +35,9 @@ pub struct ShapeSettings {
     pub subsets: Vec<Vec<String>>,
     /// The estimators to score on each set (of [`super::SHAPE_METHODS`]).
     pub methods: Vec<String>,
+    /// Particles per class of `shape-pf` and of `shape-mix`'s filter
+    /// ([`super::SHAPE_PF_PARTICLES`] by default).
+    pub particles: usize,
 }
 
 /// One unknown's scores over the correctly classified runs of a class.
@@ -288,8 +291,13 @@ pub fn evaluate_shapes(
             // simulates runs of its own.
             let read_by =
                 family.with_whiskers(&names.iter().map(String::as_str).collect::<Vec<_>>())?;
-            let model =
-                fit_shape_method(method, &read_by, &subset(&training, idx), clean.as_ref())?;
+            let model = fit_shape_method(
+                method,
+                &read_by,
+                &subset(&training, idx),
+                clean.as_ref(),
+                settings.particles,
+            )?;
             let fit_seconds = t0.elapsed().as_secs_f64();
             let t1 = Instant::now();
             let read = subset(&evaluated, idx);

@@ -132,25 +132,27 @@ pub fn check_shape_method(name: &str) -> Result<()> {
 }
 
 /// Fits the shape estimator `name` on the runs `training` of `family` (and, for one that
-/// [`needs_clean_runs`], the noise-free runs `clean`).
+/// [`needs_clean_runs`], the noise-free runs `clean`); a filter (`shape-pf`, and `shape-mix`'s)
+/// takes `particles` per class.
 pub fn fit_shape_method(
     name: &str,
     family: &ShapeFamily,
     training: &[ShapeSample],
     clean: Option<&CleanRuns>,
+    particles: usize,
 ) -> Result<Box<dyn ShapeMethod>> {
     check_shape_method(name)?;
     Ok(if name == ShapeEsn::NAME {
         Box::new(ShapeEsn::fit(family, training)?)
     } else if name == ShapePf::NAME {
-        Box::new(ShapePf::fit(family, training)?)
+        Box::new(ShapePf::fit_with(family, training, particles)?)
     } else if name == ShapeBank::NAME || name == ShapeMix::NAME {
         let clean = clean.ok_or_else(|| Error::Fit {
             method: name.into(),
             detail: "needs noise-free runs beside the training runs".into(),
         })?;
         if name == ShapeMix::NAME {
-            Box::new(ShapeMix::fit(family, training, clean)?)
+            Box::new(ShapeMix::fit(family, training, clean, particles)?)
         } else {
             Box::new(ShapeBank::fit(family, training, clean)?)
         }

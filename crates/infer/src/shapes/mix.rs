@@ -50,8 +50,14 @@ impl ShapeMix {
     pub const NAME: &'static str = "shape-mix";
 
     /// Fits `shape-bank` (on `training` and the noise-free `clean` runs) and `shape-pf` (on
-    /// `training`), each without [`HELD_OUT`] runs per class, then the exponents on those.
-    pub fn fit(family: &ShapeFamily, training: &[ShapeSample], clean: &CleanRuns) -> Result<Self> {
+    /// `training`, with `particles` per class), each without [`HELD_OUT`] runs per class, then
+    /// the exponents on those.
+    pub fn fit(
+        family: &ShapeFamily,
+        training: &[ShapeSample],
+        clean: &CleanRuns,
+        particles: usize,
+    ) -> Result<Self> {
         let classes = family.classes().len();
         let held = held_out(family, training);
         if held.len() < classes {
@@ -86,7 +92,7 @@ impl ShapeMix {
         };
         let (bank, pf) = rayon::join(
             || ShapeBank::fit(family, &rest, &clean_rest),
-            || ShapePf::fit(family, &rest),
+            || ShapePf::fit_with(family, &rest, particles),
         );
         let (bank, pf) = (bank?, pf?);
         let read: Vec<(Vec<f64>, Vec<f64>, usize)> = held
