@@ -249,14 +249,18 @@ pub fn next_whiskers(
 pub struct Pooled {
     /// The last round's estimates, one per recording.
     pub estimates: Vec<Estimate>,
-    /// Each recording's shortfall under the batch's favourite, nats (≥ 0).
+    /// Each recording's shortfall under the batch's favourite, nats (≥ 0; where the favourite
+    /// lost every particle on it, counted as the pooling's sum counts a lost whisker:
+    /// [`LOST_MARGIN`] below the least whisker the recording kept).
     pub shortfall: Vec<f64>,
+    /// Whether the favourite lost every particle on each recording.
+    pub lost: Vec<bool>,
 }
 
 /// Recordings flagged as disagreeing with the batch's favourite whisker: those whose
 /// [`Pooled::shortfall`] is an outlier of the batch's, above its median by more than
-/// [`OUTLIER_MADS`] scaled median absolute deviations (infinite ones, where the favourite lost
-/// every particle, included). None in a batch of fewer than [`OUTLIER_LEAST`] recordings.
+/// [`OUTLIER_MADS`] scaled median absolute deviations. None in a batch of fewer than
+/// [`OUTLIER_LEAST`] recordings.
 pub fn disagreeing(shortfall: &[f64]) -> Vec<usize> {
     if shortfall.len() < OUTLIER_LEAST {
         return Vec::new();
@@ -279,13 +283,17 @@ pub fn disagreeing(shortfall: &[f64]) -> Vec<usize> {
 pub fn warnings(pooled: &Pooled, names: &[String]) -> Vec<String> {
     let s = &pooled.shortfall;
     let each = disagreeing(s).into_iter().map(|r| {
-        let how = if s[r].is_finite() {
+        let how = if pooled.lost.get(r).copied().unwrap_or(false) {
+            format!(
+                "lost every particle on it (counted {:.1} nats worse than the best whisker it \
+                 met, {LOST_MARGIN} below the least it kept)",
+                s[r]
+            )
+        } else {
             format!(
                 "explains it {:.1} nats worse than the best whisker it met",
                 s[r]
             )
-        } else {
-            "lost every particle on it".to_string()
         };
         format!(
             "`{}`: the batch's favourite whisker {how}, where on half the batch it is within \
@@ -501,17 +509,7 @@ pub fn refine(
         .iter()
         .map(|e| e.posterior.whisker_log_evidence.clone())
         .collect();
-    let shortfall = match scores(&evidence) {
-        Ok(total) => {
-            let fav = (0..total.len()).fold(0, |b, h| if total[h] > total[b] { h } else { b });
-            evidence
-                .iter()
-                .zip(&best)
-                .map(|(ev, b)| (b - ev[fav]).max(0.0))
-                .collect()
-        }
-        Err(_) => vec![0.0; estimates.len()],
-    };
+    let (shortfall, lost) = shortfalls(&evidence, &best);
     // The batch is judged as a whole ([`warnings`]), not recording by recording.
     for e in &mut estimates {
         e.misfit_limit = None;
@@ -519,7 +517,37 @@ pub fn refine(
     Ok(Pooled {
         estimates,
         shortfall,
+        lost,
     })
+}
+
+/// Each recording's shortfall under the batch's favourite whisker (the best of the pooled
+/// [`scores`] of `evidence`, the last round's log evidences per recording and whisker) below
+/// `best`, the best log evidence each recording met in any round, and whether the favourite
+/// lost every particle on it. A lost favourite is counted as the pooled scores count it,
+/// [`LOST_MARGIN`] below the least whisker the recording kept: a whisker's particles die out
+/// by chance as well as by misfit (on the other engine's 20 strikes, all of one whisker, the
+/// favourite lost them on 4), so a lost favourite is no proof that the recording is another
+/// whisker's. Zeros where the evidence cannot be pooled.
+fn shortfalls(evidence: &[Vec<f64>], best: &[f64]) -> (Vec<f64>, Vec<bool>) {
+    let Ok(total) = scores(evidence) else {
+        return (vec![0.0; evidence.len()], vec![false; evidence.len()]);
+    };
+    let fav = (0..total.len()).fold(0, |b, h| if total[h] > total[b] { h } else { b });
+    evidence
+        .iter()
+        .zip(best)
+        .map(|(ev, b)| {
+            let least = ev
+                .iter()
+                .copied()
+                .filter(|x| x.is_finite())
+                .fold(f64::INFINITY, f64::min);
+            let lost = !ev[fav].is_finite();
+            let at = if lost { least - LOST_MARGIN } else { ev[fav] };
+            ((b - at).max(0.0), lost)
+        })
+        .unzip()
 }
 
 /// A whisker in a few words (modulus, density, tip radius, follicle), for progress messages.
@@ -546,22 +574,45 @@ mod tests {
     fn a_recording_far_below_the_batch_s_favourite_is_flagged() {
         let mut s = vec![0.7, 1.2, 1.5, 2.0, 2.2, 2.6, 3.1, 3.5, 4.1, 5.2];
         assert!(disagreeing(&s).is_empty(), "a batch that agrees");
-        s.push(f64::INFINITY);
+        s.push(35.0);
         s.push(40.0);
         assert_eq!(disagreeing(&s), vec![10, 11]);
         // Too few recordings to judge; a batch whose median is lost says nothing.
         assert!(disagreeing(&[0.0, 0.0, 50.0]).is_empty());
         assert!(disagreeing(&[f64::INFINITY; 6]).is_empty());
         // The warnings name the flagged recordings.
+        let mut lost = vec![false; s.len()];
+        lost[10] = true;
         let pooled = Pooled {
             estimates: Vec::new(),
             shortfall: s,
+            lost,
         };
         let names: Vec<String> = (0..12).map(|k| format!("r{k}.csv")).collect();
         let w = warnings(&pooled, &names);
         assert_eq!(w.len(), 2);
         assert!(w[0].starts_with("`r10.csv`") && w[0].contains("lost every particle"));
+        assert!(w[0].contains("counted 35.0 nats worse"), "{}", w[0]);
         assert!(w[1].starts_with("`r11.csv`") && w[1].contains("40.0 nats"));
+    }
+
+    #[test]
+    fn a_lost_favourite_counts_as_the_pooled_scores_count_it() {
+        let inf = f64::NEG_INFINITY;
+        // Whisker 1 is the favourite (-10 - 15 - (20 + 5) = -50, against -52 and -53); it lost
+        // every particle on the third recording, whose least kept whisker is at -20.
+        let evidence = [
+            vec![-12.0, -10.0, inf],
+            vec![-22.0, -15.0, -16.0],
+            vec![-18.0, inf, -20.0],
+        ];
+        let (s, lost) = shortfalls(&evidence, &[-9.0, -15.0, -18.0]);
+        assert_eq!(lost, vec![false, false, true]);
+        assert_eq!(s, vec![1.0, 0.0, 2.0 + LOST_MARGIN]);
+        assert!(s.iter().all(|x| x.is_finite()));
+        // Evidence that cannot be pooled leaves nothing to flag.
+        let (s, lost) = shortfalls(&[vec![-1.0]], &[-1.0]);
+        assert_eq!((s, lost), (vec![0.0], vec![false]));
     }
 
     #[test]
@@ -582,6 +633,7 @@ mod tests {
                 })
                 .collect(),
             shortfall: vec![0.0; misfits.len()],
+            lost: vec![false; misfits.len()],
         };
         let names: Vec<String> = (0..5).map(|k| format!("r{k}.csv")).collect();
         // Two recordings above the limit, the median below it: no warning.
