@@ -427,7 +427,7 @@ pub(crate) fn shape_family(
 /// recording's class posterior after every sample (`[recordings][samples][classes]`) with the
 /// classes' names in that order.
 #[pyfunction]
-#[pyo3(signature = (shapes, whiskers, inputs, noise, seed, randomise, training, method, bank, whisker_from=None))]
+#[pyo3(signature = (shapes, whiskers, inputs, noise, seed, randomise, training, method, bank, whisker_from=None, particles=None))]
 #[allow(clippy::too_many_arguments, clippy::type_complexity)]
 pub(crate) fn estimate_shapes(
     py: Python<'_>,
@@ -441,10 +441,21 @@ pub(crate) fn estimate_shapes(
     method: &str,
     bank: usize,
     whisker_from: Option<&str>,
+    particles: Option<usize>,
 ) -> PyResult<(Vec<String>, Vec<String>, Vec<Vec<Vec<f64>>>, Vec<String>)> {
-    use vibrissa_infer::shapes::{estimate_batch, BatchOptions};
+    use vibrissa_infer::shapes::{estimate_batch, BatchOptions, ShapeMix, ShapePf};
     check_count("training", training, 1, MAX_TRAINING).map_err(value_error)?;
     check_count("bank", bank, 1, MAX_BANK).map_err(value_error)?;
+    if let Some(n) = particles {
+        if method != ShapePf::NAME && method != ShapeMix::NAME {
+            return Err(value_error(format!(
+                "particles: sets the particles per class of {} and {}, not of {method}",
+                ShapePf::NAME,
+                ShapeMix::NAME
+            )));
+        }
+        check_count("particles", n, 2, MAX_PARTICLES).map_err(value_error)?;
+    }
     let family = shape_family(shapes, whiskers, whisker_from)?;
     let stated = vibrissa_infer::noise::parse_statement(noise)
         .map_err(|e| value_error(format!("noise: {e}")))?;
@@ -492,7 +503,7 @@ pub(crate) fn estimate_shapes(
         randomise,
         stated,
         trace: true,
-        particles: vibrissa_infer::shapes::SHAPE_PF_PARTICLES,
+        particles: particles.unwrap_or(vibrissa_infer::shapes::SHAPE_PF_PARTICLES),
     };
     messages.push(format!(
         "training {} on {} runs per class of {}",

@@ -70,6 +70,21 @@ def test_bad_arguments_are_refused_by_name(family):
         vibrissa.estimate_shapes(run, folder / "missing.toml")
 
 
+def test_the_filter_over_each_class_takes_a_particle_count(family):
+    folder, path = family
+    run = vibrissa.simulate(folder / "peg.toml")
+    est = vibrissa.estimate_shapes(
+        run, path, training=30, noise="none", method="shape-pf", particles=50, verbose=True
+    )
+    assert est["method"] == "shape-pf"
+    assert abs(sum(est["class"].values()) - 1.0) < 1e-9
+    # Only the filters have particles, and a filter needs two at least.
+    with pytest.raises(ValueError, match="particles"):
+        vibrissa.estimate_shapes(run, path, training=30, particles=50)
+    with pytest.raises(ValueError, match="particles = 1"):
+        vibrissa.estimate_shapes(run, path, training=30, method="shape-pf", particles=1)
+
+
 def test_the_online_estimator_gives_the_posterior_after_every_sample(family):
     folder, path = family
     run = vibrissa.simulate(folder / "peg.toml")

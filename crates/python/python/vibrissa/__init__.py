@@ -416,6 +416,7 @@ def estimate_shapes(
     verbose=False,
     bank=3200,
     whisker_from=None,
+    particles=None,
 ):
     """Which object struck the whiskers, and where: the class posterior and the most probable
     class's pose, as ``vibrissa estimate --shapes --json`` does.
@@ -441,9 +442,10 @@ def estimate_shapes(
         As for :func:`estimate`.
     method : str
         ``"shape-krr"`` (reads the recording whole), ``"shape-esn"`` (online: an echo-state
-        network that updates the class posterior after every sample) or ``"shape-bank"`` (the
+        network that updates the class posterior after every sample), ``"shape-bank"`` (the
         recording's likelihood under 3200 noise-free runs per class: best on noisy recordings,
-        several minutes to simulate its bank).
+        several minutes to simulate its bank), ``"shape-pf"`` (a particle filter over each
+        class's pose, online) or ``"shape-mix"`` (the bank and the filter pooled).
     bank : int
         With ``"shape-bank"``: noise-free runs per class in its bank (at least ``training``).
     whisker_from : str or os.PathLike, optional
@@ -451,6 +453,9 @@ def estimate_shapes(
         strikes of your whisker: every whisker of the family is given its whisker, chain and
         sensors (and its calibration record), so that the estimators train on your whisker,
         with contact stepped as finely as in that file (``contact_substeps``).
+    particles : int, optional
+        With ``"shape-pf"`` or ``"shape-mix"``: particles per class of the filter (default
+        1000; at least 2); refused with the other methods.
 
     Returns
     -------
@@ -483,6 +488,8 @@ def estimate_shapes(
     training = _count("training", training, 20)
     seed = _count("seed", seed, 0)
     bank = _count("bank", bank, 20)
+    if particles is not None:
+        particles = _count("particles", particles, 2)
     if not isinstance(method, str):
         raise TypeError("method: expected a method name such as 'shape-esn'")
     rows, messages, traces, classes = _vibrissa.estimate_shapes(
@@ -496,6 +503,7 @@ def estimate_shapes(
         method,
         bank,
         None if whisker_from is None else os.fspath(whisker_from),
+        particles,
     )
     if verbose:
         import sys

@@ -77,6 +77,7 @@ def estimate_shapes(
     verbose: bool = False,
     bank: int = 3200,
     whisker_from: Union[str, os.PathLike[str], None] = None,
+    particles: int | None = None,
 ) -> Union[dict[str, Any], list[dict[str, Any]]]: ...
 def simulate(
     scenario: Scenario = "e2",
