@@ -18,9 +18,9 @@ use serde_json::{Map, Value};
 use std::io::{self, Write};
 use std::path::Path;
 use vibrissa_infer::shapes::{
-    check_shape_method, estimate_batch, needs_clean_runs, BatchOptions, ShapeBank, ShapeEsn,
-    ShapeFamily, ShapeKrr, ShapeMix, ShapePf, DEFAULT_TRAINING, SHAPE_METHODS, SHAPE_PF_PARTICLES,
-    SHAPE_PF_TRAINING,
+    check_shape_method, estimate_batch, has_filter, needs_clean_runs, BatchOptions, ShapeBank,
+    ShapeEsn, ShapeFamily, ShapeKrr, ShapeMix, ShapePf, DEFAULT_TRAINING, FILTER_METHODS,
+    SHAPE_METHODS, SHAPE_PF_PARTICLES, SHAPE_PF_TRAINING,
 };
 use vibrissa_infer::{Reader, CHANNELS};
 
@@ -78,11 +78,10 @@ pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
     if args.check || !args.prior.is_empty() {
         bail!("--check and --prior do not apply to shape families");
     }
-    let filters = [ShapePf::NAME, ShapeMix::NAME];
-    if args.particles.is_some() && !filters.contains(&method) {
+    if args.particles.is_some() && !has_filter(method) {
         bail!(
             "--particles sets the particles per class of {}, not of {method}",
-            filters.join(" and ")
+            FILTER_METHODS.join(" and ")
         );
     }
     if args.particles.is_some_and(|n| n < 2) {

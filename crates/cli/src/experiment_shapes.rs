@@ -16,8 +16,8 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::Instant;
 use vibrissa_infer::shapes::{
-    evaluate_shapes, needs_clean_runs, ShapeEvaluation, ShapeFamily, ShapeMix, ShapePf,
-    ShapeSettings, BANK_PER_CLASS, DEFAULT_SHAPE_METHODS, SHAPE_PF_PARTICLES,
+    evaluate_shapes, has_filter, needs_clean_runs, ShapeEvaluation, ShapeFamily, ShapeSettings,
+    BANK_PER_CLASS, DEFAULT_SHAPE_METHODS, FILTER_METHODS, SHAPE_PF_PARTICLES,
 };
 use vibrissa_infer::Variant;
 
@@ -114,17 +114,11 @@ pub fn run(args: ShapeArgs) -> Result<()> {
         },
         particles: args.particles.unwrap_or(SHAPE_PF_PARTICLES),
     };
-    let filters = [ShapePf::NAME, ShapeMix::NAME];
-    if args.particles.is_some()
-        && !settings
-            .methods
-            .iter()
-            .any(|m| filters.contains(&m.as_str()))
-    {
+    if args.particles.is_some() && !settings.methods.iter().any(|m| has_filter(m)) {
         anyhow::bail!(
             "--particles sets the particles per class of {}: add --method {}",
-            filters.join(" and "),
-            ShapePf::NAME
+            FILTER_METHODS.join(" and "),
+            FILTER_METHODS[0]
         );
     }
     if settings.particles < 2 {

@@ -443,15 +443,14 @@ pub(crate) fn estimate_shapes(
     whisker_from: Option<&str>,
     particles: Option<usize>,
 ) -> PyResult<(Vec<String>, Vec<String>, Vec<Vec<Vec<f64>>>, Vec<String>)> {
-    use vibrissa_infer::shapes::{estimate_batch, BatchOptions, ShapeMix, ShapePf};
+    use vibrissa_infer::shapes::{estimate_batch, has_filter, BatchOptions, FILTER_METHODS};
     check_count("training", training, 1, MAX_TRAINING).map_err(value_error)?;
     check_count("bank", bank, 1, MAX_BANK).map_err(value_error)?;
     if let Some(n) = particles {
-        if method != ShapePf::NAME && method != ShapeMix::NAME {
+        if !has_filter(method) {
             return Err(value_error(format!(
-                "particles: sets the particles per class of {} and {}, not of {method}",
-                ShapePf::NAME,
-                ShapeMix::NAME
+                "particles: sets the particles per class of {}, not of {method}",
+                FILTER_METHODS.join(" and ")
             )));
         }
         check_count("particles", n, 2, MAX_PARTICLES).map_err(value_error)?;

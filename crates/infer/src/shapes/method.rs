@@ -30,6 +30,14 @@ pub fn needs_clean_runs(name: &str) -> bool {
     name == ShapeBank::NAME || name == ShapeMix::NAME
 }
 
+/// The estimators that run a particle filter and so take a particle count per class.
+pub const FILTER_METHODS: [&str; 2] = [ShapePf::NAME, ShapeMix::NAME];
+
+/// Whether estimator `name` runs a particle filter ([`FILTER_METHODS`]).
+pub fn has_filter(name: &str) -> bool {
+    FILTER_METHODS.contains(&name)
+}
+
 /// A fitted shape estimator.
 pub trait ShapeMethod: Send + Sync {
     /// Its name (one of [`SHAPE_METHODS`]).

@@ -35,8 +35,8 @@ pub use family::{Class, ShapeFamily, ShapeSample, SHAPE_BUILTINS};
 pub use filter::{ShapePf, SHAPE_PF_PARTICLES, SHAPE_PF_TRAINING};
 pub use forced::whitened;
 pub use method::{
-    check_shape_method, fit_shape_method, needs_clean_runs, ShapeMethod, DEFAULT_SHAPE_METHODS,
-    SHAPE_METHODS,
+    check_shape_method, fit_shape_method, has_filter, needs_clean_runs, ShapeMethod,
+    DEFAULT_SHAPE_METHODS, FILTER_METHODS, SHAPE_METHODS,
 };
 pub use mix::ShapeMix;
 pub use online::{Online, ShapeEsn};
