@@ -2,6 +2,7 @@
 //!
 //! `main` only reports: every command runs in [`run`] and returns its error, which is printed
 //! with its causes. Usage errors are clap's (exit status 2); any other failure exits with 1.
+#![forbid(unsafe_code)]
 
 mod animate;
 mod bench;

@@ -23,6 +23,7 @@
 //! - [`scenes`], [`validate`], [`inverse`]: standard scenes, the validation suite and the
 //!   beam-theory inverse estimators.
 #![warn(missing_docs)]
+#![forbid(unsafe_code)]
 
 pub mod array;
 pub mod batch;

@@ -11,6 +11,7 @@
 //! damping and sensor gains to labelled recordings, with the simulator in the loop; [`standin`]
 //! makes perturbed "foreign" whiskers and their labelled recordings to check it on.
 #![warn(missing_docs)]
+#![forbid(unsafe_code)]
 
 pub mod batch;
 pub mod calibrate;

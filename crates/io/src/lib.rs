@@ -10,6 +10,7 @@
 //! leaves a partial file. Errors are [`Error`], whose messages name the file, the line or key,
 //! and what is allowed.
 #![warn(missing_docs)]
+#![forbid(unsafe_code)]
 
 mod atomic;
 pub mod error;
