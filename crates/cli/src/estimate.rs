@@ -111,7 +111,8 @@ pub struct Args {
     /// pf: independent filters the particles are split among, each with its own random streams,
     /// merged at the end so that the intervals hold the spread between them (each keeps at
     /// least 1000 particles: 4000 run as 3 islands, 1000 as one) [default: 3, or 1 for a pooled
-    /// batch].
+    /// batch, which filters again as 3 any recording on which its favourite whisker lost every
+    /// particle].
     #[arg(long, value_name = "N", value_parser = crate::limits::islands)]
     pub(crate) islands: Option<usize>,
     /// pf with --randomise: whiskers entertained besides the scenario's.

@@ -121,6 +121,10 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
         );
     }
     options.islands = args.islands.unwrap_or(pf::default_islands(pool));
+    options.lost_islands = match args.islands {
+        Some(_) => None,
+        None => pf::lost_islands(pool),
+    };
     if args.no_pool_gains && !pool {
         bail!(
             "--no-pool-gains applies to a pooled batch (--pool, or 5 recordings or more of a \

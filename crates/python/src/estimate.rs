@@ -304,6 +304,10 @@ pub(crate) fn estimate(
             auto
         });
         options.islands = islands.unwrap_or(vibrissa_infer::pf::default_islands(pool));
+        options.lost_islands = match islands {
+            Some(_) => None,
+            None => vibrissa_infer::pf::lost_islands(pool),
+        };
         let filtered = if !pf {
             Vec::new()
         } else if pool {

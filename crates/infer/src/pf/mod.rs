@@ -50,7 +50,7 @@ pub use config::{
     PARAMS, PRIOR_BOUNDS, ROUGH_SEGMENTS,
 };
 pub use filter::{Filter, Particles};
-pub use islands::{default_islands, run, ISLANDS};
+pub use islands::{default_islands, lost_islands, run, ISLANDS};
 pub use likelihood::{
     noise_from_series, observation_sigma, per_time_factor, temper_for, TransitionModel,
     FINE_TEMPER, MODEL_ERROR, TEMPERED_PERIOD, TRANSITION_MODELS, UNKNOWN_START_TEMPER,

@@ -398,7 +398,9 @@ pub type FilterSome<'a> = dyn FnMut(&Options, &[usize]) -> Result<Vec<Estimate>>
 /// ([`search_subset`] of at most `search`) with the family's whiskers, then for each of
 /// `rounds` rounds draws the next whiskers around those the filtered recordings favour
 /// ([`scores`], [`next_whiskers`]) and filters again with them ([`Options::whiskers`]): the
-/// search's recordings in every round but the last, every recording in the last.
+/// search's recordings in every round but the last, every recording in the last; then the
+/// recordings on which the last favourite lost every particle again, as
+/// [`Options::lost_islands`] islands where that is set and more than [`Options::islands`].
 /// `filter(options, indices)` filters the recordings at `indices` (in that order). Tells
 /// `progress` each round's favourite. Returns the last round's estimates of every recording and
 /// each one's shortfall under the last favourite ([`Pooled`]; a recording outside the search
@@ -510,6 +512,35 @@ pub fn refine(
         .map(|e| e.posterior.whisker_log_evidence.clone())
         .collect();
     let (shortfall, lost) = shortfalls(&evidence, &best);
+    // Where the favourite lost every particle, the recording's posterior rests on the few
+    // particles of other whiskers that survived it, and where they settle depends on the
+    // filter's seed: filtered again as islands, its intervals hold that scatter.
+    let again: Vec<usize> = (0..recordings).filter(|&r| lost[r]).collect();
+    if let (Some(islands), false) = (options.lost_islands, again.is_empty()) {
+        if islands > options.islands {
+            progress(format!(
+                "pooling: the batch's favourite whisker lost every particle on {} of the \
+                 recordings; filtering {} again as {islands} islands, so that {} intervals \
+                 hold the filter's own scatter",
+                again.len(),
+                if again.len() == 1 { "it" } else { "them" },
+                if again.len() == 1 { "its" } else { "their" }
+            ));
+            let mut apart = options.clone();
+            apart.islands = islands;
+            let redone = filter(&apart, &again)?;
+            if redone.len() != again.len() {
+                return Err(Error::Observation(format!(
+                    "pooling the recordings: asked to filter {} recordings, got {} estimates",
+                    again.len(),
+                    redone.len()
+                )));
+            }
+            for (&r, e) in again.iter().zip(redone) {
+                estimates[r] = e;
+            }
+        }
+    }
     // The batch is judged as a whole ([`warnings`]), not recording by recording.
     for e in &mut estimates {
         e.misfit_limit = None;
@@ -662,6 +693,71 @@ mod tests {
         assert!(!dropped(&one));
         one.posterior.diverged += 1;
         assert!(dropped(&one));
+    }
+
+    #[test]
+    fn a_recording_the_favourite_lost_is_filtered_again_as_islands() {
+        use super::super::{Config, Posterior};
+        let mut config = Config::e2([0.01, 0.01, 1e-6, 1e-4, 1e-4], 10, 1);
+        config.alternatives = vec![WhiskerParams {
+            youngs_modulus: 2.5e9,
+            ..config.whisker.clone()
+        }];
+        // Whisker 0 explains every recording better, but loses its particles on recording 2
+        // when filtered as one island.
+        let seen = std::cell::RefCell::new(Vec::new());
+        let mut filter = |options: &Options, which: &[usize]| -> Result<Vec<Estimate>> {
+            seen.borrow_mut().push((options.islands, which.to_vec()));
+            Ok(which
+                .iter()
+                .map(|&r| {
+                    let mut posterior = Posterior::empty(vec!["d"]);
+                    posterior.whisker_log_evidence = if r == 2 && options.islands == 1 {
+                        vec![f64::NEG_INFINITY, -2.0]
+                    } else {
+                        vec![-1.0, -2.0]
+                    };
+                    Estimate {
+                        posterior,
+                        config: config.clone(),
+                        sensor: [0.01; 5],
+                        sigma: [0.01; 5],
+                        misfit: 1.0,
+                        misfit_limit: Some(MISFIT_LIMIT),
+                        seconds: options.islands as f64,
+                    }
+                })
+                .collect())
+        };
+        let all: Vec<usize> = (0..8).collect();
+        let mut options = Options::new(10);
+        options.islands = 1;
+        options.lost_islands = Some(3);
+        let pooled = refine(8, &options, 2, 20, 1, &mut filter, &mut |_| {}).unwrap();
+        assert_eq!(
+            seen.take(),
+            [
+                (1, all.clone()),
+                (1, all.clone()),
+                (1, all.clone()),
+                (3, vec![2])
+            ]
+        );
+        assert_eq!(pooled.lost, all.iter().map(|&r| r == 2).collect::<Vec<_>>());
+        // Its estimate is the islands', the others' the last round's.
+        let took: Vec<f64> = pooled.estimates.iter().map(|e| e.seconds).collect();
+        assert_eq!(
+            took,
+            all.iter()
+                .map(|&r| if r == 2 { 3.0 } else { 1.0 })
+                .collect::<Vec<_>>()
+        );
+        // Unset, or no more islands than every round ran: nothing is filtered again.
+        for lost_islands in [None, Some(1)] {
+            options.lost_islands = lost_islands;
+            refine(8, &options, 2, 20, 1, &mut filter, &mut |_| {}).unwrap();
+            assert_eq!(seen.take().len(), 3);
+        }
     }
 
     #[test]

@@ -49,6 +49,9 @@ pub struct Options {
     pub particles: usize,
     /// Independent filters the particles are split among ([`super::islands`]).
     pub islands: usize,
+    /// Islands for filtering again the recordings of a pooled batch on which its favourite
+    /// whisker lost every particle ([`super::pool::refine`]; `None`: not filtered again).
+    pub lost_islands: Option<usize>,
     /// Seed of the filter's random streams.
     pub seed: u64,
     /// The recording may start up to this many seconds before the approach.
@@ -87,6 +90,7 @@ impl Options {
         Options {
             particles,
             islands: super::ISLANDS,
+            lost_islands: None,
             seed: 1,
             max_delay: 0.0,
             model: TransitionModel::Coarse,

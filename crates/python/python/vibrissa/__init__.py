@@ -293,8 +293,9 @@ def estimate(
     islands : int, optional
         Independent filters the particles of ``method="pf"`` are split among, each with its own
         random streams, merged so that the intervals hold the spread between them (default 3,
-        or 1 for a pooled batch; each keeps at least 1000 particles: 4000 run as three, 1000 as
-        one).
+        or 1 for a pooled batch, which filters again as three any recording on which its
+        favourite whisker lost every particle; each keeps at least 1000 particles: 4000 run as
+        three, 1000 as one).
     check : bool
         Add the model check (``"check"``): does the scenario explain the recording at its estimate?
     whisker : str, optional
