@@ -436,14 +436,7 @@ pub fn refine(
     // Filters the recordings `on` and keeps each one's best log evidence over the rounds.
     let mut best = vec![f64::NEG_INFINITY; recordings];
     let mut filter_on = |options: &Options, on: &[usize]| -> Result<Vec<Estimate>> {
-        let estimates = filter(options, on)?;
-        if estimates.len() != on.len() {
-            return Err(Error::Observation(format!(
-                "pooling the recordings: asked to filter {} recordings, got {} estimates",
-                on.len(),
-                estimates.len()
-            )));
-        }
+        let estimates = one_each(on, filter(options, on)?)?;
         for (&r, e) in on.iter().zip(best_evidence(&estimates)) {
             best[r] = best[r].max(e);
         }
@@ -516,29 +509,22 @@ pub fn refine(
     // particles of other whiskers that survived it, and where they settle depends on the
     // filter's seed: filtered again as islands, its intervals hold that scatter.
     let again: Vec<usize> = (0..recordings).filter(|&r| lost[r]).collect();
-    if let (Some(islands), false) = (options.lost_islands, again.is_empty()) {
-        if islands > options.islands {
-            progress(format!(
-                "pooling: the batch's favourite whisker lost every particle on {} of the \
-                 recordings; filtering {} again as {islands} islands, so that {} intervals \
-                 hold the filter's own scatter",
-                again.len(),
-                if again.len() == 1 { "it" } else { "them" },
-                if again.len() == 1 { "its" } else { "their" }
-            ));
-            let mut apart = options.clone();
-            apart.islands = islands;
-            let redone = filter(&apart, &again)?;
-            if redone.len() != again.len() {
-                return Err(Error::Observation(format!(
-                    "pooling the recordings: asked to filter {} recordings, got {} estimates",
-                    again.len(),
-                    redone.len()
-                )));
-            }
-            for (&r, e) in again.iter().zip(redone) {
-                estimates[r] = e;
-            }
+    let more = |&k: &usize| k > options.islands && !again.is_empty();
+    if let Some(islands) = options.lost_islands.filter(more) {
+        progress(format!(
+            "pooling: the batch's favourite whisker lost every particle on {} of the \
+             recordings; filtering {} again as {islands} islands, so that {} intervals hold \
+             the filter's own scatter",
+            again.len(),
+            if again.len() == 1 { "it" } else { "them" },
+            if again.len() == 1 { "its" } else { "their" }
+        ));
+        let apart = Options {
+            islands,
+            ..options.clone()
+        };
+        for (&r, e) in again.iter().zip(one_each(&again, filter(&apart, &again)?)?) {
+            estimates[r] = e;
         }
     }
     // The batch is judged as a whole ([`warnings`]), not recording by recording.
@@ -550,6 +536,18 @@ pub fn refine(
         shortfall,
         lost,
     })
+}
+
+/// `estimates`, if there is one for each recording of `on`.
+fn one_each(on: &[usize], estimates: Vec<Estimate>) -> Result<Vec<Estimate>> {
+    if estimates.len() == on.len() {
+        return Ok(estimates);
+    }
+    Err(Error::Observation(format!(
+        "pooling the recordings: asked to filter {} recordings, got {} estimates",
+        on.len(),
+        estimates.len()
+    )))
 }
 
 /// Each recording's shortfall under the batch's favourite whisker (the best of the pooled
