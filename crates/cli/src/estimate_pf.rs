@@ -42,11 +42,23 @@ pub fn run(args: &Args, family: &Family, stated: &[Option<f64>; 5]) -> Result<()
         .map(|f| read_recording(f, &channels, Reader::Filter, args.whisker.as_deref()))
         .collect::<Result<Vec<_>>>()?;
     check_sample_rates(family, &args.obs, &recordings)?;
+    // A sensor that recorded nothing (a flat channel beside others that vary) is left out,
+    // unless the channels were named.
+    let names: Vec<String> = args.obs.iter().map(|f| f.display().to_string()).collect();
+    let channels = if args.channels.is_empty() {
+        let (kept, warnings) =
+            vibrissa_infer::recording::recorded_channels(&names, &recordings, &channels);
+        for w in warnings {
+            eprintln!("warning: {w}");
+        }
+        kept
+    } else {
+        channels
+    };
     warn_of_units(family, &args.obs, &recordings, &channels)?;
 
     // The sensor noise of every recording (the filter is fitted to each level: no runs).
     let levels = noise_levels(&args.obs, &recordings, &channels, stated)?;
-    let names: Vec<String> = args.obs.iter().map(|f| f.display().to_string()).collect();
     for w in vibrissa_infer::batch::without_strikes(&names, &recordings, &levels, &channels) {
         eprintln!("warning: {w}");
     }

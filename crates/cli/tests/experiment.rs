@@ -936,6 +936,51 @@ fn estimate_measures_the_recordings_noise_and_reports_it() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("--variant is deprecated and ignored"), "{err}");
 
+    // A sensor that recorded nothing (m0 flat at a huge value beside channels that vary) is
+    // refused by a method that reads it, before anything is trained, and left out by the
+    // filter, which reports no noise for it.
+    let flat = dir.join("flat_m0.csv");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    let header = lines.next().unwrap();
+    let m0 = header.split(',').position(|c| c == "m0").unwrap();
+    let mut body = format!("{header}\n");
+    for line in lines {
+        let mut cells: Vec<&str> = line.split(',').collect();
+        cells[m0] = "1e30";
+        body += &cells.join(",");
+        body.push('\n');
+    }
+    std::fs::write(&flat, body).unwrap();
+    let run = |method: &str, extra: &[&str]| {
+        vibrissa()
+            .args(["estimate", "--experiment", "e2", "--method", method])
+            .args(extra)
+            .args(["--json", "--obs"])
+            .arg(&flat)
+            .output()
+            .unwrap()
+    };
+    let out = run("template-interp", &[]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && out.stdout.is_empty(), "{err}");
+    assert!(
+        err.contains("flat_m0.csv")
+            && err.contains("`m0` holds 1000000000000000000")
+            && !err.contains("trained"),
+        "{err}"
+    );
+    let out = run("pf", &["--particles", "300"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("`m0`") && err.contains("left out"), "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(
+        v["noise"].get("m0").is_none() && v["noise"].get("fx").is_some(),
+        "{v}"
+    );
+    assert!(v["d"]["mean"].as_f64().unwrap().is_finite(), "{v}");
+
     // A bad statement, and a recording too short to measure, are refused by name.
     let out = estimate("template-interp", &["--noise", "m0=-1"]);
     assert!(!out.status.success());

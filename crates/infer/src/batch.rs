@@ -315,6 +315,17 @@ pub fn filter_family(
     }
     log("checking that the scenario explains the recordings, at krr's estimates…".into());
     let verdict = defied_by(family, recordings, levels, leads, seed, log)?;
+    if verdict.looked == 0 && !recordings.is_empty() {
+        // Nothing could be checked: the scenario's whisker is not trusted unchecked.
+        log(format!(
+            "warning: the scenario could not be checked against the recordings (the check reads \
+             krr's estimates, which need every channel, and each recording lacks one or holds \
+             one flat): the filter entertains whiskers drawn around it, as {} does ({} keeps \
+             the scenario's whisker)",
+            switches.randomise, switches.keep
+        ));
+        return family.clone().randomised_if(true);
+    }
     if !verdict.defiant {
         return Ok(family.clone());
     }
@@ -388,6 +399,36 @@ mod tests {
         )
         .unwrap();
         assert!(family.randomisation().is_some(), "{log:?}");
+    }
+
+    #[test]
+    fn a_scenario_the_check_cannot_read_against_is_not_trusted_unchecked() {
+        // The scenario's own runs, whose force sensors recorded nothing (one flat m0) or were
+        // not recorded at all: `krr`, which the check reads, needs every channel, so nothing is
+        // checked, and the filter entertains whiskers drawn around the scenario.
+        let e2 = Family::builtin("e2").unwrap();
+        let points = [[0.018, 0.5], [0.024, 1.1]];
+        let mut own = recordings(&e2, &points);
+        own[0].values[2].fill(1e30);
+        own[1].values[2].clear();
+        let (levels, leads) = (vec![LEVEL; points.len()], vec![0; points.len()]);
+        let mut log = Vec::new();
+        let family = filter_family(
+            &e2,
+            &own,
+            &levels,
+            &leads,
+            1,
+            true,
+            &COMMAND_LINE,
+            &mut |m| log.push(m),
+        )
+        .unwrap();
+        assert!(family.randomisation().is_some(), "{log:?}");
+        assert!(
+            log.iter().any(|m| m.contains("could not be checked")),
+            "{log:?}"
+        );
     }
 
     #[test]

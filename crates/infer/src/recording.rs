@@ -369,6 +369,47 @@ impl Recording {
     }
 }
 
+/// The channels of `needs` that the batch's sensors recorded: a channel that holds one value
+/// from the first sample to the last in a recording whose other channels of `needs` vary (a
+/// sensor that recorded nothing) is left out, with a warning naming the recording. `needs` as
+/// it is when that would leave no channel. For an estimator that can read any subset of the
+/// channels (the filter); [`batch_noise`] refuses such a channel.
+pub fn recorded_channels(
+    names: &[String],
+    recordings: &[Recording],
+    needs: &[usize],
+) -> (Vec<usize>, Vec<String>) {
+    let mut dead: Vec<usize> = Vec::new();
+    let mut warnings = Vec::new();
+    for (name, rec) in names.iter().zip(recordings) {
+        let constant = rec.constant_channels(needs);
+        if constant.len() == needs.len() {
+            continue;
+        }
+        for (c, value) in constant {
+            warnings.push(format!(
+                "`{name}`: channel `{}` holds {value} from the first sample to the last while \
+                 the others vary: a sensor that recorded nothing? It is left out of every \
+                 recording's estimate (name the channels to read to keep it)",
+                CHANNELS[c]
+            ));
+            if !dead.contains(&c) {
+                dead.push(c);
+            }
+        }
+    }
+    let kept: Vec<usize> = needs
+        .iter()
+        .copied()
+        .filter(|c| !dead.contains(c))
+        .collect();
+    if kept.is_empty() {
+        (needs.to_vec(), warnings)
+    } else {
+        (kept, warnings)
+    }
+}
+
 /// Missing values of one channel that [`Recording::filled`] filled in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Gaps {
@@ -446,13 +487,26 @@ pub fn batch_noise(
         .collect();
     let mut warnings = Vec::new();
     // A channel that never changes is a sensor that recorded nothing: its noise measures as 0 and
-    // the estimators compare a flat line with simulated signals.
+    // an estimator would compare a flat line with simulated signals (and a filter with free
+    // sensor gains would read any value it holds as a gain). Beside channels that vary it is
+    // refused; a recording in which nothing varies is only warned of (a whisker never touched).
     for (name, rec) in names.iter().zip(recordings) {
-        for (c, value) in rec.constant_channels(needs) {
+        let constant = rec.constant_channels(needs);
+        if let Some(&(c, value)) = constant.first().filter(|_| constant.len() < needs.len()) {
+            return Err(bad(format!(
+                "`{name}`: channel `{}` holds {value} from the first sample to the last while \
+                 the others vary: a sensor that recorded nothing? Leave the column out of the \
+                 file and use a method that does without it: the filter (method pf) leaves such \
+                 a channel out by itself unless its channels are named; the other methods read \
+                 every channel they list",
+                CHANNELS[c]
+            )));
+        }
+        for (c, value) in constant {
             warnings.push(format!(
-                "`{name}`: channel `{}` is constant ({value}): a sensor that recorded nothing? \
-                 Its noise is taken as 0 and the estimate compares a flat line with simulated \
-                 signals; leave the column out if it was not recorded",
+                "`{name}`: channel `{}` is constant ({value}), as is every channel read: a \
+                 whisker that never moved, or sensors that recorded nothing? The estimate \
+                 compares flat lines with simulated signals",
                 CHANNELS[c]
             ));
         }
@@ -703,5 +757,61 @@ mod tests {
         assert!(rec.values[0][0].is_nan());
         let (_, none) = rec.filled(&[2]);
         assert!(none.is_empty());
+    }
+
+    /// A strike-like recording of `n` samples: every channel a pulse with a little wobble,
+    /// but those of `flat`, which hold `value`.
+    fn strike(n: usize, flat: &[usize], value: f64) -> Recording {
+        let t: Vec<f64> = (0..n).map(|k| k as f64 * 1e-3).collect();
+        let columns = (0..5)
+            .map(|c| {
+                Some(
+                    (0..n)
+                        .map(|k| {
+                            if flat.contains(&c) {
+                                return value;
+                            }
+                            let x = k as f64 / n as f64;
+                            let wobble = 0.01 * ((k * (7 + c)) as f64).sin();
+                            (1.0 + c as f64) * ((-((x - 0.5) / 0.1).powi(2)).exp() + wobble)
+                        })
+                        .collect(),
+                )
+            })
+            .collect();
+        Recording::from_columns("r", t, columns, None, &[0, 1, 2, 3, 4], Reader::Filter).unwrap()
+    }
+
+    #[test]
+    fn a_channel_that_recorded_nothing_beside_others_that_vary() {
+        let names = ["a.csv".to_string(), "b.csv".to_string()];
+        let all = [0, 1, 2, 3, 4];
+        let batch = [strike(300, &[], 0.0), strike(300, &[2], 1e30)];
+        // The filter leaves m0 out, naming the recording that shows it.
+        let (kept, warnings) = recorded_channels(&names, &batch, &all);
+        assert_eq!(kept, [0, 1, 3, 4]);
+        assert_eq!(warnings.len(), 1);
+        assert!(
+            warnings[0].contains("`b.csv`") && warnings[0].contains("`m0`"),
+            "{warnings:?}"
+        );
+        // A method that reads it is refused before anything is trained.
+        let e = batch_noise(&names, &batch, &all, &[None; 5], "--noise")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("`b.csv`") && e.contains("`m0`") && e.contains("1000000000000000000"),
+            "{e}"
+        );
+        // Without m0 the batch is read, and no channel is flat.
+        let report = batch_noise(&names, &batch, &kept, &[None; 5], "--noise").unwrap();
+        assert!(report.warnings.is_empty(), "{:?}", report.warnings);
+        assert!(report
+            .levels
+            .iter()
+            .all(|l| kept.iter().all(|&c| l[c] > 0.0)));
+        // Nothing left to read: every channel kept, as the caller asked.
+        let (kept, _) = recorded_channels(&names[1..], &batch[1..], &[2]);
+        assert_eq!(kept, [2]);
     }
 }

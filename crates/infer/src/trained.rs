@@ -203,7 +203,8 @@ impl Trained {
 /// [`crate::check::defies`], weighed where that decides against the scenario's own runs at the
 /// first recording's noise, [`null_unexplained`]): what tells the particle filter, before it
 /// runs, that the recordings are not of the scenario's whisker. `krr` trains on the scenario's
-/// own whisker (`family`'s nominal); a recording that lacks a channel it reads is not looked at.
+/// own whisker (`family`'s nominal); a recording that lacks a channel it reads, or holds one
+/// flat beside others that vary (a sensor that recorded nothing), is not looked at.
 pub fn defied_by(
     family: &Family,
     recordings: &[Recording],
@@ -218,7 +219,9 @@ pub fn defied_by(
     let (mut recs, mut points, mut levels, mut allowed) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for ((rec, level), &lead) in recordings.iter().zip(noise).zip(leads) {
-        if channels.iter().any(|&c| rec.values[c].is_empty()) {
+        let dead = rec.constant_channels(&channels).len();
+        if channels.iter().any(|&c| rec.values[c].is_empty()) || (dead > 0 && dead < channels.len())
+        {
             continue;
         }
         let method = trained.get(&nominal, rec, level, "krr", seed, lead, log)?;

@@ -199,6 +199,16 @@ pub(crate) fn estimate(
              ({how}); randomise=False trains on the fitted whisker alone"
         ));
     }
+    // The filter leaves out a sensor that recorded nothing (a flat channel beside others that
+    // vary), as on the command line.
+    let needs = if pf {
+        let (kept, warnings) =
+            vibrissa_infer::recording::recorded_channels(&names, &recordings, &needs);
+        messages.extend(warnings.into_iter().map(|w| format!("warning: {w}")));
+        kept
+    } else {
+        needs
+    };
     let several = names.len() > 1;
     let rows = py.detach(|| -> vibrissa_infer::Result<Vec<String>> {
         // Channels far wider than the scenario's runs: a recording in other units.
@@ -244,6 +254,7 @@ pub(crate) fn estimate(
                 .zip(&recordings)
                 .map(|(&l, r)| l as f64 / r.rate)
                 .fold(max_delay, f64::max),
+            channels: needs.clone(),
             ..recording::Options::new(
                 particles.unwrap_or_else(|| vibrissa_infer::pf::default_particles(&family)),
             )

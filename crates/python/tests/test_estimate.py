@@ -358,3 +358,16 @@ def test_angles_recorded_clockwise_are_warned_of():
     assert any("with theta01 and theta12 negated" in w for w in est["warnings"]), est["warnings"]
     kept = vibrissa.estimate(run, method="template-interp")
     assert not any("negated" in w for w in kept["warnings"]), kept["warnings"]
+
+
+def test_a_sensor_that_recorded_nothing_is_left_out_by_the_filter_and_refused_by_a_method():
+    # m0 flat at a huge value beside channels that vary: the filter reads the other four, as
+    # on the command line; a method that reads m0 raises before it trains.
+    run = dict(noisy_run(0.021, 0.7, 6))
+    run["m0"] = np.full(len(run["t"]), 1e30)
+    est = vibrissa.estimate(run, method="pf", particles=300)
+    assert any("`m0`" in w and "left out" in w for w in est["warnings"]), est
+    assert "m0" not in est["noise"] and "fx" in est["noise"], est
+    assert np.isfinite(est["d"]["mean"]), est
+    with pytest.raises(ValueError, match="`m0` holds"):
+        vibrissa.estimate(run, method="template-interp")
