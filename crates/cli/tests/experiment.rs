@@ -980,6 +980,34 @@ fn estimate_measures_the_recordings_noise_and_reports_it() {
         "{v}"
     );
     assert!(v["d"]["mean"].as_f64().unwrap().is_finite(), "{v}");
+    // Every channel flat at 0: warned of, then refused by the method that cannot read it,
+    // which says why once.
+    let zeros = dir.join("zeros.csv");
+    let mut body = String::from("t,theta01,theta12,m0,fx,fy\n");
+    for k in 0..151 {
+        body += &format!("{},0,0,0,0,0\n", k as f64 * 1e-3);
+    }
+    std::fs::write(&zeros, body).unwrap();
+    let out = vibrissa()
+        .args([
+            "estimate",
+            "--experiment",
+            "e2",
+            "--method",
+            "krr-invariant",
+        ])
+        .arg("--obs")
+        .arg(&zeros)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(err.contains("as is every channel read"), "{err}");
+    assert_eq!(err.matches("unusable observation").count(), 1, "{err}");
+    assert!(
+        err.contains("zeros.csv`: channel theta01 is zero throughout"),
+        "{err}"
+    );
 
     // A bad statement, and a recording too short to measure, are refused by name.
     let out = estimate("template-interp", &["--noise", "m0=-1"]);

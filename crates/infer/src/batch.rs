@@ -64,9 +64,14 @@ pub fn estimate_each(
     for (((file, rec), level), &lead) in names.iter().zip(recordings).zip(levels).zip(leads) {
         let method = trained.get(family, rec, level, name, seed, lead, log)?;
         let start = Instant::now();
-        let est = method
-            .predict(&rec.values)
-            .map_err(|e| Error::Observation(format!("estimating from `{file}`: {e}")))?;
+        let est = method.predict(&rec.values).map_err(|e| {
+            // Said once: "unusable observation: estimating from `f`: <why>".
+            let why = match e {
+                Error::Observation(why) => why,
+                e => e.to_string(),
+            };
+            Error::Observation(format!("estimating from `{file}`: {why}"))
+        })?;
         out.push((est, start.elapsed().as_secs_f64()));
     }
     Ok(out)
