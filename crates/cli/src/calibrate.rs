@@ -94,6 +94,9 @@ struct Report {
     correlation: vibrissa_io::scenario::Correlation,
     /// Channels left out of the fit: one value in every strike (channel, value).
     left_out: Vec<(&'static str, f64)>,
+    /// Channels left out of single strikes: one value there while they vary in others
+    /// (strike, channel, value).
+    flat_in: Vec<(String, &'static str, f64)>,
     /// Substeps near contact that the fit simulated with and wrote into the fitted file, where
     /// the nominal left them to their default (`None`: as the nominal says).
     contact_substeps: Option<usize>,
@@ -173,6 +176,14 @@ pub fn run(args: &Args) -> Result<()> {
             sig(*value, 3)
         );
     }
+    for (file, name, value) in &fit.flat_in {
+        eprintln!(
+            "warning: `{file}`: channel `{name}` holds {} from the first sample to the last while \
+             it varies in other strikes: a sensor that recorded nothing in this strike? It is \
+             left out of this strike's fit",
+            sig(*value, 3)
+        );
+    }
 
     let labelled = recorded_folder(&args.labelled, &args.out);
     let fitted = fit.document(&nominal, &labelled)?;
@@ -201,6 +212,7 @@ pub fn run(args: &Args) -> Result<()> {
         other_minima: fit.other_minima,
         correlation: fit.correlation.clone(),
         left_out: fit.left_out.clone(),
+        flat_in: fit.flat_in.clone(),
         contact_substeps: fit.contact_substeps,
         hold_contacts: fit.hold_contacts,
         seconds,
@@ -451,6 +463,7 @@ mod tests {
             simulations: 100,
             other_minima: 1,
             left_out: Vec::new(),
+            flat_in: Vec::new(),
             correlation: Correlation {
                 keys: vec![
                     "whisker.youngs_modulus".into(),

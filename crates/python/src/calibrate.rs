@@ -104,6 +104,7 @@ pub(crate) fn calibrate(
         "other_minima": fit.other_minima,
         "correlation": fit.correlation,
         "left_out": fit.left_out,
+        "flat_in": fit.flat_in,
         "contact_substeps": fit.contact_substeps,
         "overrides": fit.overrides,
         "seconds": seconds,

@@ -252,6 +252,10 @@ pub struct Fit {
     /// Channels left out of the fit because they hold one value (given) in every strike: a
     /// sensor that recorded nothing.
     pub left_out: Vec<(&'static str, f64)>,
+    /// Channels left out of single strikes because they hold one value (given) from the first
+    /// sample to the last there while they vary in other strikes (strike's file, channel,
+    /// value): a sensor that recorded nothing in that strike.
+    pub flat_in: Vec<(String, &'static str, f64)>,
     /// Substeps near contact that the fit simulated with and [`Fit::overrides`] writes into the
     /// fitted scenario ([`contact_resolution`]; `None`: the nominal's own setting).
     pub contact_substeps: Option<usize>,
@@ -357,7 +361,8 @@ fn fit_resolved(
     check_labels(&loaded, set)?;
     let base = loaded.scenario;
     let reference = Reference::of(&base)?;
-    let runs = prepare(nominal, set)?;
+    let mut runs = prepare(nominal, set)?;
+    let flat_in = leave_out_flat(&mut runs);
     // The time offset is stepped by a quarter of the longest sample period.
     let period = set.recordings.iter().map(|r| r.step).fold(0.0, f64::max);
     let params = params::parameters(&base, &reference, &set.keys, settings.step, 0.25 * period);
@@ -529,6 +534,7 @@ fn fit_resolved(
         count.load(Ordering::Relaxed),
     );
     fit.other_minima = other_minima;
+    fit.flat_in = flat_in;
     fit.left_out = constant
         .iter()
         .map(|&c| {
@@ -630,6 +636,35 @@ fn prepare(nominal: &Document, set: &Labelled) -> Result<Vec<Run>> {
             })
         })
         .collect()
+}
+
+/// Leaves out of each strike the channels that hold one value there from the first sample to
+/// the last while they vary in another strike (a sensor that recorded nothing in that strike),
+/// as a column the recording lacks is: fitted, such a channel would pull the whisker towards a
+/// flat signal. Returns (strike, channel, value) for each. A channel flat in every strike is
+/// [`Fit::left_out`]'s.
+fn leave_out_flat(runs: &mut [Run]) -> Vec<(String, &'static str, f64)> {
+    let flat = |y: &[f64]| -> Option<f64> {
+        let mut values = y.iter().filter(|v| v.is_finite());
+        let first = *values.next()?;
+        values.all(|&v| v == first).then_some(first)
+    };
+    let mut out = Vec::new();
+    for (c, &name) in NAMES.iter().enumerate().take(CHANNELS) {
+        let varies = runs
+            .iter()
+            .any(|r| r.y[c].as_deref().is_some_and(|y| flat(y).is_none()));
+        if !varies {
+            continue;
+        }
+        for run in runs.iter_mut() {
+            if let Some(value) = run.y[c].as_deref().and_then(flat) {
+                run.y[c] = None;
+                out.push((run.file.clone(), name, value));
+            }
+        }
+    }
+    out
 }
 
 /// Range (max − min) of each channel over all recordings (1 where it has no spread).
@@ -815,6 +850,37 @@ mod tests {
     use super::starts::spread;
     use super::*;
     use nalgebra::{DMatrix, DVector};
+
+    #[test]
+    fn a_channel_flat_in_one_strike_is_left_out_of_that_strike_alone() {
+        let scenario = Document::load("e2", &[])
+            .unwrap()
+            .loaded()
+            .unwrap()
+            .scenario;
+        let run = |file: &str, m0: Vec<f64>, fx: Vec<f64>| Run {
+            file: file.into(),
+            scenario: scenario.clone(),
+            y: [
+                Some(vec![0.0, 1.0, 2.0]),
+                Some(vec![0.0, -1.0, 0.5]),
+                Some(m0),
+                Some(fx),
+                None,
+            ],
+            n: 3,
+        };
+        let mut runs = vec![
+            run("a.csv", vec![0.0, 2.0, 1.0], vec![3.0, 3.0, 3.0]),
+            run("b.csv", vec![1e30, 1e30, f64::NAN], vec![3.0, 3.0, 3.0]),
+        ];
+        let flat = leave_out_flat(&mut runs);
+        // m0 varies in a.csv: b.csv's flat m0 goes. fx is flat in both: Fit::left_out's.
+        assert_eq!(flat, vec![("b.csv".to_string(), "m0", 1e30)]);
+        assert!(runs[1].y[2].is_none() && runs[0].y[2].is_some());
+        assert!(runs.iter().all(|r| r.y[3].is_some()));
+        assert_eq!(constant_value(&runs, 3), Some(3.0));
+    }
 
     #[test]
     fn the_spread_of_other_minima_is_the_mean_outer_product_of_their_deviations() {

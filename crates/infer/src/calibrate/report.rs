@@ -154,6 +154,7 @@ pub(super) fn assemble(
         other_minima: 0,
         correlation: correlation(&rows, &cov.cov),
         left_out: Vec::new(),
+        flat_in: Vec::new(),
         contact_substeps: None,
         hold_contacts: false,
     }

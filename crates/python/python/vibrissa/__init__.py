@@ -574,7 +574,9 @@ def calibrate(
         RMS before and after, noise), ``recordings``, ``iterations``, ``fits``, ``simulations``,
         ``other_minima`` (how many other minima of the cost the standard errors count),
         ``left_out`` (``[channel, value]`` of each channel that holds one value in every strike,
-        left out of the fit with a ``UserWarning``), ``seconds``; plus ``overrides`` (the ``key=value`` texts that make the nominal the fitted
+        left out of the fit with a ``UserWarning``), ``flat_in`` (``[file, channel, value]`` of
+        each channel that holds one value in one strike while it varies in others, left out of
+        that strike with a ``UserWarning``), ``seconds``; plus ``overrides`` (the ``key=value`` texts that make the nominal the fitted
         scenario) and ``scenario``, the fitted scenario's TOML text.
     """
     if gain_prior is not None:
@@ -609,6 +611,16 @@ def calibrate(
         warnings.warn(
             f"channel '{name}' holds {value:g} in every strike: a sensor that recorded nothing? "
             "It is left out of the fit (leave the column out of the recordings to say so)",
+            UserWarning,
+            stacklevel=2,
+        )
+    for file, name, value in report["flat_in"]:
+        import warnings
+
+        warnings.warn(
+            f"'{file}': channel '{name}' holds {value:g} from the first sample to the last while "
+            "it varies in other strikes: a sensor that recorded nothing in this strike? It is "
+            "left out of this strike's fit",
             UserWarning,
             stacklevel=2,
         )
