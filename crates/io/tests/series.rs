@@ -490,6 +490,18 @@ fn bad_sidecars_are_warnings_and_the_csv_is_read_all_the_same() {
             "is not a valid sidecar",
         ),
         ("array.csv", "[]".to_string(), "is not a valid sidecar"),
+        ("empty.csv", String::new(), "the file is empty"),
+        (
+            "estimate.csv",
+            "{\n  \"d\": {\"mean\": 0.02},\n  \"method\": \"pf\"\n}\n".to_string(),
+            "it holds an estimate, not a sidecar",
+        ),
+        (
+            "estimates.csv",
+            "{\"file\": \"a.csv\", \"method\": \"krr\"}\n{\"file\": \"b.csv\", \"method\": \"krr\"}\n"
+                .to_string(),
+            "it holds an estimate, not a sidecar",
+        ),
         (
             "bad-key.csv",
             "{\"meta\": {\"two words\": \"x\"}}".to_string(),

@@ -222,6 +222,24 @@ fn mismatch(found: &Found, series: &Series, data: &Path) -> Option<String> {
     None
 }
 
+/// What a JSON file beside a data file that is not its sidecar most likely is: empty, as the
+/// file a shell has just created for a command's redirected output is (`vibrissa estimate --obs
+/// run.csv --json > run.json`), or an estimate written there before.
+fn not_a_sidecar(text: &str) -> Option<&'static str> {
+    if text.trim().is_empty() {
+        return Some("the file is empty: is a command's output being written to it?");
+    }
+    // One estimate (pretty-printed), or JSON Lines of several.
+    let first = text.lines().find(|l| !l.trim().is_empty())?;
+    let value: Value = serde_json::from_str(text)
+        .or_else(|_| serde_json::from_str(first))
+        .ok()?;
+    value.get("method").is_some().then_some(
+        "it holds an estimate, not a sidecar: write estimates under another name than the \
+         recording's",
+    )
+}
+
 /// Adds the metadata of the sidecar of `data` (see [`sidecar_path`]) to `series`, which was read
 /// from `data`, and returns what was wrong with it.
 ///
@@ -248,6 +266,10 @@ pub fn merge_sidecar(series: &mut Series, data: impl AsRef<Path>) -> Vec<Sidecar
     let (found, meta) = match parse(&text) {
         Ok(parsed) => parsed,
         Err(message) => {
+            let message = match not_a_sidecar(&text) {
+                Some(why) => format!("{message} ({why})"),
+                None => message,
+            };
             warnings.push(SidecarWarning::Malformed { path, message });
             return warnings;
         }
