@@ -367,6 +367,18 @@ impl Recording {
             })
             .collect()
     }
+
+    /// The channels of `needs` that hold one value while another of `needs` varies (a sensor
+    /// that recorded nothing), with their value; none when every one of them is flat (a whisker
+    /// that never moved).
+    pub fn dead_channels(&self, needs: &[usize]) -> Vec<(usize, f64)> {
+        let constant = self.constant_channels(needs);
+        if constant.len() < needs.len() {
+            constant
+        } else {
+            Vec::new()
+        }
+    }
 }
 
 /// The channels of `needs` that the batch's sensors recorded: a channel that holds one value
@@ -382,11 +394,7 @@ pub fn recorded_channels(
     let mut dead: Vec<usize> = Vec::new();
     let mut warnings = Vec::new();
     for (name, rec) in names.iter().zip(recordings) {
-        let constant = rec.constant_channels(needs);
-        if constant.len() == needs.len() {
-            continue;
-        }
-        for (c, value) in constant {
+        for (c, value) in rec.dead_channels(needs) {
             warnings.push(format!(
                 "`{name}`: channel `{}` holds {value} from the first sample to the last while \
                  the others vary: a sensor that recorded nothing? It is left out of every \
@@ -491,8 +499,7 @@ pub fn batch_noise(
     // sensor gains would read any value it holds as a gain). Beside channels that vary it is
     // refused; a recording in which nothing varies is only warned of (a whisker never touched).
     for (name, rec) in names.iter().zip(recordings) {
-        let constant = rec.constant_channels(needs);
-        if let Some(&(c, value)) = constant.first().filter(|_| constant.len() < needs.len()) {
+        if let Some(&(c, value)) = rec.dead_channels(needs).first() {
             return Err(bad(format!(
                 "`{name}`: channel `{}` holds {value} from the first sample to the last while \
                  the others vary: a sensor that recorded nothing? Leave the column out of the \
@@ -502,7 +509,7 @@ pub fn batch_noise(
                 CHANNELS[c]
             )));
         }
-        for (c, value) in constant {
+        for (c, value) in rec.constant_channels(needs) {
             warnings.push(format!(
                 "`{name}`: channel `{}` is constant ({value}), as is every channel read: a \
                  whisker that never moved, or sensors that recorded nothing? The estimate \

@@ -219,8 +219,8 @@ pub fn defied_by(
     let (mut recs, mut points, mut levels, mut allowed) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for ((rec, level), &lead) in recordings.iter().zip(noise).zip(leads) {
-        let dead = rec.constant_channels(&channels).len();
-        if channels.iter().any(|&c| rec.values[c].is_empty()) || (dead > 0 && dead < channels.len())
+        if channels.iter().any(|&c| rec.values[c].is_empty())
+            || !rec.dead_channels(&channels).is_empty()
         {
             continue;
         }
