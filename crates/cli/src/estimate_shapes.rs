@@ -18,9 +18,9 @@ use serde_json::{Map, Value};
 use std::io::{self, Write};
 use std::path::Path;
 use vibrissa_infer::shapes::{
-    check_shape_method, estimate_batch, has_filter, needs_clean_runs, BatchOptions, ShapeBank,
-    ShapeEsn, ShapeFamily, ShapeKrr, ShapeMix, ShapePf, DEFAULT_TRAINING, FILTER_METHODS,
-    SHAPE_METHODS, SHAPE_PF_PARTICLES, SHAPE_PF_TRAINING,
+    check_recordings, check_shape_method, estimate_batch, has_filter, needs_clean_runs,
+    BatchOptions, ShapeBank, ShapeEsn, ShapeFamily, ShapeKrr, ShapeMix, ShapePf, DEFAULT_TRAINING,
+    FILTER_METHODS, SHAPE_METHODS, SHAPE_PF_PARTICLES, SHAPE_PF_TRAINING,
 };
 use vibrissa_infer::{Reader, CHANNELS};
 
@@ -145,6 +145,9 @@ pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
         trace: args.trace.is_some(),
         particles: args.particles.unwrap_or(SHAPE_PF_PARTICLES),
     };
+    let names: Vec<String> = args.obs.iter().map(|f| f.display().to_string()).collect();
+    // Refused before training, not after it (its warnings come with the batch's).
+    check_recordings(&family, &names, &recordings)?;
     let on = match &whisker {
         Some(w) => format!(", each the whisker of {}", w.origin()),
         None => String::new(),
@@ -156,7 +159,6 @@ pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
         family.name(),
         whiskers.len().max(1)
     );
-    let names: Vec<String> = args.obs.iter().map(|f| f.display().to_string()).collect();
     let batch = estimate_batch(&family, &names, &recordings, &options)?;
     for w in &batch.warnings {
         eprintln!("warning: {w}");

@@ -1425,6 +1425,32 @@ fn experiment_e3_scores_shapes_and_exports_every_evaluated_run() {
         .collect();
     assert!((last[2] - e["class"]["circle"].as_f64().unwrap()).abs() < 1e-12);
     assert!(trace.with_extension("png").exists());
+    // A sensor of the whisker read that recorded nothing (c3's moment flat beside its other
+    // channels) is refused before any training, by its column; nothing is printed.
+    let flat = dir.join("flat.csv");
+    let mut lines: Vec<String> = csv.lines().map(String::from).collect();
+    let head = lines.iter().position(|l| !l.starts_with('#')).unwrap();
+    let m0 = lines[head].split(',').position(|h| h == "c3.m0").unwrap();
+    for line in &mut lines[head + 1..] {
+        let mut cells: Vec<&str> = line.split(',').collect();
+        cells[m0] = "1e30";
+        *line = cells.join(",");
+    }
+    std::fs::write(&flat, lines.join("\n") + "\n").unwrap();
+    let bad = vibrissa()
+        .args(["estimate", "--shapes", "e3", "--whiskers", "c3"])
+        .args(["--training", "20", "--json", "--obs"])
+        .arg(&flat)
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    assert!(bad.stdout.is_empty());
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        err.contains("flat.csv") && err.contains("`c3.m0` holds 1000000000000000000000000000000"),
+        "{err}"
+    );
+    assert!(!err.contains("training"), "{err}");
     let bad = vibrissa()
         .args(["estimate", "--shapes", "e3", "--method", "knn", "--obs"])
         .arg(dir.join("run.csv"))

@@ -68,6 +68,11 @@ def test_bad_arguments_are_refused_by_name(family):
         vibrissa.estimate_shapes(run, path, whiskers="a")
     with pytest.raises(ValueError):
         vibrissa.estimate_shapes(run, folder / "missing.toml")
+    # A sensor that recorded nothing beside channels that vary, named by its column.
+    flat = dict(run)
+    flat["a.m0"] = [1e30] * len(run["t"])
+    with pytest.raises(ValueError, match="`a.m0` holds"):
+        vibrissa.estimate_shapes(flat, path, training=30)
 
 
 def test_the_filter_over_each_class_takes_a_particle_count(family):

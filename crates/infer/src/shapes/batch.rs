@@ -76,6 +76,70 @@ pub struct Batch {
     pub settings: Vec<(String, f64)>,
 }
 
+/// Checks a batch of recordings before any training (`[recordings][whiskers]`, `names` for
+/// messages): all of one timing, and no channel flat from the first sample to the last while
+/// the whisker's other channels vary (a sensor that recorded nothing, which every shape
+/// estimator would read as the whisker's response). Returns warnings: a whisker whose every
+/// channel is flat.
+pub fn check_recordings(
+    family: &ShapeFamily,
+    names: &[String],
+    recordings: &[Vec<Recording>],
+) -> Result<Vec<String>> {
+    let bad = |m: String| Error::Observation(m);
+    let Some(first) = recordings.first().and_then(|r| r.first()) else {
+        return Err(bad("no recording to estimate".into()));
+    };
+    let all: Vec<usize> = (0..CHANNELS.len()).collect();
+    let (rate, samples) = (first.rate, first.t.len());
+    let whiskers = family.whiskers();
+    // A named whisker's columns carry its name (`c1.theta01`).
+    let named = |w: usize| whiskers.get(w).filter(|n| !n.is_empty());
+    let column = |w: usize, c: usize| match named(w) {
+        Some(whisker) => format!("{whisker}.{}", CHANNELS[c]),
+        None => CHANNELS[c].to_string(),
+    };
+    let mut warnings = Vec::new();
+    for (name, per) in names.iter().zip(recordings) {
+        for (w, r) in per.iter().enumerate() {
+            if (r.rate - rate).abs() > 1e-6 * rate || r.t.len() != samples {
+                return Err(bad(format!(
+                    "`{name}` has {} samples at {} Hz where `{}` has {samples} at {rate} Hz: \
+                     estimate recordings of one timing together",
+                    r.t.len(),
+                    r.rate,
+                    names[0]
+                )));
+            }
+            // A channel flat beside others that vary is a sensor that recorded nothing, and
+            // every shape estimator reads every channel of every whisker: it would read the
+            // flat line as the whisker's response. A whisker whose every channel is flat (one
+            // that nothing touched, recorded without noise) is only worth a word.
+            if let Some(&(c, value)) = r.dead_channels(&all).first() {
+                return Err(bad(format!(
+                    "`{name}`: column `{}` holds {value} from the first sample to the last \
+                     while the whisker's other channels vary: a sensor that recorded nothing? \
+                     The shape estimators read every channel of every whisker and would take \
+                     it for the whisker's response; record it again, or leave this recording \
+                     out",
+                    column(w, c)
+                )));
+            }
+            if r.constant_channels(&all).len() == all.len() {
+                let whisker = match named(w) {
+                    Some(name) => format!("whisker `{name}`"),
+                    None => "the whisker".to_string(),
+                };
+                warnings.push(format!(
+                    "`{name}`: {whisker} recorded nothing (every channel holds one value from \
+                     the first sample to the last): did the object ever reach it?"
+                ));
+            }
+        }
+    }
+    Ok(warnings)
+}
+
 /// Estimates every recording of `recordings` (`[recordings][whiskers]`, each recording's
 /// whiskers in the family's order, all of one timing; `names` for messages).
 pub fn estimate_batch(
@@ -98,23 +162,7 @@ pub fn estimate_batch(
     }
     let all: Vec<usize> = (0..CHANNELS.len()).collect();
     let (rate, samples) = (first.rate, first.t.len());
-    let mut warnings = Vec::new();
-    for (name, per) in names.iter().zip(recordings) {
-        for r in per {
-            if (r.rate - rate).abs() > 1e-6 * rate || r.t.len() != samples {
-                return Err(bad(format!(
-                    "`{name}` has {} samples at {} Hz where `{}` has {samples} at {rate} Hz: \
-                     estimate recordings of one timing together",
-                    r.t.len(),
-                    r.rate,
-                    names[0]
-                )));
-            }
-            if let Some((c, _)) = r.constant_channels(&all).first() {
-                warnings.push(format!("`{name}`: channel {} is constant", CHANNELS[*c]));
-            }
-        }
-    }
+    let mut warnings = check_recordings(family, names, recordings)?;
     let timed = family.with_timing(rate, samples)?;
     // The sensor noise: stated, or measured on every whisker of every recording.
     let series: Vec<&[Vec<f64>]> = recordings.iter().flatten().map(|r| &r.values[..]).collect();

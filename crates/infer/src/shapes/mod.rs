@@ -25,7 +25,7 @@ mod separation;
 mod series_noise;
 
 pub use bank::{CleanRuns, ShapeBank, BANK_PER_CLASS};
-pub use batch::{estimate_batch, Batch, BatchOptions, DEFAULT_TRAINING};
+pub use batch::{check_recordings, estimate_batch, Batch, BatchOptions, DEFAULT_TRAINING};
 pub use estimator::{ShapeEstimate, ShapeKrr};
 pub use evaluate::{
     evaluate_shapes, evaluated_draws, ClassPose, PoseScore, ReliabilityBin, RunResult,
