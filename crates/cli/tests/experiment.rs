@@ -1,5 +1,8 @@
 //! `vibrissa estimate`, `vibrissa experiment` and `vibrissa inverse` run as a user runs them.
 
+mod common;
+
+use common::Scratch;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -33,10 +36,8 @@ fn noisy_e2_strike(csv: &Path, sets: &[&str]) {
     );
 }
 
-fn temp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("vibrissa-estimate-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn temp(name: &str) -> Scratch {
+    Scratch::new("estimate", name)
 }
 
 #[test]

@@ -1,6 +1,9 @@
 //! `vibrissa report`, `vibrissa experiment --report` and `vibrissa simulate --animate` run as a
 //! user runs them.
 
+mod common;
+
+use common::Scratch;
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -10,11 +13,8 @@ fn vibrissa() -> Command {
     Command::new(env!("CARGO_BIN_EXE_vibrissa"))
 }
 
-fn temp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("vibrissa-report-{}-{name}", std::process::id()));
-    let _ = fs::remove_dir_all(&dir);
-    fs::create_dir_all(&dir).unwrap();
-    dir
+fn temp(name: &str) -> Scratch {
+    Scratch::new("report", name)
 }
 
 fn ok(out: &Output) -> String {
@@ -47,11 +47,15 @@ fn listing(dir: &Path) -> Vec<String> {
     names
 }
 
-/// One e2 experiment with a small particle filter and its report, shared by the tests.
+/// One e2 experiment with a small particle filter and its report, shared by the tests. A
+/// static is never dropped, so it lives in cargo's folder for the tests' temporary files,
+/// under one name that every run replaces.
 fn experiment() -> &'static Path {
     static DIR: OnceLock<PathBuf> = OnceLock::new();
     DIR.get_or_init(|| {
-        let dir = temp("e2");
+        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("report-e2");
+        let _ = fs::remove_dir_all(&dir);
+        fs::create_dir_all(&dir).unwrap();
         let out = vibrissa()
             .args(["experiment", "e2", "--particles", "24", "--report", "--out"])
             .arg(&dir)

@@ -1,0 +1,45 @@
+//! What the command line's integration tests share.
+
+use std::ffi::OsStr;
+use std::path::{Path, PathBuf};
+
+/// A folder of one test's own, under the system's temporary folder (named by the test binary's
+/// process and `name`), emptied when made and removed when dropped, so that running the tests
+/// leaves nothing behind, even when one fails.
+pub struct Scratch(PathBuf);
+
+impl Scratch {
+    /// The folder `vibrissa-{kind}-{pid}-{name}`, empty.
+    pub fn new(kind: &str, name: &str) -> Scratch {
+        let dir =
+            std::env::temp_dir().join(format!("vibrissa-{kind}-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("a scratch folder");
+        Scratch(dir)
+    }
+}
+
+impl std::ops::Deref for Scratch {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<Path> for Scratch {
+    fn as_ref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<OsStr> for Scratch {
+    fn as_ref(&self) -> &OsStr {
+        self.0.as_os_str()
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
