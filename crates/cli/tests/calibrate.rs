@@ -1,6 +1,9 @@
 //! `vibrissa calibrate`: a folder of labelled strikes in, a fitted scenario out, and every bad
 //! folder refused by name with nothing written.
 
+mod common;
+
+use common::Scratch;
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -14,32 +17,6 @@ fn vibrissa(args: &[&str]) -> Output {
 
 fn stderr(out: &Output) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
-}
-
-/// A folder of its own for one test, removed when dropped.
-struct Scratch(PathBuf);
-
-impl Scratch {
-    fn new(test: &str) -> Scratch {
-        let dir = std::env::temp_dir().join(format!("vibrissa-cal-{}-{test}", std::process::id()));
-        let _ = fs::remove_dir_all(&dir);
-        fs::create_dir_all(&dir).expect("a scratch folder");
-        Scratch(dir)
-    }
-
-    fn join(&self, name: &str) -> PathBuf {
-        self.0.join(name)
-    }
-
-    fn arg(&self, name: &str) -> String {
-        self.join(name).display().to_string()
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = fs::remove_dir_all(&self.0);
-    }
 }
 
 /// Short strikes keep the tests quick.
@@ -108,7 +85,7 @@ fn assert_refused(scratch: &Scratch, out: &Output, words: &[&str]) {
 
 #[test]
 fn a_perturbed_whisker_is_fitted_and_its_scenario_written() {
-    let scratch = Scratch::new("fit");
+    let scratch = Scratch::new("cal", "fit");
     let dir = folder(
         &scratch,
         &["whisker.youngs_modulus=3.4e9", "whisker.density=1000.0"],
@@ -215,7 +192,7 @@ fn a_perturbed_whisker_is_fitted_and_its_scenario_written() {
 
 #[test]
 fn folders_that_do_not_match_truth_csv_are_refused() {
-    let scratch = Scratch::new("folder");
+    let scratch = Scratch::new("cal", "folder");
     let dir = folder(&scratch, &[]);
 
     // A recording truth.csv does not name.
@@ -255,7 +232,7 @@ fn folders_that_do_not_match_truth_csv_are_refused() {
 
 #[test]
 fn recordings_at_another_rate_or_with_bad_times_are_refused() {
-    let scratch = Scratch::new("rates");
+    let scratch = Scratch::new("cal", "rates");
     let dir = folder(&scratch, &[]);
     let truth = fs::read_to_string(dir.join("truth.csv")).unwrap();
 
@@ -296,7 +273,7 @@ fn recordings_at_another_rate_or_with_bad_times_are_refused() {
 
 #[test]
 fn bad_arguments_and_nominal_scenarios_are_refused() {
-    let scratch = Scratch::new("args");
+    let scratch = Scratch::new("cal", "args");
     let dir = folder(&scratch, &[]);
     let d = dir.display().to_string();
 
@@ -360,7 +337,7 @@ fn bad_arguments_and_nominal_scenarios_are_refused() {
 /// (which holds the process id, whose digits may be any).
 fn assert_refused_saying(scratch: &Scratch, out: &Output, words: &[&str], not: &[&str]) {
     assert_refused(scratch, out, words);
-    let err = stderr(out).replace(&scratch.0.display().to_string(), "SCRATCH");
+    let err = stderr(out).replace(&scratch.display().to_string(), "SCRATCH");
     for w in not {
         assert!(!err.contains(w), "the message should not say `{w}`:\n{err}");
     }
@@ -368,7 +345,7 @@ fn assert_refused_saying(scratch: &Scratch, out: &Output, words: &[&str], not: &
 
 #[test]
 fn a_truth_csv_without_a_column_for_an_unknown_is_refused() {
-    let scratch = Scratch::new("unknown");
+    let scratch = Scratch::new("cal", "unknown");
     let dir = scratch.join("calib");
     fs::create_dir_all(&dir).unwrap();
     strike(&dir, "a.csv", 0.02, 0.5, &[]);
@@ -390,7 +367,7 @@ fn a_truth_csv_without_a_column_for_an_unknown_is_refused() {
 
 #[test]
 fn a_recording_at_another_rate_is_named_with_its_rate_and_the_others() {
-    let scratch = Scratch::new("rate-named");
+    let scratch = Scratch::new("cal", "rate-named");
     let dir = scratch.join("calib");
     fs::create_dir_all(&dir).unwrap();
     strike(&dir, "a.csv", 0.02, 0.5, &[]);
@@ -414,7 +391,7 @@ fn a_recording_at_another_rate_is_named_with_its_rate_and_the_others() {
 
 #[test]
 fn a_label_out_of_range_is_named_with_its_row_and_what_is_allowed() {
-    let scratch = Scratch::new("range");
+    let scratch = Scratch::new("cal", "range");
     let dir = scratch.join("calib");
     fs::create_dir_all(&dir).unwrap();
     strike(&dir, "a.csv", 0.02, 0.5, &[]);
@@ -460,7 +437,7 @@ fn flatten_column(dir: &Path, col: &str, value: &str) {
 
 #[test]
 fn a_channel_that_recorded_nothing_is_left_out_of_the_fit() {
-    let scratch = Scratch::new("flat");
+    let scratch = Scratch::new("cal", "flat");
     let dir = folder(&scratch, &["whisker.youngs_modulus=3.4e9"]);
     flatten_column(&dir, "fx", "0");
     let out = calibrate(&scratch, &dir, &["--json", "--finalists", "1"]);

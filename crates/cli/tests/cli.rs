@@ -1,8 +1,11 @@
 //! The `vibrissa` binary run as a user runs it.
 
+mod common;
+
+use common::{entries, Scratch};
 use serde_json::Value;
 use std::fs;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
 /// Runs the binary with `args` and returns its exit status and output.
@@ -20,48 +23,6 @@ fn vibrissa_in(dir: &Path, args: &[&str]) -> Output {
         .current_dir(dir)
         .output()
         .expect("the vibrissa binary should start")
-}
-
-/// An empty folder of its own for one test, removed when dropped.
-struct Scratch(PathBuf);
-
-impl Scratch {
-    fn new(test: &str) -> Scratch {
-        let dir = std::env::temp_dir().join(format!("vibrissa-cli-{}-{test}", std::process::id()));
-        let _ = fs::remove_dir_all(&dir);
-        fs::create_dir_all(&dir).expect("a scratch folder");
-        Scratch(dir)
-    }
-
-    fn path(&self) -> &Path {
-        &self.0
-    }
-
-    /// Names of the entries in the folder (hidden ones included), sorted.
-    fn entries(&self) -> Vec<String> {
-        entries(&self.0)
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = fs::remove_dir_all(&self.0);
-    }
-}
-
-/// Names of the entries of `dir` (hidden ones included), sorted.
-fn entries(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = fs::read_dir(dir)
-        .expect("a readable folder")
-        .map(|e| {
-            e.expect("an entry")
-                .file_name()
-                .to_string_lossy()
-                .into_owned()
-        })
-        .collect();
-    names.sort();
-    names
 }
 
 fn stdout(out: &Output) -> String {
@@ -276,7 +237,7 @@ fn csv_rows(path: &Path) -> (String, Vec<Vec<f64>>) {
 
 #[test]
 fn simulate_e2_writes_the_contract_series_and_a_figure() {
-    let dir = Scratch::new("simulate-csv");
+    let dir = Scratch::new("cli", "simulate-csv");
     let out = vibrissa_in(
         dir.path(),
         &[
@@ -340,7 +301,7 @@ fn simulate_e2_writes_the_contract_series_and_a_figure() {
 
 #[test]
 fn simulate_writes_npz_and_json_summary() {
-    let dir = Scratch::new("simulate-npz");
+    let dir = Scratch::new("cli", "simulate-npz");
     let out = vibrissa_in(
         dir.path(),
         &[
@@ -366,7 +327,7 @@ fn simulate_writes_npz_and_json_summary() {
 fn simulate_lists_every_contact_interval() {
     // At d = 30 mm in e2 the box strikes the whisker's tip, which bounces off it and is caught
     // again: the sample periods ending at 2–6 and 9–23 ms hold contact (as at a step of 2 µs).
-    let dir = Scratch::new("simulate-intervals");
+    let dir = Scratch::new("cli", "simulate-intervals");
     let args = ["simulate", "e2", "--set", "d=0.03", "--out", "x.csv"];
     let out = vibrissa_in(dir.path(), &args);
     assert!(out.status.success(), "stderr:\n{}", stderr(&out));
@@ -412,7 +373,7 @@ fn simulate_refuses_bad_input_and_leaves_no_file() {
         (&["e2", "--plot", "run.svg"], "run.svg"),
     ];
     for (args, named) in cases {
-        let dir = Scratch::new("simulate-refused");
+        let dir = Scratch::new("cli", "simulate-refused");
         // The case's own --out or --plot replaces the default one.
         let mut full = vec!["simulate"];
         full.extend_from_slice(args);
@@ -456,7 +417,7 @@ fn small_sweep(dir: &Path) -> Output {
 
 #[test]
 fn sweep_writes_one_file_per_run_and_resumes() {
-    let scratch = Scratch::new("sweep");
+    let scratch = Scratch::new("cli", "sweep");
     let dir = scratch.path().join("runs");
     let files = [
         "d0.015_v0.3.csv",
@@ -549,7 +510,7 @@ fn sweep_writes_one_file_per_run_and_resumes() {
 
 #[test]
 fn sweep_reports_failed_runs_after_finishing_the_others() {
-    let scratch = Scratch::new("sweep-failure");
+    let scratch = Scratch::new("cli", "sweep-failure");
     let dir = scratch.path().join("runs");
     let out = vibrissa(&[
         "sweep",
@@ -579,7 +540,7 @@ fn sweep_reports_failed_runs_after_finishing_the_others() {
 
 #[test]
 fn sweep_refuses_a_misspelt_key_before_running() {
-    let scratch = Scratch::new("sweep-misspelt");
+    let scratch = Scratch::new("cli", "sweep-misspelt");
     let dir = scratch.path().join("runs");
     let out = vibrissa(&[
         "sweep",
@@ -674,7 +635,7 @@ const ARRAY_ROW: &str = concat!(
 
 #[test]
 fn simulate_writes_an_array_s_columns_per_whisker() {
-    let dir = Scratch::new("array");
+    let dir = Scratch::new("cli", "array");
     let example = ARRAY_ROW;
     let out = dir.path().join("row.csv");
     let run = vibrissa(&[
@@ -747,7 +708,7 @@ fn simulate_writes_an_array_s_columns_per_whisker() {
 
 #[test]
 fn estimate_reads_one_whisker_of_an_array_recording() {
-    let dir = Scratch::new("array-estimate");
+    let dir = Scratch::new("cli", "array-estimate");
     let example = ARRAY_ROW;
     let out = dir.path().join("row.csv");
     let out = out.to_str().unwrap();
@@ -787,7 +748,7 @@ fn estimate_reads_one_whisker_of_an_array_recording() {
 fn estimate_trains_on_the_chain_a_recording_names() {
     // A recording of a 40-segment chain (its sidecar says so): its joint angles are about half a
     // 20-segment chain's, and the methods train on 40 segments to read it.
-    let dir = Scratch::new("segments");
+    let dir = Scratch::new("cli", "segments");
     let out = dir.path().join("r40.csv");
     let out = out.to_str().unwrap();
     let run = vibrissa(&[
@@ -834,7 +795,7 @@ fn estimate_takes_the_whisker_of_another_scenario() {
     // at 20 µs, written as a file of its own (as calibration writes one for the `e2` box) and
     // given to the built-in `e2` by --whisker-from: the same estimate as the file itself (its
     // training runs step contact alike), and not the nominal's.
-    let dir = Scratch::new("whisker-from");
+    let dir = Scratch::new("cli", "whisker-from");
     let own = dir.path().join("own.toml");
     fs::write(
         &own,
@@ -903,7 +864,7 @@ fn e2_strike(dir: &Scratch, name: &str, sets: &[&str]) -> String {
 fn estimate_refuses_a_time_column_in_milliseconds() {
     // A strike whose `t` was written in milliseconds reads as a 1 Hz recording lasting 150 s:
     // refused before any training, naming the file and the column's unit.
-    let dir = Scratch::new("ms");
+    let dir = Scratch::new("cli", "ms");
     let out = e2_strike(&dir, "strike.csv", &["d=0.02"]);
     let text = fs::read_to_string(out).unwrap();
     let mut lines = text.lines();
@@ -961,7 +922,7 @@ fn estimate_fills_in_a_few_missing_values_and_refuses_many() {
     // A tracker that lost the whisker for three frames: a discriminative method reads the
     // strike with those angles interpolated and says so; more than a tenth of a channel missing
     // is refused, naming the channel and the filter, which skips missing values.
-    let dir = Scratch::new("gaps");
+    let dir = Scratch::new("cli", "gaps");
     let strike = e2_strike(&dir, "strike.csv", &["d=0.024", "v=0.9"]);
     let few = dir.path().join("few.csv");
     with_missing_angles(&strike, 60..63, &few);
@@ -1010,7 +971,7 @@ fn estimate_fills_in_a_few_missing_values_and_refuses_many() {
 fn estimate_warns_of_angles_recorded_clockwise() {
     // A rig that measures its angles clockwise: the two angle columns negated. The method reads
     // some other strike; negated back, the scenario follows the recording far better.
-    let dir = Scratch::new("signs");
+    let dir = Scratch::new("cli", "signs");
     let strike = e2_strike(&dir, "strike.csv", &["d=0.022", "v=0.8"]);
     let flipped = dir.path().join("clockwise.csv");
     rewritten(&strike, &flipped, |_, cells| {
@@ -1042,7 +1003,7 @@ fn estimate_warns_of_angles_recorded_clockwise() {
 fn estimate_warns_of_a_recording_that_shows_only_noise() {
     // A box that missed: 151 samples of white noise (a sum of twelve uniforms, less six) on
     // every channel, at levels like a strike's sensors.
-    let dir = Scratch::new("miss");
+    let dir = Scratch::new("cli", "miss");
     let mut state = 12345u64;
     let mut normal = || {
         let mut s = 0.0;
@@ -1105,7 +1066,7 @@ fn a_narrow_prior_keeps_the_widened_interval_of_the_filter_within_it() {
     // The randomised filter widens its intervals to hold its errors on held-out runs: those runs
     // lie within the prior it was given, and the widened interval stays within that prior too
     // (it reached 6.6–25.3 mm for a prior of 15–17 mm when the runs spread over the whole range).
-    let dir = Scratch::new("prior");
+    let dir = Scratch::new("cli", "prior");
     let strike = e2_strike(&dir, "s24.csv", &["d=0.024", "v=0.9"]);
     let run = vibrissa(&[
         "estimate",
@@ -1146,7 +1107,7 @@ fn a_narrow_prior_keeps_the_widened_interval_of_the_filter_within_it() {
 fn simulate_refuses_a_step_that_a_thin_object_passes_within() {
     // The e2 box (10 mm) at 30 m/s moves 30 mm in a 1 ms step: refused, naming dt, the object
     // and the steps that resolve it, and nothing is written.
-    let dir = Scratch::new("thin-step");
+    let dir = Scratch::new("cli", "thin-step");
     let csv = dir.path().join("run.csv");
     let at_step = |dt: &str| {
         vibrissa(&[

@@ -17,6 +17,24 @@ impl Scratch {
         std::fs::create_dir_all(&dir).expect("a scratch folder");
         Scratch(dir)
     }
+
+    /// The folder.
+    #[allow(dead_code)]
+    pub fn path(&self) -> &Path {
+        &self.0
+    }
+
+    /// The path of `name` in the folder, as an argument.
+    #[allow(dead_code)]
+    pub fn arg(&self, name: &str) -> String {
+        self.0.join(name).display().to_string()
+    }
+
+    /// Names of the entries in the folder (hidden ones included), sorted.
+    #[allow(dead_code)]
+    pub fn entries(&self) -> Vec<String> {
+        entries(&self.0)
+    }
 }
 
 impl std::ops::Deref for Scratch {
@@ -42,4 +60,20 @@ impl Drop for Scratch {
     fn drop(&mut self) {
         let _ = std::fs::remove_dir_all(&self.0);
     }
+}
+
+/// Names of the entries of `dir` (hidden ones included), sorted.
+#[allow(dead_code)]
+pub fn entries(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .expect("a readable folder")
+        .map(|e| {
+            e.expect("an entry")
+                .file_name()
+                .to_string_lossy()
+                .into_owned()
+        })
+        .collect();
+    names.sort();
+    names
 }
