@@ -4,8 +4,11 @@
 //! estimates that are not numbers, and names that mean nothing. Each refusal names the option or
 //! key and what is allowed, exits non-zero and leaves nothing behind.
 
+mod common;
+
+use common::Scratch;
 use std::fs;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
 fn vibrissa_in(dir: &Path, args: &[&str]) -> Output {
@@ -20,46 +23,21 @@ fn stderr(out: &Output) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
-/// A folder of its own for one test, removed when dropped.
-struct Scratch(PathBuf);
-
-impl Scratch {
-    fn new(test: &str) -> Scratch {
-        let dir = std::env::temp_dir().join(format!("vibrissa-lim-{}-{test}", std::process::id()));
-        let _ = fs::remove_dir_all(&dir);
-        fs::create_dir_all(&dir).expect("a scratch folder");
-        Scratch(dir)
-    }
-
-    fn run(&self, args: &[&str]) -> Output {
-        vibrissa_in(&self.0, args)
-    }
-
+/// Commands run in a test's own folder.
+trait InFolder {
+    fn run(&self, args: &[&str]) -> Output;
     /// Simulates the default `e2` strike into `ok.csv` in the folder.
+    fn strike(&self);
+}
+
+impl InFolder for Scratch {
+    fn run(&self, args: &[&str]) -> Output {
+        vibrissa_in(self, args)
+    }
+
     fn strike(&self) {
         let out = self.run(&["simulate", "e2", "--out", "ok.csv"]);
         assert!(out.status.success(), "{}", stderr(&out));
-    }
-
-    /// The names of the folder's entries.
-    fn entries(&self) -> Vec<String> {
-        let mut names: Vec<String> = fs::read_dir(&self.0)
-            .expect("the scratch folder")
-            .map(|e| {
-                e.expect("an entry")
-                    .file_name()
-                    .to_string_lossy()
-                    .into_owned()
-            })
-            .collect();
-        names.sort();
-        names
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = fs::remove_dir_all(&self.0);
     }
 }
 
@@ -75,7 +53,7 @@ fn refused(out: &Output, words: &[&str]) {
 
 #[test]
 fn counts_beyond_their_limits_are_refused_before_anything_is_made() {
-    let s = Scratch::new("counts");
+    let s = Scratch::new("lim", "counts");
     let cases: [(&[&str], &[&str]); 8] = [
         (
             &[
@@ -164,7 +142,7 @@ fn counts_beyond_their_limits_are_refused_before_anything_is_made() {
 
 #[test]
 fn runs_with_too_many_steps_or_too_few_samples_are_refused() {
-    let s = Scratch::new("steps");
+    let s = Scratch::new("lim", "steps");
     let cases: [(&str, &[&str]); 3] = [
         ("dt=1e-12", &["dt", "2e8 steps"]),
         ("duration=100000", &["duration", "2e7 samples"]),
@@ -179,19 +157,19 @@ fn runs_with_too_many_steps_or_too_few_samples_are_refused() {
 
 #[test]
 fn an_empty_scenario_file_is_refused() {
-    let s = Scratch::new("empty");
+    let s = Scratch::new("lim", "empty");
     for (name, text) in [("empty.toml", ""), ("comments.toml", "# nothing yet\n\n")] {
-        fs::write(s.0.join(name), text).expect("a scenario file");
+        fs::write(s.join(name), text).expect("a scenario file");
         let out = s.run(&["simulate", name, "--out", "r.csv"]);
         refused(&out, &[name, "empty", "experiment = \"e2\""]);
     }
-    assert!(!s.0.join("r.csv").exists());
+    assert!(!s.join("r.csv").exists());
 }
 
 #[test]
 fn an_export_folder_that_cannot_be_made_is_refused_before_the_experiment_runs() {
-    let s = Scratch::new("export");
-    fs::write(s.0.join("taken"), "a file").expect("a file");
+    let s = Scratch::new("lim", "export");
+    fs::write(s.join("taken"), "a file").expect("a file");
     for export in ["taken", "taken/below"] {
         let out = s.run(&[
             "experiment",
@@ -212,7 +190,7 @@ fn an_export_folder_that_cannot_be_made_is_refused_before_the_experiment_runs() 
 
 #[test]
 fn settings_that_cannot_work_are_named() {
-    let s = Scratch::new("settings");
+    let s = Scratch::new("lim", "settings");
     s.strike();
     // Fewer particles than the whiskers a randomised filter entertains.
     let out = s.run(&[
@@ -234,12 +212,12 @@ fn settings_that_cannot_work_are_named() {
     // A lead-in that is not a whole number of samples.
     let out = s.run(&["experiment", "e1", "--max-delay", "0.0005", "--out", "exp"]);
     refused(&out, &["--max-delay", "whole number of milliseconds"]);
-    assert!(!s.0.join("exp").exists());
+    assert!(!s.join("exp").exists());
 }
 
 #[test]
 fn an_estimate_that_is_not_a_number_is_refused_not_printed() {
-    let s = Scratch::new("nan");
+    let s = Scratch::new("lim", "nan");
     s.strike();
     // A stated noise so large that every template is equally (im)probable.
     let out = s.run(&[
@@ -282,7 +260,7 @@ fn an_estimate_that_is_not_a_number_is_refused_not_printed() {
 
 #[test]
 fn priors_outside_what_the_filter_can_tell_apart_are_refused_by_name() {
-    let s = Scratch::new("priors");
+    let s = Scratch::new("lim", "priors");
     s.strike();
     let filter = |prior: &str| {
         s.run(&[
@@ -311,7 +289,7 @@ fn priors_outside_what_the_filter_can_tell_apart_are_refused_by_name() {
 
 #[test]
 fn a_wrong_name_is_answered_with_what_exists() {
-    let s = Scratch::new("names");
+    let s = Scratch::new("lim", "names");
     s.strike();
     let out = s.run(&[
         "estimate",
@@ -330,7 +308,7 @@ fn a_wrong_name_is_answered_with_what_exists() {
 
 #[test]
 fn a_table_or_a_number_given_in_the_wrong_form_is_answered_with_its_form() {
-    let s = Scratch::new("forms");
+    let s = Scratch::new("lim", "forms");
     let cases: [(&str, &[&str]); 6] = [
         (
             "whisker.damping.ratio=-0.5",
