@@ -509,12 +509,18 @@ pub fn batch_noise(
                 CHANNELS[c]
             )));
         }
-        for (c, value) in rec.constant_channels(needs) {
+        // Here every channel read is flat, or none is: one warning for the recording.
+        let flat = rec.constant_channels(needs);
+        if !flat.is_empty() {
+            let values: Vec<String> = flat
+                .iter()
+                .map(|(c, value)| format!("{} {value}", CHANNELS[*c]))
+                .collect();
             warnings.push(format!(
-                "`{name}`: channel `{}` is constant ({value}), as is every channel read: a \
-                 whisker that never moved, or sensors that recorded nothing? The estimate \
-                 compares flat lines with simulated signals",
-                CHANNELS[c]
+                "`{name}`: every channel read is constant ({}): a whisker that never moved, or \
+                 sensors that recorded nothing? The estimate compares flat lines with simulated \
+                 signals",
+                values.join(", ")
             ));
         }
     }
