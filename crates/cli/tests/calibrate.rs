@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::Scratch;
+use common::{with_column, Scratch};
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -422,16 +422,7 @@ fn flatten_column(dir: &Path, col: &str, value: &str) {
     for k in 0..3 {
         let path = dir.join(format!("s{k}.csv"));
         let text = fs::read_to_string(&path).unwrap();
-        let mut lines = text.lines();
-        let header = lines.next().unwrap().to_string();
-        let at = header.split(',').position(|h| h == col).unwrap();
-        let mut out = vec![header.clone()];
-        for line in lines {
-            let mut cells: Vec<&str> = line.split(',').collect();
-            cells[at] = value;
-            out.push(cells.join(","));
-        }
-        fs::write(&path, out.join("\n") + "\n").unwrap();
+        fs::write(&path, with_column(&text, col, value)).unwrap();
     }
 }
 

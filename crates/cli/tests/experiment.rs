@@ -2,7 +2,7 @@
 
 mod common;
 
-use common::Scratch;
+use common::{with_column, Scratch};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -942,17 +942,7 @@ fn estimate_measures_the_recordings_noise_and_reports_it() {
     // filter, which reports no noise for it.
     let flat = dir.join("flat_m0.csv");
     let text = std::fs::read_to_string(&csv).unwrap();
-    let mut lines = text.lines();
-    let header = lines.next().unwrap();
-    let m0 = header.split(',').position(|c| c == "m0").unwrap();
-    let mut body = format!("{header}\n");
-    for line in lines {
-        let mut cells: Vec<&str> = line.split(',').collect();
-        cells[m0] = "1e30";
-        body += &cells.join(",");
-        body.push('\n');
-    }
-    std::fs::write(&flat, body).unwrap();
+    std::fs::write(&flat, with_column(&text, "m0", "1e30")).unwrap();
     let run = |method: &str, extra: &[&str]| {
         vibrissa()
             .args(["estimate", "--experiment", "e2", "--method", method])
@@ -1434,15 +1424,7 @@ fn experiment_e3_scores_shapes_and_exports_every_evaluated_run() {
     // A sensor of the whisker read that recorded nothing (c3's moment flat beside its other
     // channels) is refused before any training, by its column; nothing is printed.
     let flat = dir.join("flat.csv");
-    let mut lines: Vec<String> = csv.lines().map(String::from).collect();
-    let head = lines.iter().position(|l| !l.starts_with('#')).unwrap();
-    let m0 = lines[head].split(',').position(|h| h == "c3.m0").unwrap();
-    for line in &mut lines[head + 1..] {
-        let mut cells: Vec<&str> = line.split(',').collect();
-        cells[m0] = "1e30";
-        *line = cells.join(",");
-    }
-    std::fs::write(&flat, lines.join("\n") + "\n").unwrap();
+    std::fs::write(&flat, with_column(&csv, "c3.m0", "1e30")).unwrap();
     let bad = vibrissa()
         .args(["estimate", "--shapes", "e3", "--whiskers", "c3"])
         .args(["--training", "20", "--json", "--obs"])

@@ -77,3 +77,24 @@ pub fn entries(dir: &Path) -> Vec<String> {
     names.sort();
     names
 }
+
+/// The CSV `text` with every data row's `column` set to `value` (a sensor that recorded
+/// nothing); comment lines before the header are kept.
+#[allow(dead_code)]
+pub fn with_column(text: &str, column: &str, value: &str) -> String {
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let head = lines
+        .iter()
+        .position(|l| !l.starts_with('#'))
+        .expect("a header");
+    let at = lines[head]
+        .split(',')
+        .position(|h| h == column)
+        .unwrap_or_else(|| panic!("no column {column}"));
+    for line in &mut lines[head + 1..] {
+        let mut cells: Vec<&str> = line.split(',').collect();
+        cells[at] = value;
+        *line = cells.join(",");
+    }
+    lines.join("\n") + "\n"
+}
