@@ -13,6 +13,10 @@ that `vibrissa estimate --shapes` gives on them (trained on the nominal e3 only)
     python3 examples/shape_standins.py --exported /tmp/e3x --standin /tmp/si11/standin.toml \
         --out /tmp/e3-si11 --method shape-esn --method shape-krr [--noise 0.03] [--randomise]
 
+`--standin NAME=standin.toml` (repeated) gives each named whisker of the array a stand-in of its
+own (their chains must agree), as a real array's whiskers differ; `--train-on` likewise passes
+`FILE` or `NAME=FILE` on to `--whisker-from` (repeat it for each whisker calibrated alone).
+
 Prints accuracy, log loss and expected calibration error (10 bins of the top probability) per
 method and whisker set, and for the runs whose class is named right how often each pose unknown's
 90% interval holds the truth and its median error; writes `scores.json` and every estimate
@@ -38,30 +42,63 @@ UNITS = {"x": (1e3, "mm"), "angle": (180 / math.pi, "deg"), "v": (1.0, "m/s"),
          "side": (1e3, "mm"), "radius": (1e3, "mm")}
 
 
-def overrides(standin):
-    """`--set` pairs that put the stand-in's whisker, chain and sensors into a run."""
+def overrides(standin, prefix=""):
+    """`--set` pairs that put the stand-in's whisker, chain and sensors into a run; with
+    `prefix` (`whiskers.2.`) its whisker and sensors go to that whisker of the array alone, and
+    its chain is left out (`chain` gives it)."""
     doc = tomllib.load(open(standin, "rb"))
-    sets = []
-    for key in ("segments", "discretisation", "dt"):
-        if key in doc:
-            sets.append(f"{key}={doc[key]}")
+    sets = [] if prefix else chain(standin)
     whisker = doc.get("whisker", {})
+    if prefix and "preset" in whisker:
+        sets.append(f"{prefix}whisker.preset={whisker['preset']}")
     # Kinds first: a follicle's or a damping's other keys depend on its kind.
     for table in ("follicle", "damping"):
         sub = whisker.get(table)
         if isinstance(sub, dict):
             if "kind" in sub:
-                sets.append(f"whisker.{table}.kind={sub['kind']}")
+                sets.append(f"{prefix}whisker.{table}.kind={sub['kind']}")
             for k, v in sub.items():
                 if k != "kind":
-                    sets.append(f"whisker.{table}.{k}={v!r}")
+                    sets.append(f"{prefix}whisker.{table}.{k}={v!r}")
     for k, v in whisker.items():
         if k in ("preset", "follicle", "damping"):
             continue
-        sets.append(f"whisker.{k}={v!r}")
-    for ch, sub in doc.get("sensors", {}).items():
+        sets.append(f"{prefix}whisker.{k}={v!r}")
+    sensors = doc.get("sensors", {})
+    if prefix and not sensors:
+        # A table of its own even when empty: gains of 1, not the scenario's.
+        sets.append(f"{prefix}sensors.theta01.gain=1.0")
+    for ch, sub in sensors.items():
         for k, v in sub.items():
-            sets.append(f"sensors.{ch}.{k}={v!r}")
+            sets.append(f"{prefix}sensors.{ch}.{k}={v!r}")
+    return sets
+
+
+def chain(standin):
+    """`--set` pairs of the stand-in's chain and time step."""
+    doc = tomllib.load(open(standin, "rb"))
+    return [f"{key}={doc[key]}" for key in ("segments", "discretisation", "dt") if key in doc]
+
+
+def standin_overrides(specs, scenario):
+    """`--set` pairs for `--standin` given as `FILE` (every whisker) and `NAME=FILE` (one
+    whisker of the array of `scenario`, an exported run)."""
+    names = [w["name"] for w in tomllib.load(open(scenario, "rb")).get("whiskers", [])]
+    sets, chains = [], []
+    for spec in specs:
+        name, sep, file = spec.partition("=")
+        if not sep:
+            sets += overrides(spec)
+            chains.append(chain(spec))
+            continue
+        if name not in names:
+            sys.exit(f"--standin {spec}: the runs' whiskers are {', '.join(names)}")
+        sets += overrides(file, f"whiskers.{names.index(name)}.")
+        chains.append(chain(file))
+    if any(c != chains[0] for c in chains):
+        sys.exit(f"--standin: the stand-ins' chains differ ({chains}); an array has one chain")
+    if chains and not any("=" not in s for s in specs):
+        sets = chains[0] + sets
     return sets
 
 
@@ -93,7 +130,9 @@ def write_csv(path, head, data):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--exported", required=True)
-    ap.add_argument("--standin", help="standin.toml; without it the nominal e3 whisker is kept")
+    ap.add_argument("--standin", action="append", default=[],
+                    help="standin.toml, or NAME=standin.toml for one whisker of the array "
+                    "(repeat); without it the nominal e3 whisker is kept")
     ap.add_argument("--out", required=True)
     ap.add_argument("--noise", type=float, default=0.03)
     ap.add_argument("--seed", type=int, default=1)
@@ -101,9 +140,11 @@ def main():
     ap.add_argument("--whiskers", action="append", default=None,
                     help="whisker sets to score, e.g. c3 or c1+c2+c3+c4+c5 (default: c3 and all)")
     ap.add_argument("--randomise", action="store_true")
-    ap.add_argument("--train-on", help="a scenario of one whisker (one calibrated on the "
-                    "stand-in's labelled e2 strikes, say) whose whisker, chain and sensors the "
-                    "estimators are told for every whisker of the array (--whisker-from)")
+    ap.add_argument("--train-on", action="append", default=[],
+                    help="a scenario of one whisker (one calibrated on the stand-in's labelled "
+                    "e2 strikes, say) whose whisker, chain and sensors the estimators are told "
+                    "for every whisker of the array, or NAME=FILE for one whisker "
+                    "(--whisker-from; repeat)")
     ap.add_argument("--training", type=int, default=None)
     ap.add_argument("--vibrissa", default="target/release/vibrissa")
     ap.add_argument("--estimate-arg", action="append", default=[],
@@ -116,7 +157,7 @@ def main():
         truth = list(csv.DictReader(f))
     rec = os.path.join(args.out, "recordings")
     os.makedirs(rec, exist_ok=True)
-    sets = overrides(args.standin) if args.standin else []
+    sets = standin_overrides(args.standin, os.path.join(args.exported, truth[0]["file"]))
     clean = {}
 
     def one(row):
@@ -159,8 +200,8 @@ def main():
                 cmd.append("--randomise")
             if args.training:
                 cmd += ["--training", str(args.training)]
-            if args.train_on:
-                cmd += ["--whisker-from", args.train_on]
+            for spec in args.train_on:
+                cmd += ["--whisker-from", spec]
             cmd += args.estimate_arg
             r = subprocess.run(cmd, capture_output=True, text=True)
             if r.returncode != 0:

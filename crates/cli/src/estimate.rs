@@ -18,7 +18,7 @@ use vibrissa_infer::{batch, lead_in};
 use vibrissa_infer::{
     methods, Estimate, Family, Method, Reader, Recording, Trained, Variant, CHANNELS,
 };
-use vibrissa_io::scenario::WhiskerSource;
+use vibrissa_io::scenario::WhiskerSources;
 
 /// Arguments of `vibrissa estimate`.
 #[derive(Debug, clap::Args)]
@@ -54,10 +54,12 @@ pub struct Args {
     /// this scenario file of one whisker (one that `vibrissa calibrate` fitted to labelled
     /// strikes of your whisker, say), with its calibration record, so that the estimators train
     /// on your whisker in this experiment: calibrated on the `e2` box, read pegs or shapes.
-    /// Contact is stepped as finely as in the file (`contact_substeps`: calibration fits at
-    /// 20 µs), at the scenario's own time step.
-    #[arg(long, value_name = "FILE.toml")]
-    pub(crate) whisker_from: Option<String>,
+    /// NAME=FILE.toml gives one whisker of the array its own (repeat for each whisker
+    /// calibrated on its own strikes; it replaces a plain FILE.toml for that whisker). Contact
+    /// is stepped as finely as in the most finely fitted file (`contact_substeps`: calibration
+    /// fits at 20 µs), at the scenario's own time step.
+    #[arg(long, value_name = "[NAME=]FILE.toml")]
+    pub(crate) whisker_from: Vec<String>,
     /// Time-series CSV files in the contract's columns (t, theta01, theta12 required).
     #[arg(long, value_name = "FILE.csv", num_args = 1.., required_unless_present = "list")]
     pub(crate) obs: Vec<PathBuf>,
@@ -614,12 +616,14 @@ pub(crate) fn family_of(args: &Args) -> Result<Family> {
     )?)
 }
 
-/// The scenario named by `--whisker-from`, read, if given.
-pub(crate) fn whisker_source(args: &Args) -> Result<Option<WhiskerSource>> {
-    args.whisker_from
-        .as_ref()
-        .map(|file| WhiskerSource::read(file).with_context(|| format!("--whisker-from {file}")))
-        .transpose()
+/// The scenarios named by `--whisker-from`, read, if any.
+pub(crate) fn whisker_source(args: &Args) -> Result<Option<WhiskerSources>> {
+    if args.whisker_from.is_empty() {
+        return Ok(None);
+    }
+    let sources = WhiskerSources::read(&args.whisker_from)
+        .with_context(|| format!("--whisker-from {}", args.whisker_from.join(" ")))?;
+    Ok(Some(sources))
 }
 
 /// Checks `--trace`, if given: one `--obs` file, a `.csv` name, a folder that exists.

@@ -149,7 +149,8 @@ pub(crate) fn run(args: &Args, spec: &str) -> Result<()> {
     // Refused before training, not after it (its warnings come with the batch's).
     check_recordings(&family, &names, &recordings)?;
     let on = match &whisker {
-        Some(w) => format!(", each the whisker of {}", w.origin()),
+        Some(w) if w.own.is_empty() => format!(", each the whisker of {}", w.describe()),
+        Some(w) => format!(", their whiskers from {}", w.describe()),
         None => String::new(),
     };
     eprintln!(

@@ -1507,9 +1507,14 @@ fn experiment_e3_scores_shapes_and_exports_every_evaluated_run() {
     assert!(String::from_utf8_lossy(&bad.stderr).contains("--bank"));
     // A whisker of one's own for the family: an array is no such whisker, a missing file is
     // named, and the option is for shape families only.
+    // A whisker of the array named that it lacks is refused, listing those it has.
     for (source, needle) in [
         (export.join(first).display().to_string(), "one whisker"),
         (dir.join("none.toml").display().to_string(), "none.toml"),
+        (
+            "c9=e2".to_string(),
+            "`c9=`): its whiskers are c1, c2, c3, c4, c5",
+        ),
     ] {
         let bad = vibrissa()
             .args([
@@ -1526,7 +1531,7 @@ fn experiment_e3_scores_shapes_and_exports_every_evaluated_run() {
         assert_eq!(bad.status.code(), Some(1));
         let err = String::from_utf8_lossy(&bad.stderr);
         assert!(
-            err.contains("--whisker-from") && err.contains(needle),
+            (err.contains("--whisker-from") || source.contains('=')) && err.contains(needle),
             "{err}"
         );
     }

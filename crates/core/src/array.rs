@@ -1,5 +1,5 @@
-//! Arrays of whiskers: several whiskers, each with its own base position, orientation, whisker and
-//! base motion, striking the same objects.
+//! Arrays of whiskers: several whiskers, each with its own base position, orientation, whisker,
+//! sensors and base motion, striking the same objects.
 //!
 //! Objects move as prescribed and whiskers never touch each other, so the whiskers of an array
 //! do not interact: each is run as a single-whisker scenario in its own frame (its base at the
@@ -11,7 +11,7 @@
 use crate::dynamics::{State, Workspace};
 use crate::error::{Error, Result};
 use crate::objects::{Motion, Object};
-use crate::sim::{self, BaseDrive, Output, Scenario};
+use crate::sim::{self, BaseDrive, Output, Scenario, SensorResponse};
 use crate::whisker::WhiskerParams;
 use crate::Model;
 use rayon::prelude::*;
@@ -30,6 +30,9 @@ pub struct Mount {
     pub whisker: Option<WhiskerParams>,
     /// Its base motion (`None`: the scenario's).
     pub base: Option<BaseDrive>,
+    /// Its sensors' gains and offsets (`None`: the scenario's): each whisker of a real array
+    /// is read by sensors of its own.
+    pub sensors: Option<SensorResponse>,
 }
 
 /// Whether `name` can name a whisker of an array.
@@ -91,6 +94,7 @@ impl Mount {
                 .clone()
                 .unwrap_or_else(|| scenario.whisker.clone()),
             base: self.base.clone().unwrap_or_else(|| scenario.base.clone()),
+            sensor_response: self.sensors.unwrap_or(scenario.sensor_response),
             objects: scenario.objects.iter().map(|o| self.carry(o)).collect(),
             seed: stream_seed(scenario.seed, k),
             ..scenario.clone()
@@ -180,6 +184,20 @@ pub fn check(mounts: &[Mount], scenario: &Scenario) -> Result<()> {
         }
         if let Some(b) = &m.base {
             b.check()?;
+        }
+        if let Some(r) = &m.sensors {
+            r.check().map_err(|e| match e {
+                Error::InvalidParameter {
+                    name,
+                    value,
+                    allowed,
+                } => Error::InvalidParameter {
+                    name: field(&name),
+                    value,
+                    allowed,
+                },
+                other => other,
+            })?;
         }
         shapes.push(rest_nodes(m, scenario)?);
     }

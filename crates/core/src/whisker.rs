@@ -74,6 +74,9 @@ pub struct WhiskerParams {
 /// Names of the built-in whisker presets.
 pub const PRESETS: [&str; 3] = ["w30", "rat", "robot"];
 
+/// The preset of a scenario whose whisker names none (the seed paper's 30 mm whisker).
+pub const DEFAULT_PRESET: &str = "w30";
+
 impl WhiskerParams {
     /// The seed experiments' whisker (docs/experiments.md): 30 mm, uniform radius 0.1 mm, E = 3 GPa,
     /// ρ = 1100 kg/m³, straight, clamped, first-mode damping ratio 0.05 (stiffness-proportional).
@@ -267,6 +270,11 @@ mod tests {
             WhiskerParams::preset(name).unwrap().check().unwrap();
         }
         assert!(WhiskerParams::preset("cat").is_err());
+        // A scenario that names no whisker has the default preset's.
+        assert_eq!(
+            WhiskerParams::preset(DEFAULT_PRESET).unwrap(),
+            crate::sim::Scenario::default().whisker
+        );
     }
 
     #[test]

@@ -12,6 +12,7 @@ fn mount(name: &str, position: [f64; 2], angle: f64) -> Mount {
         angle,
         whisker: None,
         base: None,
+        sensors: None,
     }
 }
 
@@ -132,4 +133,50 @@ fn bad_arrays_are_refused_by_field() {
         &[mount("c1", [0.0, 0.0], 0.0), mount("c2", [0.0, 0.003], 0.0)],
     )
     .unwrap();
+}
+
+#[test]
+fn each_whisker_is_read_through_its_own_sensors() {
+    use vibrissa_core::sim::{Response, SensorResponse};
+    let sc = e2(0.02, 0.6);
+    let plain = [mount("c1", [0.0, 0.0], 0.0), mount("c2", [0.0, 0.003], 0.0)];
+    let mut own = plain.clone();
+    own[1].sensors = Some(SensorResponse {
+        theta01: Response {
+            gain: 2.0,
+            offset: 0.0,
+        },
+        m0: Response {
+            gain: 1.0,
+            offset: 1e-6,
+        },
+        ..SensorResponse::default()
+    });
+    let before = array::run(&sc, &plain).unwrap();
+    let after = array::run(&sc, &own).unwrap();
+    // The first whisker, read by the scenario's sensors, records what it did (bit for bit; the
+    // contact columns hold NaN out of contact).
+    let bits =
+        |rows: &[[f64; 10]]| -> Vec<u64> { rows.iter().flatten().map(|x| x.to_bits()).collect() };
+    assert!(bits(&before[0].rows) == bits(&after[0].rows));
+    // The second records its theta01 doubled and its m0 raised by the offset; nothing else moves.
+    let (theta01, theta12, m0) = (1, 2, 3);
+    let mut touched = false;
+    for (b, a) in before[1].rows.iter().zip(&after[1].rows) {
+        assert_eq!(a[theta01], 2.0 * b[theta01]);
+        assert_eq!(a[m0], b[m0] + 1e-6);
+        assert_eq!(a[theta12], b[theta12]);
+        touched |= b[theta01] != 0.0;
+    }
+    assert!(touched, "the box never bent the second whisker");
+    // A gain of 0 is refused, naming the whisker's field.
+    own[0].sensors = Some(SensorResponse {
+        fy: Response {
+            gain: 0.0,
+            offset: 0.0,
+        },
+        ..SensorResponse::default()
+    });
+    let e = array::run(&sc, &own).unwrap_err().to_string();
+    assert!(e.contains("whiskers[0].sensors.fy.gain"), "{e}");
 }

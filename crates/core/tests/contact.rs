@@ -240,6 +240,7 @@ fn an_edge_meeting_the_tip_end_on_pushes_it_aside() {
         angle: -30f64.to_radians(),
         whisker: None,
         base: None,
+        sensors: None,
     };
     let run = |dt: f64| {
         let sc = Scenario {

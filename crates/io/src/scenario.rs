@@ -147,7 +147,7 @@ mod family;
 mod overrides;
 mod schema;
 
-pub use adopt::{WhiskerSource, WHISKER_KEYS};
+pub use adopt::{WhiskerSource, WhiskerSources, WHISKER_KEYS};
 pub use calibration::{CalibratedParameter, Calibration, ChannelValues, Correlation};
 pub use classes::read_classes;
 pub use document::Document;
@@ -349,13 +349,13 @@ pub fn open_str(text: &str, origin: &str, sets: &[String]) -> Result<(Document, 
     checked_family(doc, loaded)
 }
 
-/// As [`open`] or [`open_str`] (`text` given), with the whisker of `whisker`, if any, given to
-/// every whisker of the scenario before `sets` are applied ([`Document::adopt`]).
+/// As [`open`] or [`open_str`] (`text` given), with the whiskers of `whisker`, if any, given to
+/// the scenario's whiskers before `sets` are applied ([`Document::adopt_all`]).
 pub fn open_adopting(
     spec: &str,
     text: Option<&str>,
     sets: &[String],
-    whisker: Option<&WhiskerSource>,
+    whisker: Option<&WhiskerSources>,
 ) -> Result<(Document, Loaded)> {
     let mut doc = match text {
         Some(text) => {
@@ -365,7 +365,7 @@ pub fn open_adopting(
         None => Document::load(spec, &[])?,
     };
     if let Some(whisker) = whisker {
-        doc.adopt(whisker)?;
+        doc.adopt_all(whisker)?;
     }
     for set in sets {
         doc.set(set)?;

@@ -85,7 +85,7 @@ pub(crate) fn estimate(
     pool: Option<bool>,
     pool_rounds: Option<usize>,
     pool_search: Option<usize>,
-    whisker_from: Option<&str>,
+    whisker_from: Option<Vec<String>>,
     pool_gains: bool,
 ) -> PyResult<(Vec<String>, Vec<String>)> {
     let pf = method == "pf";
@@ -128,7 +128,7 @@ pub(crate) fn estimate(
             inputs.len()
         )));
     }
-    let family = family_adopting(scenario, scenario_json, &sets, whisker_from)?
+    let family = family_adopting(scenario, scenario_json, &sets, whisker_from.as_deref())?
         .for_whisker(whisker, pf)
         .map_err(value_error)?;
     let probe = vibrissa_infer::methods::by_name(method).map_err(value_error)?;
@@ -416,14 +416,14 @@ pub(crate) fn shape_whiskers(shapes: &str, whiskers: Option<Vec<String>>) -> PyR
     Ok(shape_family(shapes, whiskers, None)?.whiskers())
 }
 
-/// The shape family `shapes`, reading `whiskers` (all when `None`), every whisker given the
-/// whisker of the scenario file `whisker_from` when one is named.
+/// The shape family `shapes`, reading `whiskers` (all when `None`), its whiskers given those
+/// of the scenario files `whisker_from` (`FILE` or `NAME=FILE` each) when any are named.
 pub(crate) fn shape_family(
     shapes: &str,
     whiskers: Option<Vec<String>>,
-    whisker_from: Option<&str>,
+    whisker_from: Option<Vec<String>>,
 ) -> PyResult<vibrissa_infer::shapes::ShapeFamily> {
-    let source = whisker_source(whisker_from)?;
+    let source = whisker_source(whisker_from.as_deref())?;
     let family = vibrissa_infer::shapes::ShapeFamily::open_with(shapes, &[], source.as_ref())
         .map_err(value_error)?;
     match whiskers {
@@ -455,7 +455,7 @@ pub(crate) fn estimate_shapes(
     training: usize,
     method: &str,
     bank: usize,
-    whisker_from: Option<&str>,
+    whisker_from: Option<Vec<String>>,
     particles: Option<usize>,
 ) -> PyResult<(Vec<String>, Vec<String>, Vec<Vec<Vec<f64>>>, Vec<String>)> {
     use vibrissa_infer::shapes::{estimate_batch, has_filter, BatchOptions, FILTER_METHODS};

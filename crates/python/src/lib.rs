@@ -43,12 +43,13 @@ fn family(spec: Option<&str>, json: Option<&str>, sets: &[String]) -> PyResult<F
     family_adopting(spec, json, sets, None)
 }
 
-/// [`family`], given the whisker of the scenario file `whisker_from` when one is named.
+/// [`family`], given the whiskers of the scenario files `whisker_from` (`FILE` or
+/// `NAME=FILE` each, as `--whisker-from` reads them) when any are named.
 fn family_adopting(
     spec: Option<&str>,
     json: Option<&str>,
     sets: &[String],
-    whisker_from: Option<&str>,
+    whisker_from: Option<&[String]>,
 ) -> PyResult<Family> {
     let source = whisker_source(whisker_from)?;
     let text = json.map(toml_of_json).transpose()?;
@@ -62,16 +63,17 @@ fn family_adopting(
     .map_err(value_error)
 }
 
-/// The whisker of the scenario file `whisker_from`, read, if one is named.
+/// The whiskers of the scenario files `whisker_from` (`FILE` or `NAME=FILE` each), read, if
+/// any are named.
 fn whisker_source(
-    whisker_from: Option<&str>,
-) -> PyResult<Option<vibrissa_io::scenario::WhiskerSource>> {
-    whisker_from
-        .map(|file| {
-            vibrissa_io::scenario::WhiskerSource::read(file)
-                .map_err(|e| value_error(format!("whisker_from: {e}")))
-        })
-        .transpose()
+    whisker_from: Option<&[String]>,
+) -> PyResult<Option<vibrissa_io::scenario::WhiskerSources>> {
+    match whisker_from {
+        None | Some([]) => Ok(None),
+        Some(specs) => vibrissa_io::scenario::WhiskerSources::read(specs)
+            .map(Some)
+            .map_err(|e| value_error(format!("whisker_from: {e}"))),
+    }
 }
 
 /// The TOML text of a scenario given as the JSON text of a dict.

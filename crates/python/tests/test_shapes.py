@@ -151,3 +151,23 @@ def test_a_whisker_of_your_own_is_given_to_every_whisker_of_the_family(family, t
     assert told["class"] != nominal["class"]
     with pytest.raises(ValueError, match="whisker_from"):
         vibrissa.estimate_shapes(run, path, training=30, whisker_from=folder / "peg.toml")
+    # One whisker of the array given its own (a dict by name): as the family written with that
+    # whisker for `b` alone; a name the array lacks is refused, listing those it has.
+    own_b = tmp_path / "own_b"
+    own_b.mkdir()
+    for name, shape in [("peg", 'shape = "circle"\nradius = 0.004'),
+                        ("square", 'shape = "square"\nside = 0.008')]:
+        text = COMMON.format(shape=shape).replace(
+            "angle = 0.17\n",
+            'angle = 0.17\nwhisker = { youngs_modulus = 4.5e9, follicle = '
+            '{ kind = "spring", stiffness = 3e-4, damping = 1e-8 } }\n')
+        (own_b / f"{name}.toml").write_text(text)
+    (own_b / "shapes.toml").write_text('[classes]\npeg = "peg.toml"\nsquare = "square.toml"\n')
+    run_b = vibrissa.simulate(own_b / "square.toml")
+    told_b = vibrissa.estimate_shapes(run_b, path, training=30, noise="none",
+                                      whisker_from={"b": whisker})
+    written_b = vibrissa.estimate_shapes(run_b, own_b / "shapes.toml", training=30, noise="none")
+    assert told_b["class"] == written_b["class"]
+    assert told_b["x"] == written_b["x"]
+    with pytest.raises(ValueError, match="no whisker `z`.*a, b"):
+        vibrissa.estimate_shapes(run, path, training=30, whisker_from={"z": whisker})

@@ -52,7 +52,7 @@ impl Family {
     /// whiskers, the array's whisker `whisker` (required), simulated at its place; for a scenario
     /// of one whisker, the family itself (`whisker` names the recording's columns only).
     /// `filter`: the particle filter models one whisker at the origin, so a whisker mounted
-    /// elsewhere (moved, turned, or with a whisker or base motion of its own) is refused.
+    /// elsewhere (moved, turned, or with a whisker, sensors or base motion of its own) is refused.
     pub fn for_whisker(&self, whisker: Option<&str>, filter: bool) -> Result<Family> {
         if self.mounts.is_empty() {
             return Ok(self.clone());
@@ -68,12 +68,16 @@ impl Family {
         let f = self.with_whiskers(&[name])?;
         if filter {
             let (_, m) = &f.mounts[0];
-            if m.position != [0.0, 0.0] || m.angle != 0.0 || m.whisker.is_some() || m.base.is_some()
+            if m.position != [0.0, 0.0]
+                || m.angle != 0.0
+                || m.whisker.is_some()
+                || m.base.is_some()
+                || m.sensors.is_some()
             {
                 return Err(Error::Setting(format!(
                     "{}: the particle filter models one whisker at the origin pointing along +x \
-                     with the scenario's whisker and base motion; `{name}` is mounted otherwise \
-                     (use another method, or a scenario of that whisker alone)",
+                     with the scenario's whisker, sensors and base motion; `{name}` is mounted \
+                     otherwise (use another method, or a scenario of that whisker alone)",
                     self.name
                 )));
             }

@@ -111,7 +111,7 @@ impl Family {
         spec: &str,
         text: Option<&str>,
         sets: &[String],
-        whisker: Option<&scenario::WhiskerSource>,
+        whisker: Option<&scenario::WhiskerSources>,
     ) -> Result<Family> {
         let (doc, loaded) = scenario::open_adopting(spec, text, sets, whisker)?;
         let mut family = Family::from_loaded(spec, doc, loaded)?;

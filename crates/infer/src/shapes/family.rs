@@ -10,7 +10,7 @@ use std::path::Path;
 use vibrissa_core::dynamics::LANES;
 use vibrissa_core::rng::Rng;
 use vibrissa_core::sim::{self, Scenario};
-use vibrissa_io::scenario::WhiskerSource;
+use vibrissa_io::scenario::WhiskerSources;
 
 /// One object class: its name and the scenario family of its runs (its pose unknowns).
 #[derive(Debug, Clone)]
@@ -118,7 +118,7 @@ impl ShapeFamily {
     pub fn builtin_with(
         name: &str,
         sets: &[String],
-        whisker: Option<&WhiskerSource>,
+        whisker: Option<&WhiskerSources>,
     ) -> Option<Result<ShapeFamily>> {
         let classes: &[(&str, &str)] = match name {
             "e3" => &e3::CLASSES,
@@ -149,7 +149,7 @@ impl ShapeFamily {
     pub fn open_with(
         spec: &str,
         sets: &[String],
-        whisker: Option<&WhiskerSource>,
+        whisker: Option<&WhiskerSources>,
     ) -> Result<ShapeFamily> {
         if let Some(f) = ShapeFamily::builtin_with(spec, sets, whisker) {
             return f;

@@ -68,6 +68,9 @@ struct MountTable {
     whisker: Option<WhiskerTable>,
     /// This whisker's base motion instead of the scenario's `[base]`.
     base: Option<BaseTable>,
+    /// This whisker's sensors instead of the scenario's `[sensors]` (a channel not named has
+    /// gain 1 and offset 0, as at the top level).
+    sensors: Option<SensorsTable>,
 }
 
 /// `[whisker]`: a preset, then overrides of its fields.
@@ -386,6 +389,7 @@ impl FileTable {
                         .map(|w| w.into_params(ctx, scenario.whisker.clone()))
                         .transpose()?,
                     base: m.base.map(|b| b.into_drive(ctx)).transpose()?,
+                    sensors: m.sensors.map(SensorsTable::into_response),
                 })
             })
             .collect::<Result<Vec<_>>>()?;

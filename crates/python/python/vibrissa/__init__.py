@@ -161,6 +161,25 @@ def _scenario_args(scenario):
     return _scenario(scenario), None
 
 
+def _whisker_specs(whisker_from):
+    """``whisker_from`` as ``--whisker-from`` reads it: a list of ``FILE`` and ``NAME=FILE``."""
+    if whisker_from is None:
+        return None
+    if isinstance(whisker_from, dict):
+        specs = []
+        for name, file in whisker_from.items():
+            if name is None:
+                specs.insert(0, os.fspath(file))
+            elif not isinstance(name, str):
+                raise ValueError(
+                    f"whisker_from: the keys are whisker names (or None), not {name!r}"
+                )
+            else:
+                specs.append(f"{name}={os.fspath(file)}")
+        return specs
+    return [os.fspath(whisker_from)]
+
+
 def _noise_statement(noise):
     """``noise`` as the command line's ``--noise`` text."""
     if noise is None:
@@ -329,11 +348,13 @@ def estimate(
         (``--no-pool-gains``).
     verbose : bool
         Print what is trained and every warning (they are also attached as ``"warnings"``).
-    whisker_from : str or os.PathLike, optional
+    whisker_from : str, os.PathLike or dict, optional
         A scenario file of one whisker, typically the one :func:`calibrate` fitted to labelled
         strikes: the scenario is given its whisker, chain, sensors and calibration record (as
         ``--whisker-from``), so that a whisker calibrated on one experiment serves another;
-        contact is stepped as finely as in that file (``contact_substeps``).
+        contact is stepped as finely as in that file (``contact_substeps``). For a scenario
+        of an array, a dict gives named whiskers files of their own, as for
+        :func:`estimate_shapes`.
     overrides, **keys
         Scenario overrides, as for :func:`simulate` (applied after ``whisker_from``).
 
@@ -383,7 +404,7 @@ def estimate(
         None if pool is None else bool(pool),
         pool_rounds,
         pool_search,
-        None if whisker_from is None else os.fspath(whisker_from),
+        _whisker_specs(whisker_from),
         bool(pool_gains),
     )
     if verbose:
@@ -449,11 +470,14 @@ def estimate_shapes(
         class's pose, online) or ``"shape-mix"`` (the bank and the filter pooled).
     bank : int
         With ``"shape-bank"``: noise-free runs per class in its bank (at least ``training``).
-    whisker_from : str or os.PathLike, optional
+    whisker_from : str, os.PathLike or dict, optional
         A scenario file of one whisker, typically the one :func:`calibrate` fitted to labelled
         strikes of your whisker: every whisker of the family is given its whisker, chain and
         sensors (and its calibration record), so that the estimators train on your whisker,
-        with contact stepped as finely as in that file (``contact_substeps``).
+        with contact stepped as finely as in that file (``contact_substeps``). A dict gives
+        whiskers of the array their own files, ``{"c2": "c2.toml", "c3": "c3.toml"}`` (each
+        calibrated on that whisker's strikes; all fitted on one chain), and its key ``None``
+        the file for every whisker it does not name (``--whisker-from NAME=FILE``).
     particles : int, optional
         With ``"shape-pf"`` or ``"shape-mix"``: particles per class of the filter (default
         1000; at least 2); refused with the other methods.
@@ -503,7 +527,7 @@ def estimate_shapes(
         training,
         method,
         bank,
-        None if whisker_from is None else os.fspath(whisker_from),
+        _whisker_specs(whisker_from),
         particles,
     )
     if verbose:
