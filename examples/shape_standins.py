@@ -177,8 +177,9 @@ def main():
     lo = np.full(len(head), np.inf)
     hi = np.full(len(head), -np.inf)
     for _, data in clean.values():
-        lo = np.minimum(lo, np.nanmin(data, axis=0))
-        hi = np.maximum(hi, np.nanmax(data, axis=0))
+        # The observed channels only: an untouched whisker's contact columns are all NaN.
+        lo[observed] = np.minimum(lo[observed], np.nanmin(data[:, observed], axis=0))
+        hi[observed] = np.maximum(hi[observed], np.nanmax(data[:, observed], axis=0))
     rng = np.random.default_rng(args.seed)
     files = []
     for row in truth:

@@ -138,11 +138,6 @@ impl WhiskerSources {
         Ok(out)
     }
 
-    /// Whether no whisker is given.
-    pub fn is_empty(&self) -> bool {
-        self.every.is_none() && self.own.is_empty()
-    }
-
     /// Whether the whisker given to every whisker carries calibration's record.
     pub fn is_calibrated(&self) -> bool {
         self.every
