@@ -186,18 +186,7 @@ pub fn check(mounts: &[Mount], scenario: &Scenario) -> Result<()> {
             b.check()?;
         }
         if let Some(r) = &m.sensors {
-            r.check().map_err(|e| match e {
-                Error::InvalidParameter {
-                    name,
-                    value,
-                    allowed,
-                } => Error::InvalidParameter {
-                    name: field(&name),
-                    value,
-                    allowed,
-                },
-                other => other,
-            })?;
+            r.check_at(&field("sensors"))?;
         }
         shapes.push(rest_nodes(m, scenario)?);
     }

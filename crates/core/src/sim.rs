@@ -144,15 +144,21 @@ impl SensorResponse {
     /// Checks that every gain is finite and not 0 and every offset finite, naming the first bad
     /// one (`sensors.m0.gain`).
     pub fn check(&self) -> Result<()> {
+        self.check_at("sensors")
+    }
+
+    /// [`SensorResponse::check`] of the table at `table` (`whiskers[1].sensors`), which the
+    /// message names.
+    pub fn check_at(&self, table: &str) -> Result<()> {
         for (name, r) in crate::sensors::CHANNELS.iter().zip(self.to_array()) {
             if !(r.gain.is_finite() && r.gain != 0.0) {
                 return Err(Error::invalid(
-                    format!("sensors.{name}.gain"),
+                    format!("{table}.{name}.gain"),
                     r.gain,
                     "a finite number other than 0",
                 ));
             }
-            check_finite(&format!("sensors.{name}.offset"), r.offset)?;
+            check_finite(&format!("{table}.{name}.offset"), r.offset)?;
         }
         Ok(())
     }

@@ -62,6 +62,14 @@ velocity = [0.0, 0.5]
 "objects.0.position.0" = { range = [0.015, 0.025], name = "x" }
 "#;
 
+/// [`ARRAY`] with `line` added to its whisker `b`'s entry.
+fn with_b(line: &str) -> String {
+    ARRAY.replace(
+        "position = [0.0, 0.002]",
+        &format!("position = [0.0, 0.002]\n{line}"),
+    )
+}
+
 #[test]
 fn every_whisker_of_an_array_gets_the_whisker_chain_and_sensors_and_nothing_else() {
     let dir = temp_dir("whole");
@@ -126,10 +134,7 @@ fn an_array_is_no_source_and_whiskers_of_their_own_cannot_be_replaced() {
     let source: WhiskerSources = WhiskerSource::read(fitted.to_str().unwrap())
         .unwrap()
         .into();
-    let own = ARRAY.replace(
-        "position = [0.0, 0.002]",
-        "position = [0.0, 0.002]\nwhisker = { length = 0.025 }",
-    );
+    let own = with_b("whisker = { length = 0.025 }");
     let err = open_adopting("own.toml", Some(&own), &[], Some(&source))
         .unwrap_err()
         .to_string();
@@ -138,10 +143,7 @@ fn an_array_is_no_source_and_whiskers_of_their_own_cannot_be_replaced() {
         "{err}"
     );
     // Nor its own sensors, which would read it otherwise than the file's.
-    let own = ARRAY.replace(
-        "position = [0.0, 0.002]",
-        "position = [0.0, 0.002]\nsensors = { m0 = { gain = 1.1 } }",
-    );
+    let own = with_b("sensors = { m0 = { gain = 1.1 } }");
     let err = open_adopting("own.toml", Some(&own), &[], Some(&source))
         .unwrap_err()
         .to_string();
@@ -248,10 +250,7 @@ fn a_named_whisker_of_the_array_gets_its_own_whisker_and_sensors() {
     assert_eq!(loaded.scenario.sensor_response.m0.gain, 2.0);
     assert_eq!(loaded.whiskers[1].sensors.unwrap().m0.gain, 1.0);
     // A whisker of its own in the array file is replaced when that whisker is named.
-    let own = ARRAY.replace(
-        "position = [0.0, 0.002]",
-        "position = [0.0, 0.002]\nwhisker = { length = 0.025 }",
-    );
+    let own = with_b("whisker = { length = 0.025 }");
     let (_, loaded) = open_adopting("own.toml", Some(&own), &[], Some(&sources)).unwrap();
     assert_eq!(loaded.whiskers[1].whisker.as_ref().unwrap().length, 0.03);
 }
@@ -289,10 +288,7 @@ fn named_whiskers_are_refused_by_name_chain_and_repetition() {
     let e = err(&[format!("b={}", dir.join("none.toml").display())], ARRAY);
     assert!(e.contains("none.toml"), "{e}");
     // The array's own per-whisker sensors are checked like the scenario's.
-    let bad = ARRAY.replace(
-        "position = [0.0, 0.002]",
-        "position = [0.0, 0.002]\nsensors = { fx = { gain = 0.0 } }",
-    );
+    let bad = with_b("sensors = { fx = { gain = 0.0 } }");
     let e = err(&[], &bad);
     assert!(e.contains("whiskers[1].sensors.fx.gain"), "{e}");
 }

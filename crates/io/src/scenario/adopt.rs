@@ -180,11 +180,26 @@ impl Document {
     /// not carried (it describes that whisker alone).
     pub fn adopt_all(&mut self, sources: &WhiskerSources) -> Result<()> {
         let named: Vec<&str> = sources.own.iter().map(|(n, _)| n.as_str()).collect();
-        if let Some(every) = &sources.every {
-            self.adopt_except(every, &named)?;
-        }
+        // One chain for the array: the first file's, which every other must share.
+        let first = match (&sources.every, sources.own.first()) {
+            (Some(every), _) => {
+                self.adopt_except(every, &named)?;
+                every
+            }
+            (None, Some((_, first))) => {
+                for key in ["segments", "discretisation"] {
+                    match first.entry(key) {
+                        Some(v) => self.table_mut().insert(key.to_string(), v.clone()),
+                        None => self.table_mut().remove(key),
+                    };
+                }
+                first
+            }
+            (None, None) => return Ok(()),
+        };
         for (name, source) in &sources.own {
-            self.adopt_for(name, source, sources)?;
+            source.same_chain_as(first)?;
+            self.adopt_for(name, source)?;
         }
         Ok(())
     }
@@ -242,12 +257,7 @@ impl Document {
     }
 
     /// Gives the array's whisker `name` the whisker and sensors of `source`.
-    fn adopt_for(
-        &mut self,
-        name: &str,
-        source: &WhiskerSource,
-        sources: &WhiskerSources,
-    ) -> Result<()> {
+    fn adopt_for(&mut self, name: &str, source: &WhiskerSource) -> Result<()> {
         let names: Vec<String> = match self.table().get("whiskers") {
             Some(Value::Array(mounts)) => mounts
                 .iter()
@@ -280,38 +290,6 @@ impl Document {
                 message,
             });
         };
-        // One chain for the array: the first file's, which every other must share.
-        let first = sources
-            .every
-            .as_ref()
-            .or_else(|| sources.own.first().map(|(_, s)| s))
-            .unwrap_or(source);
-        for key in ["segments", "discretisation"] {
-            let (mine, theirs) = (source.entry(key), first.entry(key));
-            if mine != theirs {
-                let show =
-                    |v: Option<&Value>| v.map_or("the default".to_string(), Value::to_string);
-                return Err(Error::Field {
-                    origin: source.origin.clone(),
-                    field: key.to_string(),
-                    message: format!(
-                        "is {} where {} has {}: the whiskers of an array are simulated on one \
-                         chain, so calibrate every whisker on the same one",
-                        show(mine),
-                        first.origin,
-                        show(theirs)
-                    ),
-                });
-            }
-        }
-        if std::ptr::eq(first, source) {
-            for key in ["segments", "discretisation"] {
-                match source.entry(key) {
-                    Some(v) => self.table_mut().insert(key.to_string(), v.clone()),
-                    None => self.table_mut().remove(key),
-                };
-            }
-        }
         if let Some(step) = source.contact_step {
             let m = self
                 .loaded()?
@@ -352,5 +330,29 @@ impl WhiskerSource {
     /// The file's value of one of [`WHISKER_KEYS`], if it has it.
     fn entry(&self, key: &str) -> Option<&Value> {
         self.entries.iter().find(|(k, _)| k == key).map(|(_, v)| v)
+    }
+
+    /// Refuses a file fitted on another chain than `first`'s: the whiskers of an array are
+    /// simulated on one chain.
+    fn same_chain_as(&self, first: &WhiskerSource) -> Result<()> {
+        for key in ["segments", "discretisation"] {
+            let (mine, theirs) = (self.entry(key), first.entry(key));
+            if mine != theirs {
+                let show =
+                    |v: Option<&Value>| v.map_or("the default".to_string(), Value::to_string);
+                return Err(Error::Field {
+                    origin: self.origin.clone(),
+                    field: key.to_string(),
+                    message: format!(
+                        "is {} where {} has {}: the whiskers of an array are simulated on one \
+                         chain, so calibrate every whisker on the same one",
+                        show(mine),
+                        first.origin,
+                        show(theirs)
+                    ),
+                });
+            }
+        }
+        Ok(())
     }
 }
